@@ -1,0 +1,27 @@
+# Every dependency is a Debian 12 package (scripts/install-deps.sh installs them). Nothing is
+# vendored and nothing is downloaded during the build.
+find_package(Threads REQUIRED)   # before glslang: its config uses Threads::Threads without finding it
+find_package(Eigen3 3.4 CONFIG REQUIRED)
+find_package(TBB CONFIG REQUIRED)
+find_package(nlohmann_json 3 CONFIG REQUIRED)
+find_package(CLI11 CONFIG REQUIRED)
+find_package(Vulkan REQUIRED COMPONENTS glslangValidator)
+find_package(glslang CONFIG REQUIRED)
+find_package(SPIRV-Tools-opt CONFIG REQUIRED)
+find_package(glfw3 3.3 CONFIG REQUIRED)
+find_package(glm CONFIG REQUIRED)
+find_package(TinyGLTF CONFIG REQUIRED)
+find_package(embree 3 CONFIG REQUIRED)
+find_package(OpenImageIO CONFIG REQUIRED)
+# Debian's OpenImageIO target lists /usr/include/opencv4, which does not exist; drop it or generation fails.
+get_target_property(_softgi_oiio_inc OpenImageIO::OpenImageIO INTERFACE_INCLUDE_DIRECTORIES)
+if(_softgi_oiio_inc)
+  list(REMOVE_ITEM _softgi_oiio_inc /usr/include/opencv4)
+  set_target_properties(OpenImageIO::OpenImageIO PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_softgi_oiio_inc}")
+endif()
+if(SOFTGI_BUILD_TESTS)
+  find_package(GTest CONFIG REQUIRED)
+endif()
+if(SOFTGI_BUILD_BENCH)
+  find_package(benchmark CONFIG REQUIRED)
+endif()
