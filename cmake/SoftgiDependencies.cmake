@@ -11,6 +11,7 @@ find_package(SPIRV-Tools-opt CONFIG REQUIRED)
 find_package(glfw3 3.3 CONFIG REQUIRED)
 find_package(glm CONFIG REQUIRED)
 find_package(TinyGLTF CONFIG REQUIRED)
+find_package(draco CONFIG REQUIRED)   # tinygltf is built without Draco: KHR_draco_mesh_compression is decoded by softgi
 find_package(embree 3 CONFIG REQUIRED)
 find_package(OpenImageIO CONFIG REQUIRED)
 # Debian's OpenImageIO target lists /usr/include/opencv4, which does not exist; drop it or generation fails.

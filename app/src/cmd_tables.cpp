@@ -137,6 +137,7 @@ void run_tables(const TablesArgs& args) {
 }
 }  // namespace
 
+namespace {
 void register_tables(CLI::App& app) {
   auto args = std::make_shared<TablesArgs>();
   CLI::App* sub = app.add_subcommand("tables", "Print the precomputed SH tables and the triple-product tensor size");
@@ -149,5 +150,7 @@ void register_tables(CLI::App& app) {
   sub->add_flag("--json", args->json, "print JSON instead of the text summary");
   sub->callback([args] { run_tables(*args); });
 }
+const CommandRegistrar registrar(register_tables);
+}  // namespace
 
 }  // namespace softgi::app

@@ -6,10 +6,17 @@
 
 #include "commands.hpp"
 
+namespace softgi::app {
+std::vector<RegisterFn>& command_registry() {
+  static std::vector<RegisterFn> registry;
+  return registry;
+}
+}  // namespace softgi::app
+
 int main(int argc, char** argv) {
   CLI::App app{"softgi: real-time soft global illumination techniques, compared"};
   app.require_subcommand(1);
-  softgi::app::register_tables(app);
+  for (auto fn : softgi::app::command_registry()) fn(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
