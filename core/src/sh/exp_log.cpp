@@ -36,8 +36,11 @@ ExpMethod parse_exp_method(const std::string& name) {
 }
 
 int paper_squarings(double norm) {
-  if (!(norm > 0.0)) return 0;
-  return std::max(0, static_cast<int>(std::floor(std::log2(norm) + 3.0)));
+  if (!(norm > 0.0) || !std::isfinite(norm)) return 0;
+  // floor(log2 x) + 3 without a log: x = m 2^e with m in [0.5, 1) has floor(log2 x) = e - 1.
+  int e = 0;
+  std::frexp(norm, &e);
+  return std::max(0, e + 2);
 }
 
 namespace {
@@ -122,6 +125,9 @@ void exp_ps(int order, const T* f, int degree, T* out, ExpStats* stats) {
     const T inv = T(1) / T(k);
     for (int i = 0; i < n2; ++i) {
       term[i] = next[i] * inv;
+      // Terms that underflow into the subnormal range contribute nothing to the sum but make every
+      // later product 3x slower on x86 (measured on PS-21 in float): flush them to zero.
+      if (std::abs(term[i]) < std::numeric_limits<T>::min()) term[i] = 0;
       out[i] += term[i];
     }
     if (stats) ++stats->products;
@@ -190,14 +196,14 @@ void exp_ps_star(int order, const T* f, int degree, T* out, ExpStats* stats) {
 
 namespace {
 template <class T>
-void ol_core(const ShTables& tables, const T* f, int squarings, T* out, ExpStats* stats, const char* what) {
+void ol_core(const ShTables& tables, const T* f, double norm, int squarings, T* out, ExpStats* stats, const char* what) {
   const int order = tables.order();
   const int n2 = num_coeffs(order);
   const T scale = static_cast<T>(std::ldexp(1.0, -squarings));
   Buf<T> x{};
   for (int i = 1; i < n2; ++i) x[i] = f[i] * scale;
   double a = 1.0, b = 1.0;
-  tables.ol_lookup(norm_without_dc(order, x.data()), a, b);
+  tables.ol_lookup(std::ldexp(norm, -squarings), a, b);
   // eq. (23): exp*(f) ~ exp(f0/sqrt(4pi)) (a 1 + b f^)
   const T dc = dc_factor(f, squarings, what);
   Buf<T> g{};
@@ -212,7 +218,7 @@ void ol_core(const ShTables& tables, const T* f, int squarings, T* out, ExpStats
 template <class T>
 void exp_ol(const ShTables& tables, const T* f, T* out, ExpStats* stats) {
   check_input(tables.order(), f, "exp_ol");
-  ol_core(tables, f, 0, out, stats, "exp_ol");
+  ol_core(tables, f, norm_without_dc(tables.order(), f), 0, out, stats, "exp_ol");
 }
 
 template <class T>
@@ -224,7 +230,7 @@ void exp_hyb(const ShTables& tables, const T* f, T* out, double max_norm, ExpSta
   int s = 0;
   if (max_norm == 0.0) s = paper_squarings(norm);
   else if (norm > max_norm) s = static_cast<int>(std::ceil(std::log2(norm / max_norm)));
-  ol_core(tables, f, s, out, stats, "exp_hyb");
+  ol_core(tables, f, norm, s, out, stats, "exp_hyb");
 }
 
 void exp_projected(int order, const double* f, double* out) {

@@ -1,5 +1,6 @@
 #include "softgi/sh/product.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <memory>
@@ -61,7 +62,28 @@ TripleProduct::TripleProduct(int order) : order_(order) {
       square_terms_.push_back(sq);
     }
   }
-  // j != k: f_j g_k (1), + f_k g_j (2), out += v s (2); j == k: 1 + 2. Squares: 1 + 2 per term.
+  // Terms sorted by output index, diagonal (j == k) terms after the off-diagonal ones of the same
+  // output, so each output is one register accumulation with no branch (see product()).
+  std::stable_sort(product_terms_.begin(), product_terms_.end(), [](const Term& a, const Term& b) {
+    if (a.i != b.i) return a.i < b.i;
+    return (a.j == a.k) < (b.j == b.k);
+  });
+  std::stable_sort(square_terms_.begin(), square_terms_.end(), [](const Term& a, const Term& b) { return a.i < b.i; });
+  offdiag_end_.assign(n2, 0);
+  term_begin_.assign(n2 + 1, 0);
+  sq_begin_.assign(n2 + 1, 0);
+  for (std::size_t t = 0; t < product_terms_.size(); ++t) {
+    const Term& term = product_terms_[t];
+    term_begin_[term.i + 1] = static_cast<std::uint32_t>(t + 1);
+    if (term.j != term.k) offdiag_end_[term.i] = static_cast<std::uint32_t>(t + 1);
+  }
+  for (int i = 0; i < n2; ++i) {
+    term_begin_[i + 1] = std::max(term_begin_[i + 1], term_begin_[i]);
+    offdiag_end_[i] = std::max(offdiag_end_[i], term_begin_[i]);
+  }
+  for (std::size_t t = 0; t < square_terms_.size(); ++t) sq_begin_[square_terms_[t].i + 1] = static_cast<std::uint32_t>(t + 1);
+  for (int i = 0; i < n2; ++i) sq_begin_[i + 1] = std::max(sq_begin_[i + 1], sq_begin_[i]);
+  // j != k: f_j g_k (1), + f_k g_j (2), acc += v s (2); j == k: 1 + 2. Squares: 1 + 2 per term.
   for (const Term& t : product_terms_) product_flops_ += t.j != t.k ? 5 : 3;
   square_flops_ = 3 * square_terms_.size();
   for (const Term& t : product_terms_) {
@@ -105,26 +127,26 @@ const float* TripleProduct::square_values<float>() const { return square_values_
 template <class T>
 void TripleProduct::product(const T* f, const T* g, T* out) const {
   const int n2 = num_coeffs(order_);
-  for (int i = 0; i < n2; ++i) out[i] = 0;
   const T* v = product_values<T>();
-  const std::size_t nt = product_terms_.size();
-  for (std::size_t t = 0; t < nt; ++t) {
-    const Term& term = product_terms_[t];
-    T s = f[term.j] * g[term.k];
-    if (term.j != term.k) s += f[term.k] * g[term.j];
-    out[term.i] += v[t] * s;
+  const Term* terms = product_terms_.data();
+  for (int i = 0; i < n2; ++i) {
+    T acc = 0;
+    const std::uint32_t mid = offdiag_end_[i], end = term_begin_[i + 1];
+    for (std::uint32_t t = term_begin_[i]; t < mid; ++t) acc += v[t] * (f[terms[t].j] * g[terms[t].k] + f[terms[t].k] * g[terms[t].j]);
+    for (std::uint32_t t = mid; t < end; ++t) acc += v[t] * (f[terms[t].j] * g[terms[t].j]);
+    out[i] = acc;
   }
 }
 
 template <class T>
 void TripleProduct::square(const T* f, T* out) const {
   const int n2 = num_coeffs(order_);
-  for (int i = 0; i < n2; ++i) out[i] = 0;
   const T* v = square_values<T>();
-  const std::size_t nt = square_terms_.size();
-  for (std::size_t t = 0; t < nt; ++t) {
-    const Term& term = square_terms_[t];
-    out[term.i] += v[t] * f[term.j] * f[term.k];
+  const Term* terms = square_terms_.data();
+  for (int i = 0; i < n2; ++i) {
+    T acc = 0;
+    for (std::uint32_t t = sq_begin_[i]; t < sq_begin_[i + 1]; ++t) acc += v[t] * (f[terms[t].j] * f[terms[t].k]);
+    out[i] = acc;
   }
 }
 

@@ -146,6 +146,10 @@ ShTables::ShTables(const TableOptions& opt) : opt_(opt) {
     return std::vector<double>(d.begin(), d.end());
   });
   sl_w_ = build_table(opt, n, [&](double th) { return spherical_light_weight_zh(n, std::sin(th)); });
+  if (opt.exact_indirect_operator) {
+    const int n4 = num_coeffs(n) * num_coeffs(n);
+    m_exact_ = build_table(opt, n4, [&](double th) { return indirect_M(n, std::sin(th)); });
+  }
 
   for (int k = 0; k < cap_vis_.rows(); ++k) {
     double x = cap_vis_.x[k];
@@ -195,7 +199,7 @@ void ShTables::ol_lookup(double norm, double& a, double& b) const {
 
 std::size_t ShTables::bytes() const {
   std::size_t b = 0;
-  for (const Table1D* t : {&cap_vis_, &cap_log_, &d_avg_, &d_poly_, &sl_w_}) b += (t->data.size() + t->x.size()) * sizeof(double);
+  for (const Table1D* t : {&cap_vis_, &cap_log_, &d_avg_, &d_poly_, &sl_w_, &m_exact_}) b += (t->data.size() + t->x.size()) * sizeof(double);
   b += (ol_norm_.size() + ol_a_.size() + ol_b_.size() + ol_norm_mono_.size() * 3) * sizeof(double);
   return b;
 }

@@ -70,6 +70,9 @@ class TripleProduct {
   std::vector<float> product_values_f_;
   // For squares: every (i, j<=k), value multiplied by 2 when j != k.
   std::vector<Term> square_terms_;
+  // Per output index i: product terms [term_begin_[i], offdiag_end_[i]) have j != k, the rest of
+  // [.., term_begin_[i+1]) have j == k; square terms [sq_begin_[i], sq_begin_[i+1]).
+  std::vector<std::uint32_t> term_begin_, offdiag_end_, sq_begin_;
   std::vector<float> square_values_f_;
   template <class T>
   const T* product_values() const;

@@ -65,6 +65,9 @@ struct TableOptions {
   TableParam param = TableParam::Theta;
   double log_threshold = 0.02;  // eigenvalue clip for cap logs (paper 004 section 5)
   bool measure_error = true;    // evaluate at midpoints to fill max_interp_error
+  // The exact indirect operator M(theta) (paper 000 eq. 16) is n^4 doubles per sample (8 MB at
+  // n = 8, 256 samples): built only when a technique asks for the exact operator.
+  bool exact_indirect_operator = false;
 };
 
 class ShTables {
@@ -78,6 +81,7 @@ class ShTables {
   const Table1D& D_averaged() const { return d_avg_; }        // width n (quadrature)
   const Table1D& D_polynomial() const { return d_poly_; }     // width 3 (paper's fit)
   const Table1D& sl_weight() const { return sl_w_; }          // width n
+  const Table1D& M_exact() const { return m_exact_; }         // width n^4 (empty unless requested)
 
   // OL (paper 004 eq. 24), per cap sample: ||f^||, a, b.
   const std::vector<double>& ol_norm() const { return ol_norm_; }
@@ -93,7 +97,7 @@ class ShTables {
 
  private:
   TableOptions opt_;
-  Table1D cap_vis_, cap_log_, d_avg_, d_poly_, sl_w_;
+  Table1D cap_vis_, cap_log_, d_avg_, d_poly_, sl_w_, m_exact_;
   std::vector<double> ol_norm_, ol_a_, ol_b_;
   std::vector<double> ol_norm_mono_, ol_a_mono_, ol_b_mono_;
   double ol_interp_error_ = 0.0;
