@@ -2,12 +2,13 @@
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
-install(TARGETS softgi_core softgi_io softgi_reference softgi_options EXPORT softgiTargets
+install(TARGETS softgi_core softgi_io softgi_reference softgi_cpu softgi_techniques softgi_options EXPORT softgiTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-install(DIRECTORY ${PROJECT_SOURCE_DIR}/core/include/softgi DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/core/include/softgi ${PROJECT_SOURCE_DIR}/backends/include/softgi
+  ${PROJECT_SOURCE_DIR}/techniques/include/softgi DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 if(TARGET softgi)
   install(TARGETS softgi RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()

@@ -11,6 +11,7 @@ PACKAGES=(
   libopenimageio-dev openimageio-tools
   libgtest-dev libgmock-dev libbenchmark-dev
   libembree-dev libtbb-dev
+  clang libclang-rt-14-dev
 )
 
 missing=()

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <glm/glm.hpp>
+#include <cstdint>
 #include <string>
 #include <vector>
 

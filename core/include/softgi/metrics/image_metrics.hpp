@@ -26,5 +26,9 @@ Metrics compare(const Image& a, const Image& b, const Mask& mask = {}, const Met
 
 // False-colour map of |a - b| (luminance), normalised by `scale` (0: the 99th percentile), viridis-like.
 Image error_map(const Image& a, const Image& b, double scale = 0.0);
+// The scale error_map would use for these images (the given one, or the 99th percentile).
+double error_map_scale(const Image& a, const Image& b, double scale = 0.0);
+// Signed map of luma(a) - luma(b): white at 0, blue where a is darker, red where brighter.
+Image signed_error_map(const Image& a, const Image& b, double scale = 0.0);
 
 }  // namespace softgi::metrics

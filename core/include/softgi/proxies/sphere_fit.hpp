@@ -47,9 +47,14 @@ struct FitResult {
   int teleports_accepted = 0, teleports_tried = 0;
   double seconds = 0.0;
 };
+// The points the fit bounds (and clusters): the mesh vertices, the surface samples (triangle
+// midpoints, or opt.surface_points random area-weighted samples) and the corners of the voxel grid
+// (opt.grid_resolution cells along the longest axis) that lie inside the mesh. Deterministic.
+std::vector<glm::dvec3> fit_sample_points(const TriMesh& mesh, const FitOptions& opt);
+
 // Variational fit: surface and interior points, flood-fill clustering, per-cluster sphere update
 // minimising outside volume while bounding the cluster (Powell's method), cluster teleportation.
-// Every point of the input is inside some sphere on return.
+// Every point of fit_sample_points(mesh, opt) is inside some sphere on return.
 FitResult fit_sphere_set(const TriMesh& mesh, const FitOptions& opt,
                          const std::function<void(const FitProgress&)>& progress = {});
 

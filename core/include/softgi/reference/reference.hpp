@@ -1,4 +1,4 @@
-// Monte Carlo ground truth with Embree (the only translation units that include Embree:
+// Monte Carlo ground truth with Embree (kept inside the reference library's sources,
 // core/src/reference/*.cpp).
 #pragma once
 
@@ -18,16 +18,29 @@ struct ReferenceOptions {
   double time = 0.0;            // animation time (seconds)
   unsigned seed = 1;            // deterministic: same seed and spp give identical images
   int width = 0, height = 0;    // 0: the scene camera's
+  bool jitter = true;           // box-filter each pixel; false: every sample through the pixel centre
+                                // (the visibility a one-sample-per-pixel rasteriser sees)
 };
 struct ReferenceResult {
   Image direct, indirect, final_image;  // final = direct + indirect, outgoing radiance
-  double seconds = 0.0;
-  double seconds_per_sample = 0.0;      // per spp over the whole image
-  long long rays = 0;
+  double seconds = 0.0;                 // wall time, setup included
+  double setup_seconds = 0.0;           // posing, BVH builds, environment tables
+  double seconds_per_sample = 0.0;      // per spp over the whole image (sampling time / spp)
+  long long rays = 0;                   // primary + shadow + indirect rays traced
+  int spp = 0;                          // samples per pixel in these images
 };
 
-// Renders the scene at options.time. progress(fraction) is called from the calling thread.
+// Called after each progressive pass with the running estimate at spp_done samples per pixel
+// (1, 2, 4, ..., then opt.spp). Sample k of a pixel depends only on (seed, pixel, k), so the running
+// estimate at spp_done equals a render with spp = spp_done.
+using PassCallback = std::function<void(int spp_done, const ReferenceResult& running)>;
+
+// Renders the scene at options.time (docs/reference.md). progress(fraction) and on_pass are called
+// from the calling thread. Throws std::invalid_argument naming the option or scene field for bad
+// input (spp <= 0, SH order outside 1..8, absurd sizes, non-finite time, proxies requested for a
+// scene without proxy sets, degenerate camera).
 ReferenceResult render_reference(const scene::Scene& scene, const ReferenceOptions& opt,
-                                 const std::function<void(double)>& progress = {});
+                                 const std::function<void(double)>& progress = {},
+                                 const PassCallback& on_pass = {});
 
 }  // namespace softgi::reference

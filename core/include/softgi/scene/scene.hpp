@@ -81,7 +81,8 @@ struct Sphere {
 // A sphere set bounding one object (paper 004 section 6.2). Centres are stored in the object's rest
 // pose and follow it: rigidly with the node, or skinned through bone weights (section 6.2,
 // Animation: mean value coordinates premultiplied by the vertices' bone weights collapse to a few
-// bones). Radii stay fixed.
+// bones). Radii stay fixed (times the largest axis scale of the node or joint transforms, 1 for
+// rigid motion).
 struct ProxySet {
   std::string name;
   int node = -1;                          // the object (node with a mesh) it bounds
@@ -103,8 +104,9 @@ struct Camera {
 // Distant lighting: an HDR lat-long map or an analytic sky with a sun disk.
 struct Environment {
   enum class Kind { Sky, Map } kind = Kind::Sky;
-  // Sky: radiance = mix(horizon, zenith, smoothstep of elevation) above the horizon, ground below;
-  // sun disk of angular radius sun_radius around sun_direction with radiance sun_radiance.
+  // Sky: radiance = mix(horizon, zenith, smoothstep(y)) above the horizon (y = sin elevation,
+  // smoothstep(y) = 3y^2 - 2y^3), ground below; inside the sun disk of angular radius sun_radius
+  // around sun_direction the radiance is sun_radiance (it replaces the sky there).
   glm::vec3 zenith{0.25f, 0.45f, 0.9f};
   glm::vec3 horizon{0.8f, 0.85f, 0.95f};
   glm::vec3 ground{0.3f, 0.28f, 0.25f};
@@ -123,7 +125,7 @@ struct Environment {
 // Local spherical light source (paper 004 section 7 "Analytic Lights", paper 001 section 7.3).
 struct SphericalLight {
   std::string name;
-  glm::vec3 position{0.0f};
+  glm::vec3 position{0.0f};   // world space; in the node's space when node >= 0
   float radius = 0.1f;
   glm::vec3 radiance{10.0f};  // emitted radiance of its surface
   int node = -1;              // optional: moves with this node
@@ -157,7 +159,7 @@ struct PosedScene {
   std::vector<std::vector<Sphere>> proxies;     // world space, one list per ProxySet
   std::vector<SphericalLight> lights;           // world space
   std::vector<glm::mat4> node_world;            // world transform of every node
-  bool animated = false;                        // anything moved relative to the rest pose
+  bool animated = false;  // the active clip changes something over time, or the pose differs from the nodes' rest TRS
 };
 
 // Poses the scene at time t (seconds) with its active clip: node hierarchy, linear-blend skinning
@@ -169,6 +171,11 @@ PosedScene evaluate(const Scene& scene, double t);
 // values, unit normals, no zero-area triangles, sane sizes. Loaders call it; throws
 // std::invalid_argument on the first problem ("mesh 'bunny': triangle 12 has zero area").
 void validate(const Scene& scene);
+
+// Order-n SH projection of the environment's radiance, per RGB channel (n*n vec3): solid-angle
+// weighted for maps (sh::project_latlong), by a fine quadrature for the sky (the sun disk is
+// supersampled so its energy is exact to 1e-3).
+std::vector<glm::vec3> environment_sh(const Environment& env, int order);
 
 // World-space axis-aligned bounds of the posed geometry.
 struct Bounds {

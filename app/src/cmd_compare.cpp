@@ -1,0 +1,391 @@
+// `softgi compare`: every registered technique (default parameters) and the ray-traced ground truth
+// on one scene; error (relMSE, SSIM) against the reference lit by the full environment and by its
+// order-n SH projection; images, error maps, compare.json and a Markdown summary.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "frame_output.hpp"
+#include "softgi/io/image_io.hpp"
+#include "softgi/io/scene_file.hpp"
+#include "softgi/metrics/image_metrics.hpp"
+#include "softgi/reference/reference.hpp"
+#include "softgi/render/camera.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/render/gbuffer.hpp"
+#include "softgi/render/technique.hpp"
+#include "softgi/techniques/registry.hpp"
+
+namespace softgi::app {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// SH order of the lighting a technique is compared against when it has no "order" parameter: the
+// order paper 004's Figure 7 uses.
+constexpr int kDefaultShOrder = 4;
+// The untimed first frame is rendered this long before the timed one (one frame at 30 Hz).
+constexpr double kWarmupFrameSeconds = 1.0 / 30.0;
+
+struct CompareArgs {
+  std::string scene, out, techniques;
+  double frame = 0.0;
+  int spp = 64;
+  int width = 0, height = 0;
+  unsigned seed = 1;
+};
+
+std::vector<std::string> split_list(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  for (std::string item; std::getline(ss, item, ',');) {
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+int sh_order_of(const render::ParamSet& p) {
+  if (p.has("order") && p.desc("order").type == render::ParamType::Int) return p.get_int("order");
+  return kDefaultShOrder;
+}
+
+std::string fmt(double v, int precision = 4) {
+  if (!std::isfinite(v)) return "-";
+  std::ostringstream os;
+  os << std::setprecision(precision) << v;
+  return os.str();
+}
+std::string ms(double seconds) {
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(seconds < 0.01 ? 2 : 1) << seconds * 1e3;
+  return os.str();
+}
+
+Json metrics_json(const metrics::Metrics& m) {
+  return {{"relmse", m.relmse}, {"ssim", m.ssim}, {"rmse", m.rmse}, {"psnr", std::isfinite(m.psnr) ? Json(m.psnr) : Json("inf")},
+          {"max_abs", m.max_abs}, {"pixels", m.pixels}};
+}
+
+// Progress of a long reference render on stderr, every 10 %.
+std::function<void(double)> progress_printer(const std::string& what) {
+  auto next = std::make_shared<int>(0);
+  return [what, next](double f) {
+    const int pct = static_cast<int>(f * 100.0);
+    if (pct < *next) return;
+    std::cerr << "compare: " << what << ": " << pct << "%\n";
+    *next = (pct / 10 + 1) * 10;
+  };
+}
+
+// The image with background pixels set to black: error maps then show (and are scaled by) the
+// surface pixels the metrics count.
+Image on_surface(Image img, const Mask& surface) {
+  for (std::size_t i = 0; i < img.rgb.size(); ++i)
+    if (!surface.on[i]) img.rgb[i] = glm::vec3(0.0f);
+  return img;
+}
+
+struct Reference {
+  std::string key, label;  // "full" / "sh4"
+  int order = 0;
+  reference::ReferenceResult result;
+};
+
+struct TechniqueRun {
+  std::string name, settings, error;
+  render::ParamSet params;
+  render::FrameResult frame;
+  double first_frame_seconds = 0.0;
+  int order = kDefaultShOrder;
+  std::map<std::string, metrics::Metrics> vs_final, vs_direct;  // keyed by reference key
+};
+
+void run_compare(const CompareArgs& args) {
+  using clock = std::chrono::steady_clock;
+  techniques::register_all();
+  if (!std::isfinite(args.frame)) throw std::invalid_argument("--frame: time must be finite");
+  std::vector<std::string> names = args.techniques.empty() ? render::technique_names() : split_list(args.techniques);
+  if (names.empty()) throw std::invalid_argument("compare: no technique to compare (--techniques is empty or none is registered)");
+  std::vector<std::unique_ptr<render::Technique>> techs;
+  for (const auto& n : names) techs.push_back(render::create_technique(n));  // unknown names fail here
+
+  const scene::Scene sc = io::load_scene(args.scene);
+  int w = args.width, h = args.height;
+  render::resolve_resolution(sc.camera, w, h);
+  render::make_pinhole_camera(sc, w, h, "compare");
+  make_output_dir(args.out);
+  std::cerr << "compare: scene '" << sc.name << "' at " << w << "x" << h << ", t = " << args.frame << " s, "
+            << techs.size() << " technique(s), reference " << args.spp << " spp\n";
+
+  // The shared G-buffer once on its own: its cost, and the surface mask errors are measured over.
+  CpuBackendWithImages backend;
+  const scene::PosedScene posed = scene::evaluate(sc, args.frame);
+  render::FrameResult gb_frame;
+  render::GBuffer gb;
+  {
+    render::ParamSet none;
+    render::FrameContext ctx(sc, posed, none, w, h, gb_frame);
+    gb_frame.passes.push_back(render::PassRecord{"gbuffer"});
+    const auto t0 = clock::now();
+    (*render::find_shared_pass_impl("gbuffer", "cpu"))(ctx);
+    gb_frame.passes.back().wall_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+    gb = ctx.get<render::GBuffer>(render::kGBuffer);
+  }
+  Mask surface{w, h, std::vector<std::uint8_t>(gb.object.size(), 0)};
+  long long surface_pixels = 0;
+  for (std::size_t i = 0; i < gb.object.size(); ++i) {
+    surface.on[i] = gb.hit(i) ? 1 : 0;
+    surface_pixels += surface.on[i];
+  }
+  if (surface_pixels == 0) throw std::runtime_error("compare: scene '" + sc.name + "' shows no surface from its camera");
+  const render::PassRecord& gbr = gb_frame.passes.back();
+  std::cerr << "compare: G-buffer " << ms(gbr.wall_seconds) << " ms, " << surface_pixels << " surface pixels\n";
+
+  // Techniques: one warm-up frame (one-time setup such as tables), then the timed frame.
+  std::vector<TechniqueRun> runs;
+  std::set<int> orders;
+  for (std::size_t k = 0; k < techs.size(); ++k) {
+    render::Technique& t = *techs[k];
+    TechniqueRun run;
+    run.name = t.name();
+    run.params = render::default_params(t);
+    run.order = sh_order_of(run.params);
+    for (const auto& [pn, pv] : run.params.values()) run.settings += (run.settings.empty() ? "" : ", ") + pn + "=" + pv;
+    std::cerr << "compare: [" << k + 1 << "/" << techs.size() << "] " << run.name << " (" << run.settings << ")\n";
+    render::RenderRequest req;
+    req.time = args.frame;
+    req.width = w;
+    req.height = h;
+    req.outputs = {"final"};
+    try {
+      // The warm-up frame is the previous frame of a 30 Hz animation, so the timed frame pays the
+      // per-frame updates (proxy refits, BVH refits) of a running animation and no one-time setup.
+      render::RenderRequest warm = req;
+      warm.time = args.frame - kWarmupFrameSeconds;
+      run.first_frame_seconds = backend.render(t, sc, run.params, warm).total_seconds;
+      run.frame = backend.render(t, sc, run.params, req);
+      if (run.frame.final_image.width != w || run.frame.final_image.height != h)
+        throw std::runtime_error("final image is " + std::to_string(run.frame.final_image.width) + "x" +
+                                 std::to_string(run.frame.final_image.height) + ", expected " + std::to_string(w) + "x" +
+                                 std::to_string(h));
+      orders.insert(run.order);
+      std::cerr << "compare:   " << ms(run.frame.total_seconds) << " ms per frame (first frame " << ms(run.first_frame_seconds)
+                << " ms)\n";
+    } catch (const std::exception& e) {
+      run.error = e.what();
+      std::cerr << "compare:   FAILED: " << run.error << "\n";
+    }
+    runs.push_back(std::move(run));
+  }
+
+  // Ground truth: real geometry as blockers, un-jittered (each pixel sampled at its centre, as the
+  // techniques' G-buffer is), lit by the full environment and by each SH order in use.
+  std::vector<Reference> refs;
+  refs.push_back({"full", "full environment", 0, {}});
+  for (int n : orders) refs.push_back({"sh" + std::to_string(n), "order-" + std::to_string(n) + " SH lighting", n, {}});
+  for (auto& ref : refs) {
+    reference::ReferenceOptions opt;
+    opt.spp = args.spp;
+    opt.blockers = reference::ReferenceOptions::Blockers::Geometry;
+    opt.light_sh_order = ref.order;
+    opt.indirect = true;
+    opt.time = args.frame;
+    opt.seed = args.seed;
+    opt.width = w;
+    opt.height = h;
+    opt.jitter = false;
+    ref.result = reference::render_reference(sc, opt, progress_printer("reference, " + ref.label));
+    write_image_pair(args.out, "reference_" + ref.key, ref.result.final_image);
+    std::cerr << "compare: reference, " << ref.label << ": " << fmt(ref.result.seconds, 3) << " s, " << ref.result.rays
+              << " rays\n";
+  }
+  auto ref_for_order = [&](int n) -> const Reference& {
+    for (const auto& r : refs)
+      if (r.order == n) return r;
+    return refs.front();
+  };
+
+  // Errors and per-technique outputs.
+  std::vector<std::string> failures;
+  Json jtechs = Json::array();
+  for (auto& run : runs) {
+    Json jt = {{"name", run.name}, {"params", params_json(run.params)}, {"sh_order", run.order}};
+    if (!run.error.empty()) {
+      jt["error"] = run.error;
+      failures.push_back(run.name + ": " + run.error);
+      jtechs.push_back(jt);
+      continue;
+    }
+    const std::string dir = (fs::path(args.out) / run.name).string();
+    make_output_dir(dir);
+    Json images = Json::object();
+    images["final"] = run.name + "/" + write_image_pair(dir, "final", run.frame.final_image);
+    if (!run.frame.direct.empty()) images["direct"] = run.name + "/" + write_image_pair(dir, "direct", run.frame.direct);
+    if (!run.frame.indirect.empty())
+      images["indirect"] = run.name + "/" + write_image_pair(dir, "indirect", run.frame.indirect);
+    Json errors = Json::object(), direct_errors = Json::object();
+    try {
+      for (const Reference* ref : {static_cast<const Reference*>(&refs.front()), &ref_for_order(run.order)}) {
+        if (run.vs_final.count(ref->key)) continue;
+        run.vs_final[ref->key] = metrics::compare(run.frame.final_image, ref->result.final_image, surface);
+        errors[ref->key] = metrics_json(run.vs_final[ref->key]);
+        const std::string map = "error_" + ref->key + ".png";
+        io::write_png_display((fs::path(dir) / map).string(),
+                              metrics::error_map(on_surface(run.frame.final_image, surface),
+                                                 on_surface(ref->result.final_image, surface)));
+        images["error_" + ref->key] = run.name + "/" + map;
+        if (!run.frame.direct.empty()) {
+          run.vs_direct[ref->key] = metrics::compare(run.frame.direct, ref->result.direct, surface);
+          direct_errors[ref->key] = metrics_json(run.vs_direct[ref->key]);
+        }
+      }
+    } catch (const std::exception& e) {
+      run.error = std::string("metrics: ") + e.what();
+      jt["error"] = run.error;
+      failures.push_back(run.name + ": " + run.error);
+    }
+    jt["frame_seconds"] = run.frame.total_seconds;
+    jt["first_frame_seconds"] = run.first_frame_seconds;
+    jt.update(frame_json(run.frame));
+    jt["errors_final"] = errors;
+    jt["errors_direct"] = direct_errors;
+    jt["images"] = images;
+    Json rec = jt;
+    rec["softgi_version"] = softgi_version();
+    rec["date"] = utc_now();
+    rec["command"] = "compare";
+    rec["scene"] = sc.name;
+    rec["backend"] = backend.name();
+    rec["frame_time"] = args.frame;
+    rec["resolution"] = {w, h};
+    write_json((fs::path(dir) / "record.json").string(), rec);
+    jtechs.push_back(jt);
+  }
+
+  Json jrefs = Json::array();
+  for (const auto& r : refs)
+    jrefs.push_back({{"key", r.key},
+                     {"light_sh_order", r.order},
+                     {"spp", r.result.spp},
+                     {"seconds", r.result.seconds},
+                     {"rays", r.result.rays},
+                     {"blockers", "geometry"},
+                     {"indirect", true},
+                     {"jitter", false},
+                     {"image", "reference_" + r.key + ".png"}});
+  Json j = {{"softgi_version", softgi_version()},
+                      {"date", utc_now()},
+                      {"scene", {{"name", sc.name}, {"source", sc.source}, {"spec", args.scene}}},
+                      {"frame_time", args.frame},
+                      {"resolution", {w, h}},
+                      {"surface_pixels", surface_pixels},
+                      {"metric_options", {{"relmse_epsilon", metrics::MetricOptions{}.relmse_epsilon}, {"mask", "surface pixels"}}},
+                      {"gbuffer", {{"wall_seconds", gbr.wall_seconds}, {"counters", gbr.counters}, {"bytes", gbr.bytes}}},
+                      {"references", jrefs},
+                      {"techniques", jtechs}};
+  write_json((fs::path(args.out) / "compare.json").string(), j);
+
+  // The Markdown summary.
+  std::ostringstream md;
+  md << "# softgi compare: " << sc.name << "\n\n"
+     << "Scene `" << args.scene << "` (" << sc.source << "), " << w << "x" << h << ", frame t = " << args.frame
+     << " s; softgi " << softgi_version() << ", " << utc_now() << ", CPU backend.\n\n"
+     << "Ground truth: the Embree path tracer with the real geometry as blockers and one-bounce diffuse indirect, "
+     << args.spp << " spp through each pixel centre (the visibility of the techniques' one-sample G-buffer); "
+     << "lit by the full environment";
+  for (std::size_t i = 1; i < refs.size(); ++i) md << " and by its order-" << refs[i].order << " SH projection";
+  md << ". Errors are over the " << surface_pixels << " surface pixels (background excluded); relMSE = mean of "
+     << "(a - b)^2 / (b^2 + " << metrics::MetricOptions{}.relmse_epsilon << "), SSIM on luminance x / (1 + x). "
+     << "Times are of a second frame, 1/30 s after an untimed first one (which also pays one-time setup; "
+     << "its time is in compare.json).\n\n"
+     << "Shared G-buffer on its own, BVH built from scratch: " << ms(gbr.wall_seconds) << " ms (" << gbr.bytes / 1024
+     << " KiB); in the timed frames it refits or reuses the BVH.\n\n";
+  md << "| technique | settings | total (ms) | time per pass (ms) | relMSE vs full | SSIM vs full | relMSE vs SH | SSIM vs SH | images |\n"
+     << "|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& run : runs) {
+    if (!run.error.empty()) {
+      std::string why = run.error;  // a '|' would end the table cell
+      for (std::size_t p = why.find('|'); p != std::string::npos; p = why.find('|', p + 2)) why.replace(p, 1, "\\|");
+      md << "| " << run.name << " | " << run.settings << " | failed: " << why << " | | | | | | |\n";
+      continue;
+    }
+    std::string passes;
+    for (const auto& p : run.frame.passes) passes += (passes.empty() ? "" : ", ") + p.name + " " + ms(p.wall_seconds);
+    const std::string shk = "sh" + std::to_string(run.order);
+    auto get = [&](const std::string& key, bool ssim) {
+      auto it = run.vs_final.find(key);
+      return it == run.vs_final.end() ? std::string("-") : fmt(ssim ? it->second.ssim : it->second.relmse);
+    };
+    md << "| " << run.name << " | " << run.settings << " | " << ms(run.frame.total_seconds) << " | " << passes << " | "
+       << get("full", false) << " | " << get("full", true) << " | " << get(shk, false) << " (n=" << run.order << ") | "
+       << get(shk, true) << " | [final](" << run.name << "/final.png) · [error vs full](" << run.name
+       << "/error_full.png) · [error vs SH](" << run.name << "/error_" << shk << ".png) |\n";
+  }
+  bool any_direct = false;
+  for (const auto& run : runs) any_direct = any_direct || !run.vs_direct.empty();
+  if (any_direct) {
+    md << "\nDirect (shadowed) light only, against the reference's direct image:\n\n"
+       << "| technique | relMSE vs full | SSIM vs full | relMSE vs SH | SSIM vs SH |\n|---|---|---|---|---|\n";
+    for (const auto& run : runs) {
+      if (run.vs_direct.empty()) continue;
+      const std::string shk = "sh" + std::to_string(run.order);
+      auto get = [&](const std::string& key, bool ssim) {
+        auto it = run.vs_direct.find(key);
+        return it == run.vs_direct.end() ? std::string("-") : fmt(ssim ? it->second.ssim : it->second.relmse);
+      };
+      md << "| " << run.name << " | " << get("full", false) << " | " << get("full", true) << " | " << get(shk, false)
+         << " | " << get(shk, true) << " |\n";
+    }
+  }
+  md << "\nReferences: ";
+  for (std::size_t i = 0; i < refs.size(); ++i)
+    md << (i ? " · " : "") << "[" << refs[i].label << "](reference_" << refs[i].key << ".png) (" << fmt(refs[i].result.seconds, 3)
+       << " s)";
+  md << "\n";
+  std::string pruned;
+  for (const auto& run : runs)
+    for (const auto& p : run.frame.pruned) pruned += "- " + run.name + ": `" + p.name + "`: " + p.reason + "\n";
+  if (!pruned.empty()) md << "\nPruned passes:\n\n" << pruned;
+  write_text((fs::path(args.out) / "summary.md").string(), md.str());
+  std::cerr << "compare: wrote " << (fs::path(args.out) / "summary.md").string() << "\n";
+
+  if (!failures.empty()) {
+    std::string msg = "compare: " + std::to_string(failures.size()) + " technique(s) failed on scene '" + sc.name + "':";
+    for (const auto& f : failures) msg += " [" + f + "]";
+    throw std::runtime_error(msg);
+  }
+}
+
+void register_compare(CLI::App& app) {
+  auto args = std::make_shared<CompareArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "compare", "Render a scene with every technique and the ground truth; errors, times, compare.json, summary.md");
+  sub->add_option("--scene", args->scene, "built-in scene name or scene file")->required();
+  sub->add_option("--out", args->out, "output directory")->required();
+  sub->add_option("--frame", args->frame, "animation time in seconds (default 0)");
+  sub->add_option("--spp", args->spp, "reference samples per pixel (default 64)")->check(CLI::Range(1, 1 << 20));
+  sub->add_option("--width", args->width, "image width (default: the scene camera's)")->check(CLI::Range(1, 16384));
+  sub->add_option("--height", args->height, "image height (default: the scene camera's)")->check(CLI::Range(1, 16384));
+  sub->add_option("--techniques", args->techniques, "comma-separated subset of the registered techniques (default: all)");
+  sub->add_option("--seed", args->seed, "reference random seed (default 1)");
+  sub->callback([args] { run_compare(*args); });
+}
+const CommandRegistrar registrar(register_compare);
+
+}  // namespace
+
+}  // namespace softgi::app

@@ -1,0 +1,168 @@
+// `softgi diff TEST REFERENCE`: image metrics between a test image and a reference, plus error maps.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "commands.hpp"
+#include "softgi/io/image_io.hpp"
+#include "softgi/metrics/image_metrics.hpp"
+
+namespace softgi::app {
+
+namespace {
+
+// A mask file's pixel is counted when its brightest channel exceeds half (after sRGB linearisation,
+// white = 1, black = 0), so 8-bit black/white masks and float masks read the same.
+constexpr float kMaskThreshold = 0.5f;
+
+struct DiffArgs {
+  std::string test, reference;
+  std::string metric = "all";
+  std::string mask, map, signed_map;
+  double relmse_epsilon = metrics::MetricOptions{}.relmse_epsilon;
+  double psnr_peak = 0.0;
+  double map_scale = 0.0;
+  bool json = false;
+};
+
+Mask read_mask(const std::string& path) {
+  const Image img = io::read_image(path);
+  Mask m;
+  m.width = img.width;
+  m.height = img.height;
+  m.on.resize(img.rgb.size());
+  for (std::size_t i = 0; i < img.rgb.size(); ++i) {
+    const glm::vec3& p = img.rgb[i];
+    m.on[i] = std::max({p.r, p.g, p.b}) > kMaskThreshold ? 1 : 0;
+  }
+  return m;
+}
+
+// The peak compare() uses when none is given: the reference's largest channel value over counted pixels
+// (0 when the reference is black there). Only for reporting; compare() has already validated the inputs.
+double reference_peak(const Image& ref, const Mask& mask) {
+  double peak = 0.0;
+  for (std::size_t i = 0; i < ref.rgb.size(); ++i) {
+    if (!mask.on.empty() && !mask.on[i]) continue;
+    const glm::vec3& p = ref.rgb[i];
+    peak = std::max(peak, static_cast<double>(std::max({p.r, p.g, p.b})));
+  }
+  return peak;
+}
+
+// JSON has no infinity: an infinite PSNR (identical images) is written as the string "inf" ("-inf" for
+// a black reference), which e.g. Python's float() parses.
+nlohmann::json json_number(double v) {
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  return v;
+}
+
+void check_option(const char* flag, double v, bool zero_allowed) {
+  if (std::isfinite(v) && (v > 0.0 || (zero_allowed && v == 0.0))) return;
+  std::ostringstream os;
+  os << flag << " must be a finite number " << (zero_allowed ? ">= 0" : "> 0") << ", got " << v;
+  throw std::invalid_argument(os.str());
+}
+
+void run_diff(const DiffArgs& args) {
+  check_option("--epsilon", args.relmse_epsilon, false);
+  check_option("--peak", args.psnr_peak, true);
+  check_option("--map-scale", args.map_scale, true);
+  const Image test = io::read_image(args.test);
+  const Image ref = io::read_image(args.reference);
+  if (test.width != ref.width || test.height != ref.height)
+    throw std::invalid_argument("image sizes differ: " + args.test + " is " + std::to_string(test.width) + "x" +
+                                std::to_string(test.height) + ", reference " + args.reference + " is " +
+                                std::to_string(ref.width) + "x" + std::to_string(ref.height));
+  Mask mask;
+  if (!args.mask.empty()) {
+    mask = read_mask(args.mask);
+    if (mask.width != test.width || mask.height != test.height)
+      throw std::invalid_argument("mask " + args.mask + " is " + std::to_string(mask.width) + "x" +
+                                  std::to_string(mask.height) + ", images are " + std::to_string(test.width) + "x" +
+                                  std::to_string(test.height));
+    if (std::none_of(mask.on.begin(), mask.on.end(), [](std::uint8_t v) { return v != 0; }))
+      throw std::invalid_argument("mask " + args.mask + " selects no pixels (no pixel brighter than 0.5)");
+  }
+  metrics::MetricOptions opt;
+  opt.relmse_epsilon = args.relmse_epsilon;
+  opt.psnr_peak = args.psnr_peak;
+  const metrics::Metrics m = metrics::compare(test, ref, mask, opt);
+  const double peak = args.psnr_peak > 0.0 ? args.psnr_peak : reference_peak(ref, mask);
+
+  double map_scale = 0.0;
+  if (!args.map.empty() || !args.signed_map.empty()) map_scale = metrics::error_map_scale(test, ref, args.map_scale);
+  if (!args.map.empty()) io::write_png_display(args.map, metrics::error_map(test, ref, map_scale));
+  if (!args.signed_map.empty()) io::write_png_display(args.signed_map, metrics::signed_error_map(test, ref, map_scale));
+
+  const bool all = args.metric == "all";
+  auto want = [&](const char* name) { return all || args.metric == name; };
+  if (args.json) {
+    nlohmann::json j;
+    j["test"] = args.test;
+    j["reference"] = args.reference;
+    j["width"] = test.width;
+    j["height"] = test.height;
+    j["pixels"] = m.pixels;
+    if (!args.mask.empty()) j["mask"] = args.mask;
+    if (want("rmse")) j["rmse"] = m.rmse;
+    if (want("relmse")) {
+      j["relmse"] = m.relmse;
+      j["relmse_epsilon"] = opt.relmse_epsilon;
+    }
+    if (want("psnr")) {
+      j["psnr"] = json_number(m.psnr);
+      j["psnr_peak"] = peak;
+    }
+    if (want("ssim")) j["ssim"] = m.ssim;
+    j["max_abs"] = m.max_abs;
+    if (!args.map.empty()) j["map"] = args.map;
+    if (!args.signed_map.empty()) j["signed_map"] = args.signed_map;
+    if (!args.map.empty() || !args.signed_map.empty()) j["map_scale"] = map_scale;
+    std::cout << j.dump(1) << "\n";
+    return;
+  }
+  std::cout << std::setprecision(6);
+  std::cout << "test       " << args.test << " (" << test.width << "x" << test.height << ")\n"
+            << "reference  " << args.reference << "\n"
+            << "pixels     " << m.pixels << (args.mask.empty() ? "" : " (mask " + args.mask + ")") << "\n";
+  if (want("rmse")) std::cout << "rmse       " << m.rmse << "\n";
+  if (want("relmse")) std::cout << "relmse     " << m.relmse << "  (epsilon " << opt.relmse_epsilon << ")\n";
+  if (want("psnr"))
+    std::cout << "psnr       " << m.psnr << " dB  (peak " << peak
+              << (args.psnr_peak > 0.0 ? ", given" : " = reference max") << ")\n";
+  if (want("ssim")) std::cout << "ssim       " << m.ssim << "\n";
+  std::cout << "max_abs    " << m.max_abs << "\n";
+  const std::string scale_note = args.map_scale > 0.0 ? " (given)" : " (99th percentile of |luminance difference|)";
+  if (!args.map.empty()) std::cout << "map        " << args.map << "  scale " << map_scale << scale_note << "\n";
+  if (!args.signed_map.empty())
+    std::cout << "signed map " << args.signed_map << "  scale " << map_scale << scale_note << "\n";
+}
+
+void register_diff(CLI::App& app) {
+  auto args = std::make_shared<DiffArgs>();
+  CLI::App* sub = app.add_subcommand("diff", "Compare a test image with a reference: RMSE, relMSE, PSNR, SSIM, error maps");
+  sub->add_option("test", args->test, "test image (EXR, HDR, PNG, ...)")->required()->check(CLI::ExistingFile);
+  sub->add_option("reference", args->reference, "reference image, same size")->required()->check(CLI::ExistingFile);
+  sub->add_option("--metric", args->metric, "metric to print: all, rmse, relmse, psnr or ssim")
+      ->check(CLI::IsMember({"all", "rmse", "relmse", "psnr", "ssim"}));
+  sub->add_option("--mask", args->mask, "mask image: pixels brighter than 0.5 are counted")->check(CLI::ExistingFile);
+  sub->add_option("--map", args->map, "write a false-colour map of |luminance difference| (PNG)");
+  sub->add_option("--signed-map", args->signed_map, "write a signed map: blue = test darker, red = test brighter (PNG)");
+  sub->add_option("--map-scale", args->map_scale, "luminance difference shown as full colour (0: 99th percentile)");
+  sub->add_option("--epsilon", args->relmse_epsilon, "relMSE epsilon: (a-b)^2 / (b^2 + epsilon), > 0");
+  sub->add_option("--peak", args->psnr_peak, "PSNR peak (0: the reference's largest channel value)");
+  sub->add_flag("--json", args->json, "print JSON instead of text");
+  sub->callback([args] { run_diff(*args); });
+}
+const CommandRegistrar registrar(register_diff);
+
+}  // namespace
+
+}  // namespace softgi::app

@@ -1,0 +1,272 @@
+// `softgi reference`: the ray-traced one-bounce ground truth of a scene (docs/reference.md).
+//   softgi reference --scene NAME|FILE [--spp N] [--blockers geometry|proxies] [--light full|sh:N]
+//                    [--frame t] [--width W] [--height H] [--seed S] [--convergence] --out DIR
+// writes DIR/final.exr, direct.exr, indirect.exr, final.png and reference.json (and, with
+// --convergence, convergence.json: error against the final image at spp = 1, 2, 4, ..., N).
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "commands.hpp"
+#include "softgi/io/image_io.hpp"
+#include "softgi/io/scene_file.hpp"
+#include "softgi/metrics/image_metrics.hpp"
+#include "softgi/reference/reference.hpp"
+#include "softgi/sh/sh.hpp"
+
+namespace softgi::app {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ReferenceArgs {
+  std::string scene, out, blockers = "geometry", light = "full";
+  int spp = 64, width = 0, height = 0;
+  double time = 0.0;
+  unsigned seed = 1;
+  bool convergence = false, no_indirect = false, no_jitter = false, quiet = false;
+  float exposure = 1.0f;
+};
+
+// "full" -> 0, "sh:N" -> N in 1..kMaxOrder; anything else is an error naming the value.
+int parse_light(const std::string& s) {
+  if (s == "full") return 0;
+  const std::string bad = "--light must be 'full' or 'sh:N' with N in 1.." + std::to_string(sh::kMaxOrder) + ", got '" + s + "'";
+  if (s.rfind("sh:", 0) != 0 || s.size() < 4 || s.size() > 5) throw std::invalid_argument(bad);
+  int n = 0;
+  for (std::size_t i = 3; i < s.size(); ++i) {
+    if (s[i] < '0' || s[i] > '9') throw std::invalid_argument(bad);
+    n = n * 10 + (s[i] - '0');
+  }
+  if (n < 1 || n > sh::kMaxOrder) throw std::invalid_argument(bad);
+  return n;
+}
+
+// Creates DIR and proves it writable before any rendering time is spent.
+void prepare_out_dir(const std::string& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("--out '" + dir + "': cannot create directory: " + ec.message());
+  if (!fs::is_directory(dir)) throw std::runtime_error("--out '" + dir + "': not a directory");
+  const fs::path probe = fs::path(dir) / ".softgi_write_probe";
+  {
+    std::ofstream f(probe);
+    if (!f || !(f << "probe") || !f.flush()) throw std::runtime_error("--out '" + dir + "': directory is not writable");
+  }
+  fs::remove(probe, ec);
+}
+
+void write_json(const fs::path& path, const nlohmann::json& j) {
+  const fs::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) throw std::runtime_error("cannot write '" + tmp.string() + "'");
+    f << j.dump(1) << "\n";
+    if (!f) throw std::runtime_error("cannot write '" + tmp.string() + "'");
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "' to '" + path.string() + "': " + ec.message());
+}
+
+// Progress on stderr: a redrawn bar on a terminal, one line per 10% otherwise (logs, ctest).
+class ProgressBar {
+ public:
+  ProgressBar(std::string label, bool enabled) : label_(std::move(label)), enabled_(enabled), tty_(isatty(fileno(stderr)) != 0) {}
+  void update(double f) {
+    if (!enabled_) return;
+    const double t = std::chrono::duration<double>(clock::now() - start_).count();
+    if (tty_) {
+      if (f < 1.0 && t - last_draw_ < 0.1) return;
+      last_draw_ = t;
+      constexpr int kWidth = 30;
+      const int filled = static_cast<int>(f * kWidth);
+      std::ostringstream os;
+      os << "\r" << label_ << " [" << std::string(filled, '#') << std::string(kWidth - filled, '-') << "] " << std::setw(3)
+         << static_cast<int>(100.0 * f) << "%  " << std::fixed << std::setprecision(1) << t << " s";
+      if (f > 0.0 && f < 1.0) os << "  eta " << t * (1.0 - f) / f << " s";
+      os << "   ";
+      std::cerr << os.str() << std::flush;
+      if (f >= 1.0) std::cerr << "\n";
+    } else {
+      const int decile = static_cast<int>(f * 10.0 + 1e-9);
+      if (decile <= last_decile_) return;
+      last_decile_ = decile;
+      std::cerr << label_ << " " << decile * 10 << "% (" << std::fixed << std::setprecision(1) << t << " s)\n";
+    }
+  }
+
+ private:
+  using clock = std::chrono::steady_clock;
+  std::string label_;
+  bool enabled_, tty_;
+  clock::time_point start_ = clock::now();
+  double last_draw_ = -1.0;
+  int last_decile_ = -1;
+};
+
+// User + system CPU seconds of this process: with other jobs on the machine, CPU time per sample is
+// a steadier measure than wall time.
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+nlohmann::json channel_means(const Image& img) {
+  glm::dvec3 s(0.0);
+  for (const auto& p : img.rgb) s += glm::dvec3(p);
+  s /= std::max<std::size_t>(1, img.rgb.size());
+  return {s.x, s.y, s.z};
+}
+
+void run_reference(const ReferenceArgs& args) {
+  if (args.spp <= 0) throw std::invalid_argument("--spp must be >= 1, got " + std::to_string(args.spp));
+  if (args.width < 0 || args.height < 0)
+    throw std::invalid_argument("--width/--height must be >= 1, got " + std::to_string(args.width) + "x" + std::to_string(args.height));
+  if (!std::isfinite(args.time)) throw std::invalid_argument("--frame must be a finite time in seconds");
+  if (!(args.exposure > 0.0f) || !std::isfinite(args.exposure))
+    throw std::invalid_argument("--exposure must be a finite number > 0");
+  reference::ReferenceOptions opt;
+  if (args.blockers == "geometry") opt.blockers = reference::ReferenceOptions::Blockers::Geometry;
+  else if (args.blockers == "proxies") opt.blockers = reference::ReferenceOptions::Blockers::Proxies;
+  else throw std::invalid_argument("--blockers must be 'geometry' or 'proxies', got '" + args.blockers + "'");
+  opt.light_sh_order = parse_light(args.light);
+  opt.spp = args.spp;
+  opt.time = args.time;
+  opt.seed = args.seed;
+  opt.width = args.width;
+  opt.height = args.height;
+  opt.indirect = !args.no_indirect;
+  opt.jitter = !args.no_jitter;
+
+  prepare_out_dir(args.out);
+  const scene::Scene sc = io::load_scene(args.scene);
+
+  struct PassRecord {
+    int spp;
+    double seconds;
+    long long rays;
+    Image final_image;
+  };
+  std::vector<PassRecord> passes;
+  reference::PassCallback on_pass;
+  if (args.convergence)
+    on_pass = [&](int spp, const reference::ReferenceResult& r) { passes.push_back({spp, r.seconds, r.rays, r.final_image}); };
+  ProgressBar bar("reference " + sc.name, !args.quiet);
+  const double cpu0 = cpu_seconds();
+  const reference::ReferenceResult res = reference::render_reference(sc, opt, [&](double f) { bar.update(f); }, on_pass);
+  const double cpu = cpu_seconds() - cpu0;
+
+  const fs::path dir(args.out);
+  io::write_exr((dir / "final.exr").string(), res.final_image);
+  io::write_exr((dir / "direct.exr").string(), res.direct);
+  io::write_exr((dir / "indirect.exr").string(), res.indirect);
+  io::write_png((dir / "final.png").string(), res.final_image, args.exposure);
+
+  nlohmann::json j;
+  j["scene"] = {{"name", sc.name}, {"source", sc.source.empty() ? args.scene : sc.source}};
+  j["options"] = {{"spp", opt.spp},
+                  {"blockers", args.blockers},
+                  {"light", args.light},
+                  {"light_sh_order", opt.light_sh_order},
+                  {"indirect", opt.indirect},
+                  {"jitter", opt.jitter},
+                  {"time", opt.time},
+                  {"seed", opt.seed},
+                  {"width", res.final_image.width},
+                  {"height", res.final_image.height}};
+  j["seconds"] = res.seconds;
+  j["setup_seconds"] = res.setup_seconds;
+  j["seconds_per_sample"] = res.seconds_per_sample;
+  j["rays"] = res.rays;
+  j["rays_per_second"] = res.seconds > res.setup_seconds ? res.rays / (res.seconds - res.setup_seconds) : 0.0;
+  j["cpu_seconds"] = cpu;
+  j["cpu_seconds_per_sample"] = cpu / opt.spp;
+  j["threads"] = std::thread::hardware_concurrency();
+  j["mean"] = {{"final", channel_means(res.final_image)}, {"direct", channel_means(res.direct)}, {"indirect", channel_means(res.indirect)}};
+  j["files"] = {"final.exr", "direct.exr", "indirect.exr", "final.png"};
+  write_json(dir / "reference.json", j);
+
+  if (args.convergence) {
+    // Error of each power-of-two estimate against the final image. The estimate at k samples shares
+    // its samples with the final one at N, so for an unbiased estimator E|X_k - X_N|^2 =
+    // sigma^2 (1/k - 1/N) while E|X_k - truth|^2 = sigma^2 / k: *_vs_truth_estimate rescales by
+    // 1 / (1 - k/N). The final image's own error is estimated as half that of the N/2 estimate.
+    nlohmann::json rows = nlohmann::json::array();
+    double half_mse = -1.0, half_rel = -1.0;
+    for (const PassRecord& p : passes) {
+      const metrics::Metrics m = metrics::compare(p.final_image, res.final_image);
+      nlohmann::json row = {{"spp", p.spp},          {"seconds", p.seconds},   {"rays", p.rays},
+                            {"rmse", m.rmse},        {"relmse", m.relmse},    {"psnr", std::isinf(m.psnr) ? nlohmann::json("inf") : nlohmann::json(m.psnr)},
+                            {"ssim", m.ssim}};
+      if (p.spp < opt.spp) {
+        const double scale = 1.0 / (1.0 - static_cast<double>(p.spp) / opt.spp);
+        row["rmse_vs_truth_estimate"] = m.rmse * std::sqrt(scale);
+        row["relmse_vs_truth_estimate"] = m.relmse * scale;
+        if (2 * p.spp == opt.spp) {
+          half_mse = m.rmse * m.rmse * scale;
+          half_rel = m.relmse * scale;
+        }
+      }
+      rows.push_back(row);
+    }
+    nlohmann::json c;
+    c["scene"] = sc.name;
+    c["options"] = j["options"];
+    c["reference_spp"] = opt.spp;
+    c["metric"] = "metrics::compare(estimate at spp, final image at reference_spp)";
+    c["passes"] = rows;
+    if (half_mse >= 0.0) {
+      c["final_rmse_estimate"] = std::sqrt(half_mse / 2.0);
+      c["final_relmse_estimate"] = half_rel / 2.0;
+    }
+    write_json(dir / "convergence.json", c);
+  }
+
+  std::cout << "softgi reference: " << sc.name << " " << res.final_image.width << "x" << res.final_image.height << ", " << opt.spp
+            << " spp, " << std::fixed << std::setprecision(2) << res.seconds << " s (" << std::setprecision(4)
+            << res.seconds_per_sample << " s per sample pass, " << std::setprecision(1) << res.rays / 1e6 << " Mrays) -> "
+            << args.out << "\n";
+}
+
+void register_reference(CLI::App& app) {
+  auto args = std::make_shared<ReferenceArgs>();
+  CLI::App* sub = app.add_subcommand("reference", "ray-traced one-bounce ground truth (Embree) of a scene");
+  sub->add_option("--scene", args->scene, "built-in scene name or scene file")->required();
+  sub->add_option("--out,-o", args->out, "output directory (created)")->required();
+  sub->add_option("--spp", args->spp, "samples per pixel (default 64)");
+  sub->add_option("--blockers", args->blockers, "what casts shadows: geometry | proxies (default geometry)");
+  sub->add_option("--light", args->light, "full | sh:N (the environment's order-N SH projection)");
+  sub->add_option("--frame,--time", args->time, "animation time in seconds (default 0)");
+  sub->add_option("--width", args->width, "image width (default: the scene camera's)");
+  sub->add_option("--height", args->height, "image height (default: the scene camera's)");
+  sub->add_option("--seed", args->seed, "random seed (default 1)");
+  sub->add_option("--exposure", args->exposure, "exposure scale of final.png (default 1)");
+  sub->add_flag("--convergence", args->convergence, "record error against the final image at spp 1, 2, 4, ... in convergence.json");
+  sub->add_flag("--no-indirect", args->no_indirect, "direct light only");
+  sub->add_flag("--no-jitter", args->no_jitter, "every sample through the pixel centre");
+  sub->add_flag("--quiet,-q", args->quiet, "no progress bar");
+  sub->callback([args] { run_reference(*args); });
+}
+const CommandRegistrar registrar(register_reference);
+
+}  // namespace
+
+}  // namespace softgi::app

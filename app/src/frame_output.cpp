@@ -1,0 +1,135 @@
+#include "frame_output.hpp"
+
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include "softgi/io/image_io.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/techniques/registry.hpp"
+
+#ifndef SOFTGI_VERSION
+#define SOFTGI_VERSION "unknown"
+#endif
+
+namespace softgi::app {
+
+namespace fs = std::filesystem;
+
+void CpuBackendWithImages::execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) {
+  backends::CpuBackend::execute_pass(pass, ctx);
+  for (const auto& w : pass.writes) {
+    Image* field = w == render::kDirect     ? &ctx.result.direct
+                   : w == render::kIndirect ? &ctx.result.indirect
+                   : w == render::kFinal    ? &ctx.result.final_image
+                                            : nullptr;
+    if (field && field->empty() && ctx.has(w)) *field = ctx.get<Image>(w);
+  }
+}
+
+std::string check_backend(const std::string& name) {
+  if (name != "cpu") throw std::invalid_argument("--backend: unknown backend '" + name + "' (available: cpu)");
+  return name;
+}
+
+render::ParamSet technique_params(const render::Technique& t, const std::vector<std::string>& assignments) {
+  render::ParamSet p = render::default_params(t);
+  for (const auto& a : assignments) {
+    try {
+      p.set_assignment(a);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("--param for technique '" + t.name() + "': " + e.what());
+    }
+  }
+  return p;
+}
+
+Json params_json(const render::ParamSet& params) {
+  Json j = Json::object();
+  for (const auto& [name, text] : params.values()) {
+    switch (params.desc(name).type) {
+      case render::ParamType::Int: j[name] = params.get_int(name); break;
+      case render::ParamType::Float: j[name] = params.get_float(name); break;
+      case render::ParamType::Bool: j[name] = params.get_bool(name); break;
+      case render::ParamType::Enum: j[name] = text; break;
+    }
+  }
+  return j;
+}
+
+Json frame_json(const render::FrameResult& r) {
+  Json passes = Json::array();
+  for (const auto& p : r.passes) {
+    Json jp = {{"name", p.name}, {"wall_seconds", p.wall_seconds}, {"bytes", p.bytes}};
+    if (p.gpu_seconds >= 0.0) jp["gpu_seconds"] = p.gpu_seconds;
+    Json c = Json::object();
+    for (const auto& [k, v] : p.counters) c[k] = std::isfinite(v) ? Json(v) : Json(nullptr);
+    jp["counters"] = c;
+    passes.push_back(jp);
+  }
+  Json pruned = Json::array();
+  for (const auto& p : r.pruned) pruned.push_back({{"name", p.name}, {"reason", p.reason}});
+  return {{"passes", passes},
+          {"pruned", pruned},
+          {"total_seconds", r.total_seconds},
+          {"bytes", r.bytes()},
+          {"peak_rss_bytes", r.peak_rss_bytes}};
+}
+
+std::string softgi_version() { return SOFTGI_VERSION; }
+
+std::string utc_now() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+std::string write_image_pair(const std::string& dir, const std::string& name, const Image& img) {
+  io::write_exr((fs::path(dir) / (name + ".exr")).string(), img);
+  io::write_png((fs::path(dir) / (name + ".png")).string(), img);
+  return name + ".png";
+}
+
+void make_output_dir(const std::string& dir) {
+  if (dir.empty()) throw std::invalid_argument("--out: empty output directory");
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir))
+    throw std::runtime_error("--out: cannot create directory '" + dir + "'" + (ec ? ": " + ec.message() : ""));
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f << text;
+    f.flush();
+    if (!f) throw std::runtime_error("cannot write '" + path + "'");
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) throw std::runtime_error("cannot write '" + path + "': " + ec.message());
+}
+
+void write_json(const std::string& path, const Json& j) { write_text(path, j.dump(2) + "\n"); }
+
+std::string techniques_help() {
+  techniques::register_all();
+  std::ostringstream os;
+  os << "Techniques and their parameters (--param name=value):\n";
+  for (const auto& name : render::technique_names()) {
+    auto t = render::create_technique(name);
+    os << "  " << name << ": " << t->description() << "\n";
+    std::istringstream lines(render::default_params(*t).describe());
+    for (std::string line; std::getline(lines, line);) os << "  " << line << "\n";
+  }
+  return os.str();
+}
+
+}  // namespace softgi::app

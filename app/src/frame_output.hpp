@@ -1,0 +1,53 @@
+// What `softgi render` and `softgi compare` share: the CPU backend that also returns the frame's
+// images, image writing, and the JSON run record generated from a FrameResult and a ParamSet.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "softgi/backends/cpu_backend.hpp"
+#include "softgi/render/frame.hpp"
+#include "softgi/render/params.hpp"
+#include "softgi/render/technique.hpp"
+#include "softgi/scene/scene.hpp"
+
+namespace softgi::app {
+
+// Records keep insertion order (parameters in description order, fields as written).
+using Json = nlohmann::ordered_json;
+
+// The CPU backend, plus: when a pass writes "direct", "indirect" or "final", the image is copied into
+// the FrameResult (unless the pass filled that field itself). Backend::render does not yet move the
+// frame's output images into FrameResult; once it does, this class can go.
+class CpuBackendWithImages : public backends::CpuBackend {
+ protected:
+  void execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) override;
+};
+
+// Backends the CLI can run (--backend).
+std::string check_backend(const std::string& name);
+
+// A technique's parameters, defaults overridden by "name=value" assignments (errors name the
+// technique and the parameter).
+render::ParamSet technique_params(const render::Technique& t, const std::vector<std::string>& assignments);
+
+// Parameter values typed by their descriptions (int, float, bool, enum as string), in description order.
+Json params_json(const render::ParamSet& params);
+// passes, pruned, total_seconds, bytes, peak_rss_bytes of a frame.
+Json frame_json(const render::FrameResult& r);
+// "0.1.0" and an ISO 8601 UTC timestamp.
+std::string softgi_version();
+std::string utc_now();
+
+// Writes DIR/NAME.exr and a tone-mapped DIR/NAME.png; returns the PNG's file name.
+std::string write_image_pair(const std::string& dir, const std::string& name, const Image& img);
+// Creates the directory (and parents); errors name it.
+void make_output_dir(const std::string& dir);
+// Writes JSON, pretty-printed, through a temporary file; errors name the file.
+void write_json(const std::string& path, const Json& j);
+void write_text(const std::string& path, const std::string& text);
+
+// "--help" footer: every registered technique with its parameter descriptions.
+std::string techniques_help();
+
+}  // namespace softgi::app

@@ -1,0 +1,48 @@
+// The one camera model of softgi: a pinhole camera looking from Camera::position at Camera::target,
+// vertical field of view fov_y_deg, aspect width / height. The G-buffer pass, the reference renderer
+// and every image-space technique generate their rays here, so a technique's pixel (x, y) and the
+// reference's pixel (x, y) see the same point.
+#pragma once
+
+#include <string>
+
+#include <glm/glm.hpp>
+
+#include "softgi/scene/scene.hpp"
+
+namespace softgi::render {
+
+struct PinholeCamera {
+  glm::vec3 position{0.0f};
+  glm::vec3 forward{0.0f, 0.0f, -1.0f};  // unit; the image-plane normal E of paper 000 section 4
+  glm::vec3 right{1.0f, 0.0f, 0.0f};     // unit, forward x up_hint
+  glm::vec3 up{0.0f, 1.0f, 0.0f};        // unit, right x forward
+  float tan_half_fov_y = 1.0f;
+  float aspect = 1.0f;  // width / height
+  int width = 0, height = 0;
+
+  // Unit direction of the ray through image point (px, py) in pixel units: (0, 0) is the top-left
+  // corner of the image, (width, height) the bottom-right; pixel (x, y) has its centre at
+  // (x + 0.5, y + 0.5). Row 0 is the top row (Image convention).
+  glm::vec3 direction(float px, float py) const {
+    const float sx = (2.0f * px / static_cast<float>(width) - 1.0f) * tan_half_fov_y * aspect;
+    const float sy = (1.0f - 2.0f * py / static_cast<float>(height)) * tan_half_fov_y;
+    return glm::normalize(forward + sx * right + sy * up);
+  }
+  glm::vec3 pixel_center_direction(int x, int y) const {
+    return direction(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
+  }
+  // Eye-space depth z_p = (p - e) . E (paper 000 section 4).
+  float depth(const glm::vec3& p) const { return glm::dot(p - position, forward); }
+};
+
+// The camera of `scene` at width x height pixels. Throws std::invalid_argument, prefixed with `who`
+// and naming the scene and the field, for a size outside 1..16384 per side, fov_y_deg outside
+// (0, 179), position equal to target or not finite, or up parallel to the view direction.
+PinholeCamera make_pinhole_camera(const scene::Scene& scene, int width, int height, const std::string& who);
+
+// The image size a request gets: 0 means the camera's; when only one of width and height is given,
+// the other keeps the camera's aspect ratio. Does not validate (make_pinhole_camera does).
+void resolve_resolution(const scene::Camera& camera, int& width, int& height);
+
+}  // namespace softgi::render

@@ -1,0 +1,27 @@
+// The shared G-buffer: primary visibility at display resolution. Per-vertex techniques interpolate
+// their vertex results with (object, primitive, barycentrics); image-space techniques read
+// position, normal and depth.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace softgi::render {
+
+struct GBuffer {
+  int width = 0, height = 0;
+  std::vector<glm::vec3> position;   // world space
+  std::vector<glm::vec3> normal;     // world space shading normal (interpolated, unit)
+  std::vector<float> depth;          // eye-space depth (p - e) . E (paper 000 section 4); +inf where no hit
+  std::vector<glm::vec3> albedo;     // material * texture * vertex colour
+  std::vector<std::int32_t> object;  // PosedScene::objects index, -1 = background
+  std::vector<std::int32_t> primitive;
+  std::vector<glm::vec2> barycentric;  // (b1, b2); b0 = 1 - b1 - b2
+  std::vector<glm::vec3> view_dir;   // unit, from the surface towards the eye (or the ray direction for background)
+  bool hit(std::size_t i) const { return object[i] >= 0; }
+  std::size_t bytes() const;
+};
+
+}  // namespace softgi::render

@@ -1,0 +1,58 @@
+// Pass graphs: each pass declares the resources it reads and writes; a graph is compiled backwards
+// from the requested outputs, and passes whose outputs nothing needs, or whose required inputs are
+// empty for the scene, are left out (docs/architecture.md).
+#pragma once
+
+#include <functional>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace softgi::render {
+
+class FrameContext;
+using PassFn = std::function<void(FrameContext&)>;
+
+struct PassDesc {
+  std::string name;
+  std::vector<std::string> reads;           // required: the pass is left out when one is empty
+  std::vector<std::string> optional_reads;  // used when present (an empty one reads as zero)
+  std::vector<std::string> writes;
+  std::string help;
+  // Implementations keyed by backend name ("cpu", "vulkan"); the null backend runs none.
+  std::map<std::string, PassFn> impl;
+};
+
+struct PrunedPass {
+  std::string name, reason;
+};
+
+struct CompiledGraph {
+  std::vector<int> order;               // indices into PassGraph::passes(), dependency order
+  std::vector<PrunedPass> pruned;       // every pass not in `order`, with why
+  std::set<std::string> empty;          // resources known empty (given, or written only by pruned passes)
+  std::set<std::string> live;           // resources that will be produced
+};
+
+class PassGraph {
+ public:
+  // Resources that exist before any pass runs (e.g. "scene", "camera"). Reading anything else
+  // requires a writer in the graph.
+  void add_input(const std::string& resource) { inputs_.insert(resource); }
+  int add(PassDesc pass);
+  const std::vector<PassDesc>& passes() const { return passes_; }
+  const std::set<std::string>& inputs() const { return inputs_; }
+
+  // Builds the schedule for `outputs`. `empty` lists resources that are empty for this scene
+  // (e.g. "moving_objects" for a static scene, "reradiating_proxies" when no proxy re-radiates).
+  // Throws std::invalid_argument for an unknown output, a read with no writer, two writers of one
+  // resource, or a cycle, naming the pass and resource.
+  CompiledGraph compile(const std::vector<std::string>& outputs, const std::set<std::string>& empty = {}) const;
+
+ private:
+  std::vector<PassDesc> passes_;
+  std::set<std::string> inputs_;
+};
+
+}  // namespace softgi::render

@@ -1,0 +1,41 @@
+// Per-vertex results seen through the G-buffer: a technique that shades vertices (SHEXP) gets its
+// display-resolution image by interpolating the three vertex values of the visible triangle with the
+// G-buffer's barycentrics, the way a rasteriser's Gouraud interpolation would.
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "softgi/image.hpp"
+#include "softgi/render/gbuffer.hpp"
+#include "softgi/scene/scene.hpp"
+
+namespace softgi::render {
+
+// Radiance of a background pixel (no surface hit) from its G-buffer view_dir, which for background
+// pixels is the camera ray's direction, pointing away from the eye.
+using BackgroundFn = std::function<glm::vec3(const glm::vec3& ray_dir)>;
+
+// Pixel i with object o, triangle t = (a, b, c) of posed.objects[o].source->triangles and
+// barycentrics (b1, b2) gets (1 - b1 - b2) * v[o][a] + b1 * v[o][b] + b2 * v[o][c], where
+// v = per_vertex (one vector per posed object, one value per vertex of its mesh). Background pixels
+// get background(view_dir), or black when `background` is empty.
+//
+// Convention: techniques leave the indirect image's background black and put the light they shade
+// with (environment radiance, or its SH projection when they shade with SH lighting) into the
+// direct image's background, as the reference renderer does for its light model; `softgi compare`
+// measures error on surface pixels only, so the background choice never enters the error numbers.
+//
+// Throws std::invalid_argument naming the object when per_vertex does not match the posed scene (an
+// object seen by a pixel without per-vertex values, or with fewer values than vertices), or when a
+// G-buffer primitive index is out of range.
+Image interpolate_vertex_values(const GBuffer& gbuffer, const scene::PosedScene& posed,
+                                const std::vector<std::vector<glm::vec3>>& per_vertex,
+                                const BackgroundFn& background = {});
+
+// The environment's radiance along the ray: BackgroundFn for the full environment light.
+BackgroundFn environment_background(const scene::Environment& env);
+
+}  // namespace softgi::render

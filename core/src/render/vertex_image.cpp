@@ -1,0 +1,66 @@
+#include "softgi/render/vertex_image.hpp"
+
+#include <stdexcept>
+#include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+namespace softgi::render {
+
+Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& posed,
+                                const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background) {
+  const std::size_t n = static_cast<std::size_t>(gb.width) * gb.height;
+  if (gb.width < 0 || gb.height < 0 || gb.object.size() != n || gb.primitive.size() != n || gb.barycentric.size() != n ||
+      gb.view_dir.size() != n)
+    throw std::invalid_argument("interpolate_vertex_values: G-buffer of " + std::to_string(gb.width) + "x" +
+                                std::to_string(gb.height) + " has incomplete object/primitive/barycentric/view_dir planes");
+  // Validate once per object rather than per pixel: every object a pixel sees needs one value per vertex.
+  std::vector<char> seen(posed.objects.size(), 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int o = gb.object[i];
+    if (o < 0) continue;
+    if (o >= static_cast<int>(posed.objects.size()))
+      throw std::invalid_argument("interpolate_vertex_values: pixel " + std::to_string(i) + " sees object " +
+                                  std::to_string(o) + " but the posed scene has " + std::to_string(posed.objects.size()));
+    const scene::PosedObject& obj = posed.objects[o];
+    if (!seen[o]) {
+      seen[o] = 1;
+      const std::string name = obj.source ? "'" + obj.source->name + "'" : std::to_string(o);
+      if (!obj.source) throw std::invalid_argument("interpolate_vertex_values: object " + name + " has no mesh");
+      if (o >= static_cast<int>(per_vertex.size()) || per_vertex[o].size() < obj.positions.size())
+        throw std::invalid_argument("interpolate_vertex_values: object " + name + " (index " + std::to_string(o) +
+                                    ") is visible but has " +
+                                    std::to_string(o < static_cast<int>(per_vertex.size()) ? per_vertex[o].size() : 0) +
+                                    " per-vertex values for " + std::to_string(obj.positions.size()) + " vertices");
+    }
+    const int t = gb.primitive[i];
+    if (t < 0 || t >= static_cast<int>(obj.source->triangles.size()))
+      throw std::invalid_argument("interpolate_vertex_values: pixel " + std::to_string(i) + " has primitive " +
+                                  std::to_string(t) + " outside mesh '" + obj.source->name + "'");
+  }
+
+  Image out(gb.width, gb.height);
+  tbb::parallel_for(tbb::blocked_range<int>(0, gb.height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y != rows.end(); ++y)
+      for (int x = 0; x < gb.width; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * gb.width + x;
+        const int o = gb.object[i];
+        if (o < 0) {
+          out.rgb[i] = background ? background(gb.view_dir[i]) : glm::vec3(0.0f);
+          continue;
+        }
+        const glm::uvec3 tri = posed.objects[o].source->triangles[gb.primitive[i]];
+        const std::vector<glm::vec3>& v = per_vertex[o];
+        const glm::vec2 b = gb.barycentric[i];
+        out.rgb[i] = (1.0f - b.x - b.y) * v[tri.x] + b.x * v[tri.y] + b.y * v[tri.z];
+      }
+  });
+  return out;
+}
+
+BackgroundFn environment_background(const scene::Environment& env) {
+  return [&env](const glm::vec3& d) { return env.radiance(d); };
+}
+
+}  // namespace softgi::render

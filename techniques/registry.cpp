@@ -1,0 +1,15 @@
+#include "softgi/techniques/registry.hpp"
+
+#include <mutex>
+
+#include "softgi/render/technique.hpp"
+#include "softgi/techniques/shexp.hpp"
+
+namespace softgi::techniques {
+
+void register_all() {
+  static std::once_flag once;
+  std::call_once(once, [] { render::register_technique("shexp", [] { return shexp::create(); }); });
+}
+
+}  // namespace softgi::techniques

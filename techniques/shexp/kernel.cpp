@@ -1,0 +1,441 @@
+// The hot loop of SHEXP: log-visibility accumulation (paper 004 eqs. 8, 34, 38) vectorised across
+// receivers. The kernel body (kernel_body.hpp) is compiled three times: for AVX-512 (16 lanes), for
+// AVX2+FMA (8 lanes) and as portable scalar code; the build uses no -march flag, so the vector
+// versions are compiled under `#pragma GCC target` and chosen at run time from the CPU's features.
+// GCC 12 reports its own AVX-512 intrinsics (_mm512_undefined_ps self-initialisation) as maybe
+// uninitialised once inlined; the warning is about the compiler header, not this code.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include <immintrin.h>
+
+#include <algorithm>
+#include <array>
+#include <memory>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+#include "shexp_internal.hpp"
+#include "softgi/sh/product.hpp"
+
+namespace softgi::techniques::shexp {
+
+namespace {
+
+// Normalised associated-Legendre recurrence in z for the real basis of docs/sh.md (no
+// Condon-Shortley phase): y_{l,0} = Q_l^0(z), y_{l,m} = Q_l^m(z) C_m, y_{l,-m} = Q_l^m(z) S_m with
+// Q_l^m = N_lm P_l^m, P the associated Legendre polynomial without its (1 - z^2)^{m/2} factor
+// (carried by C_m, S_m) and N_lm = K_l^m (times sqrt 2 for m > 0).
+struct BasisConsts {
+  float qmm[kMaxAccOrder] = {};                    // Q_m^m (a constant)
+  float a1[kMaxAccOrder] = {};                     // Q_{m+1}^m = a1[m] z Q_m^m
+  float A[kMaxAccOrder][kMaxAccOrder] = {};        // Q_l^m = A z Q_{l-1}^m - B Q_{l-2}^m, l >= m + 2
+  float B[kMaxAccOrder][kMaxAccOrder] = {};
+};
+
+const BasisConsts& basis_consts() {
+  static const BasisConsts c = [] {
+    BasisConsts k;
+    auto norm = [](int l, int m) {
+      double ratio = 1.0;  // (l - m)! / (l + m)!
+      for (int i = l - m + 1; i <= l + m; ++i) ratio /= i;
+      double v = std::sqrt((2.0 * l + 1.0) / (4.0 * sh::kPi) * ratio);
+      return m > 0 ? v * std::sqrt(2.0) : v;
+    };
+    for (int m = 0; m < kMaxAccOrder; ++m) {
+      double pmm = 1.0;  // (2m - 1)!!
+      for (int i = 1; i <= 2 * m - 1; i += 2) pmm *= i;
+      k.qmm[m] = static_cast<float>(norm(m, m) * pmm);
+      if (m + 1 < kMaxAccOrder) k.a1[m] = static_cast<float>(norm(m + 1, m) * (2.0 * m + 1.0) / norm(m, m));
+      for (int l = m + 2; l < kMaxAccOrder; ++l) {
+        k.A[l][m] = static_cast<float>((2.0 * l - 1.0) / (l - m) * norm(l, m) / norm(l - 1, m));
+        k.B[l][m] = static_cast<float>((l + m - 1.0) / (l - m) * norm(l, m) / norm(l - 2, m));
+      }
+    }
+    return k;
+  }();
+  return c;
+}
+
+// Flush-to-zero and denormals-are-zero for the calling thread while a kernel runs: log vectors of
+// barely shadowed receivers have coefficients near 1e-20 whose squares and products are subnormal,
+// and every subnormal operand or result costs a microcode assist (measured: exponentiation of the
+// `spheres` scene 10x slower). Values below 1e-38 carry no information here.
+class FlushDenormals {
+ public:
+  FlushDenormals() : saved_(_mm_getcsr()) { _mm_setcsr(saved_ | 0x8040u); }  // FTZ (bit 15) | DAZ (bit 6)
+  ~FlushDenormals() { _mm_setcsr(saved_); }
+  FlushDenormals(const FlushDenormals&) = delete;
+  FlushDenormals& operator=(const FlushDenormals&) = delete;
+
+ private:
+  unsigned saved_;
+};
+
+// Abramowitz & Stegun 4.4.46: asin x = pi/2 - sqrt(1 - x) sum a_i x^i on [0, 1].
+constexpr float kAsin[8] = {1.5707963050f, -0.2145988016f, 0.0889789874f, -0.0501743046f,
+                            0.0308918810f, -0.0170881256f, 0.0066700901f, -0.0012624911f};
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Portable scalar version (also the reference the vector versions are tested against).
+namespace kscalar {
+struct Vec {
+  using F = float;
+  using I = int;
+  using M = bool;
+  static constexpr int W = 1;
+  static F set(float x) { return x; }
+  static F load(const float* p) { return *p; }
+  static void store(float* p, F x) { *p = x; }
+  static F add(F a, F b) { return a + b; }
+  static F sub(F a, F b) { return a - b; }
+  static F mul(F a, F b) { return a * b; }
+  static F div(F a, F b) { return a / b; }
+  static F fma(F a, F b, F c) { return a * b + c; }
+  static F fnma(F a, F b, F c) { return c - a * b; }
+  static F min(F a, F b) { return a < b ? a : b; }
+  static F max(F a, F b) { return a > b ? a : b; }
+  static F sqrt(F a) { return std::sqrt(a); }
+  static M lt(F a, F b) { return a < b; }
+  static M ge(F a, F b) { return a >= b; }
+  static F select(M m, F a, F b) { return m ? a : b; }
+  static I trunc(F x) { return x > -2e9f && x < 2e9f ? static_cast<int>(x) : 0; }
+  static F to_float(I i) { return static_cast<float>(i); }
+  static I iclamp(I i, int lo, int hi) { return i < lo ? lo : (i > hi ? hi : i); }
+  static F rsqrt(F a) { return 1.0f / std::sqrt(a); }
+  static bool all(M m) { return m; }
+  template <int N>
+  static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
+    const float* r = t.data.data() + static_cast<std::size_t>(row) * 2 * N;
+    for (int l = 0; l < N; ++l) out[l] = fma(fr, r[2 * l + 1], r[2 * l]);
+  }
+};
+#include "kernel_body.hpp"
+#include "batch_body.hpp"
+}  // namespace kscalar
+
+// ---------------------------------------------------------------------------------------------
+// Counting version: the same code on a number type that counts its arithmetic.
+namespace kcount {
+thread_local double g_flops = 0.0;
+struct Num {
+  float v;
+};
+struct Vec {
+  using F = Num;
+  using I = int;
+  using M = bool;
+  static constexpr int W = 1;
+  static F set(float x) { return {x}; }
+  static F load(const float* p) { return {*p}; }
+  static void store(float* p, F x) { *p = x.v; }
+  static F add(F a, F b) { g_flops += 1; return {a.v + b.v}; }
+  static F sub(F a, F b) { g_flops += 1; return {a.v - b.v}; }
+  static F mul(F a, F b) { g_flops += 1; return {a.v * b.v}; }
+  static F div(F a, F b) { g_flops += 1; return {a.v / b.v}; }
+  static F fma(F a, F b, F c) { g_flops += 2; return {a.v * b.v + c.v}; }
+  static F fnma(F a, F b, F c) { g_flops += 2; return {c.v - a.v * b.v}; }
+  static F min(F a, F b) { return {a.v < b.v ? a.v : b.v}; }
+  static F max(F a, F b) { return {a.v > b.v ? a.v : b.v}; }
+  static F sqrt(F a) { g_flops += 1; return {std::sqrt(a.v)}; }
+  static M lt(F a, F b) { return a.v < b.v; }
+  static M ge(F a, F b) { return a.v >= b.v; }
+  static F select(M m, F a, F b) { return m ? a : b; }
+  static I trunc(F x) { return x.v > -2e9f && x.v < 2e9f ? static_cast<int>(x.v) : 0; }
+  static F to_float(I i) { return {static_cast<float>(i)}; }
+  static I iclamp(I i, int lo, int hi) { return i < lo ? lo : (i > hi ? hi : i); }
+  // A refined reciprocal square root stands for the square root and division it replaces.
+  static F rsqrt(F a) { g_flops += 2; return {1.0f / std::sqrt(a.v)}; }
+  static bool all(M m) { return m; }
+  template <int N>
+  static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
+    const float* r = t.data.data() + static_cast<std::size_t>(row) * 2 * N;
+    for (int l = 0; l < N; ++l) out[l] = fma(fr, F{r[2 * l + 1]}, F{r[2 * l]});
+  }
+};
+#include "kernel_body.hpp"
+}  // namespace kcount
+
+// ---------------------------------------------------------------------------------------------
+// AVX2 + FMA, 8 lanes.
+#pragma GCC push_options
+#pragma GCC target("avx2,fma")
+namespace kavx2 {
+struct Vec {
+  using F = __m256;
+  using I = __m256i;
+  using M = __m256;
+  static constexpr int W = 8;
+  static F set(float x) { return _mm256_set1_ps(x); }
+  static F load(const float* p) { return _mm256_loadu_ps(p); }
+  static void store(float* p, F x) { _mm256_storeu_ps(p, x); }
+  static F add(F a, F b) { return _mm256_add_ps(a, b); }
+  static F sub(F a, F b) { return _mm256_sub_ps(a, b); }
+  static F mul(F a, F b) { return _mm256_mul_ps(a, b); }
+  static F div(F a, F b) { return _mm256_div_ps(a, b); }
+  static F fma(F a, F b, F c) { return _mm256_fmadd_ps(a, b, c); }
+  static F fnma(F a, F b, F c) { return _mm256_fnmadd_ps(a, b, c); }
+  static F min(F a, F b) { return _mm256_min_ps(a, b); }
+  static F max(F a, F b) { return _mm256_max_ps(a, b); }
+  static F sqrt(F a) { return _mm256_sqrt_ps(a); }
+  static M lt(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+  static M ge(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_GE_OQ); }
+  static F select(M m, F a, F b) { return _mm256_blendv_ps(b, a, m); }
+  static I trunc(F x) { return _mm256_cvttps_epi32(x); }  // NaN -> INT_MIN, clamped below
+  static F to_float(I i) { return _mm256_cvtepi32_ps(i); }
+  static I iclamp(I i, int lo, int hi) { return _mm256_min_epi32(_mm256_max_epi32(i, _mm256_set1_epi32(lo)), _mm256_set1_epi32(hi)); }
+  // rsqrt (12 bits) and one Newton step y (1.5 - 0.5 x y^2): ~23 bits. rsqrt(0) = inf stays inf.
+  static F rsqrt(F x) {
+    const F y = _mm256_rsqrt_ps(x);
+    const F hx = _mm256_mul_ps(_mm256_set1_ps(0.5f), x);
+    return _mm256_mul_ps(y, _mm256_fnmadd_ps(_mm256_mul_ps(hx, y), y, _mm256_set1_ps(1.5f)));
+  }
+  static bool all(M m) { return _mm256_movemask_ps(m) == 0xFF; }
+  template <int N>
+  static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
+    const I idx = _mm256_mullo_epi32(row, _mm256_set1_epi32(2 * N));
+    const float* base = t.data.data();
+    for (int l = 0; l < N; ++l)
+      out[l] = fma(fr, _mm256_i32gather_ps(base + 2 * l + 1, idx, 4), _mm256_i32gather_ps(base + 2 * l, idx, 4));
+  }
+};
+#include "kernel_body.hpp"
+#include "batch_body.hpp"
+}  // namespace kavx2
+#pragma GCC pop_options
+
+// ---------------------------------------------------------------------------------------------
+// AVX-512F, 16 lanes.
+#pragma GCC push_options
+#pragma GCC target("avx512f,avx2,fma")
+namespace kavx512 {
+struct Vec {
+  using F = __m512;
+  using I = __m512i;
+  using M = __mmask16;
+  static constexpr int W = 16;
+  static F set(float x) { return _mm512_set1_ps(x); }
+  static F load(const float* p) { return _mm512_loadu_ps(p); }
+  static void store(float* p, F x) { _mm512_storeu_ps(p, x); }
+  static F add(F a, F b) { return _mm512_add_ps(a, b); }
+  static F sub(F a, F b) { return _mm512_sub_ps(a, b); }
+  static F mul(F a, F b) { return _mm512_mul_ps(a, b); }
+  static F div(F a, F b) { return _mm512_div_ps(a, b); }
+  static F fma(F a, F b, F c) { return _mm512_fmadd_ps(a, b, c); }
+  static F fnma(F a, F b, F c) { return _mm512_fnmadd_ps(a, b, c); }
+  static F min(F a, F b) { return _mm512_min_ps(a, b); }
+  static F max(F a, F b) { return _mm512_max_ps(a, b); }
+  static F sqrt(F a) { return _mm512_sqrt_ps(a); }
+  static M lt(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_LT_OQ); }
+  static M ge(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_GE_OQ); }
+  static F select(M m, F a, F b) { return _mm512_mask_blend_ps(m, b, a); }
+  static I trunc(F x) { return _mm512_cvttps_epi32(x); }  // NaN -> INT_MIN, clamped below
+  static F to_float(I i) { return _mm512_cvtepi32_ps(i); }
+  static I iclamp(I i, int lo, int hi) { return _mm512_min_epi32(_mm512_max_epi32(i, _mm512_set1_epi32(lo)), _mm512_set1_epi32(hi)); }
+  // rsqrt14 (14 bits) and one Newton step: ~28 bits, below float rounding.
+  static F rsqrt(F x) {
+    const F y = _mm512_rsqrt14_ps(x);
+    const F hx = _mm512_mul_ps(_mm512_set1_ps(0.5f), x);
+    return _mm512_mul_ps(y, _mm512_fnmadd_ps(_mm512_mul_ps(hx, y), y, _mm512_set1_ps(1.5f)));
+  }
+  static bool all(M m) { return m == 0xFFFF; }
+  // Neighbouring receivers see a blocker at nearly the same angle, so the 16 lanes' table rows
+  // usually fall in a window of 16 rows around lane 0's: then each band is two loads and two
+  // in-register permutes. Otherwise (value, slope) pairs come from one 64-bit gather per 8 lanes,
+  // split by two permutes.
+  template <int N>
+  static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
+    const int rows = t.rows;
+    if (rows >= 16) {
+      const int k0 = _mm_cvtsi128_si32(_mm512_castsi512_si128(row));
+      const int start = k0 - 7 < 0 ? 0 : (k0 - 7 > rows - 16 ? rows - 16 : k0 - 7);
+      const I rel = _mm512_sub_epi32(row, _mm512_set1_epi32(start));
+      if (_mm512_cmplt_epu32_mask(rel, _mm512_set1_epi32(16)) == 0xFFFF) {
+        for (int l = 0; l < N; ++l) {
+          const float* b = t.band.data() + static_cast<std::size_t>(l) * 2 * rows + start;
+          out[l] = fma(fr, _mm512_permutexvar_ps(rel, _mm512_loadu_ps(b + rows)), _mm512_permutexvar_ps(rel, _mm512_loadu_ps(b)));
+        }
+        return;
+      }
+    }
+    const I idx = _mm512_mullo_epi32(row, _mm512_set1_epi32(N));
+    const __m256i lo_idx = _mm512_castsi512_si256(idx), hi_idx = _mm512_extracti64x4_epi64(idx, 1);
+    const I even = _mm512_set_epi32(30, 28, 26, 24, 22, 20, 18, 16, 14, 12, 10, 8, 6, 4, 2, 0);
+    const I odd = _mm512_set_epi32(31, 29, 27, 25, 23, 21, 19, 17, 15, 13, 11, 9, 7, 5, 3, 1);
+    for (int l = 0; l < N; ++l) {
+      const float* base = t.data.data() + 2 * l;
+      const F lo = _mm512_castpd_ps(_mm512_i32gather_pd(lo_idx, base, 8));
+      const F hi = _mm512_castpd_ps(_mm512_i32gather_pd(hi_idx, base, 8));
+      out[l] = fma(fr, _mm512_permutex2var_ps(lo, odd, hi), _mm512_permutex2var_ps(lo, even, hi));
+    }
+  }
+};
+#include "kernel_body.hpp"
+#include "batch_body.hpp"
+}  // namespace kavx512
+#pragma GCC pop_options
+
+// ---------------------------------------------------------------------------------------------
+
+const char* to_string(KernelIsa isa) {
+  switch (isa) {
+    case KernelIsa::Scalar: return "scalar";
+    case KernelIsa::Avx2: return "avx2";
+    case KernelIsa::Avx512: return "avx512";
+  }
+  return "?";
+}
+
+bool kernel_isa_supported(KernelIsa isa) {
+  switch (isa) {
+    case KernelIsa::Scalar: return true;
+    case KernelIsa::Avx2: return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    case KernelIsa::Avx512: return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  }
+  return false;
+}
+
+KernelIsa best_kernel_isa() {
+  static const KernelIsa best = kernel_isa_supported(KernelIsa::Avx512) ? KernelIsa::Avx512
+                                : kernel_isa_supported(KernelIsa::Avx2)  ? KernelIsa::Avx2
+                                                                         : KernelIsa::Scalar;
+  return best;
+}
+
+int kernel_lanes(KernelIsa isa) { return isa == KernelIsa::Avx512 ? 16 : isa == KernelIsa::Avx2 ? 8 : 1; }
+
+void accumulate_log(KernelIsa isa, const ZhTable& table, ReplacementRule rule, const ReceiverSoA& rec, std::size_t begin,
+                    std::size_t end, const BlockerList& blockers, float* out) {
+  const int order = table.order;
+  if (order < 3 || order > kMaxAccOrder)
+    throw std::invalid_argument("shexp accumulate_log: table order " + std::to_string(order) + " outside [3, 8]");
+  if (blockers.order != order)
+    throw std::invalid_argument("shexp accumulate_log: blocker weights of order " + std::to_string(blockers.order) +
+                                " used with a table of order " + std::to_string(order));
+  if (table.rows < 2) throw std::invalid_argument("shexp accumulate_log: table has fewer than 2 rows");
+  if (end > rec.size() || begin > end) throw std::invalid_argument("shexp accumulate_log: receiver range outside the receivers");
+  if (!kernel_isa_supported(isa))
+    throw std::invalid_argument(std::string("shexp accumulate_log: this CPU cannot run the ") + to_string(isa) + " kernel");
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: kscalar::kernel_dispatch(order, table, rule, rec, begin, end, blockers, out); return;
+    case KernelIsa::Avx2: kavx2::kernel_dispatch(order, table, rule, rec, begin, end, blockers, out); return;
+    case KernelIsa::Avx512: kavx512::kernel_dispatch(order, table, rule, rec, begin, end, blockers, out); return;
+  }
+}
+
+bool exp_batch_supports(sh::ExpMethod m) {
+  return m == sh::ExpMethod::HYB || m == sh::ExpMethod::OL || m == sh::ExpMethod::PSStar;
+}
+
+void exp_batch(KernelIsa isa, const BatchExp& e, const float* f, float* g, std::size_t count, std::size_t first,
+               sh::ExpStats& stats) {
+  if (!exp_batch_supports(e.method)) throw std::invalid_argument(std::string("shexp exp_batch: method ") + sh::to_string(e.method) + " is not batched");
+  if (!e.plan || e.plan->order != e.order) throw std::invalid_argument("shexp exp_batch: product plan missing or of another order");
+  if (e.method != sh::ExpMethod::PSStar && (!e.tables || e.tables->order() != e.order))
+    throw std::invalid_argument("shexp exp_batch: OL tables missing or of another order");
+  if (e.method == sh::ExpMethod::PSStar && (e.degree < 1 || e.degree > 200))
+    throw std::invalid_argument("shexp exp_batch: series degree " + std::to_string(e.degree) + " outside [1, 200]");
+  if (count == 0) return;
+  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("shexp exp_batch: this CPU cannot run ") + to_string(isa));
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: kscalar::exp_dispatch(e, f, count, g, first, stats); return;
+    case KernelIsa::Avx2: kavx2::exp_dispatch(e, f, count, g, first, stats); return;
+    case KernelIsa::Avx512: kavx512::exp_dispatch(e, f, count, g, first, stats); return;
+  }
+}
+
+void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out) {
+  if (!b.plan || b.plan->order != b.order || !b.L || !b.hcoef || !b.gwin)
+    throw std::invalid_argument("shexp shade_batch: incomplete shading inputs");
+  if (end > rec.size() || begin > end) throw std::invalid_argument("shexp shade_batch: receiver range outside the receivers");
+  if (begin == end) return;
+  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("shexp shade_batch: this CPU cannot run ") + to_string(isa));
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: kscalar::shade_dispatch(b, rec, begin, end, out); return;
+    case KernelIsa::Avx2: kavx2::shade_dispatch(b, rec, begin, end, out); return;
+    case KernelIsa::Avx512: kavx512::shade_dispatch(b, rec, begin, end, out); return;
+  }
+}
+
+const ProductPlan& ProductPlan::get(int order) {
+  if (order < 1 || order > kMaxAccOrder) throw std::invalid_argument("ProductPlan: order " + std::to_string(order) + " outside [1, 8]");
+  static std::mutex m;
+  static std::array<std::unique_ptr<ProductPlan>, kMaxAccOrder + 1> cache;
+  std::lock_guard<std::mutex> lock(m);
+  if (cache[order]) return *cache[order];
+  auto p = std::make_unique<ProductPlan>();
+  p->order = order;
+  const int n2 = order * order;
+  struct Term {
+    int i, j, k;
+    double v;
+  };
+  std::vector<Term> prod;
+  // Every unique (a <= b <= c) entry gives one term per distinct output index (as sh::TripleProduct).
+  for (const auto& e : sh::TripleProduct::get(order).unique_entries()) {
+    const int idx[3] = {e.i, e.j, e.k};
+    for (int o = 0; o < 3; ++o) {
+      if (o > 0 && idx[o] == idx[o - 1]) continue;
+      int r0 = idx[(o + 1) % 3], r1 = idx[(o + 2) % 3];
+      if (r0 > r1) std::swap(r0, r1);
+      prod.push_back({idx[o], r0, r1, e.value});
+    }
+  }
+  std::stable_sort(prod.begin(), prod.end(), [](const Term& a, const Term& b) {
+    if (a.i != b.i) return a.i < b.i;
+    return (a.j == a.k) < (b.j == b.k);
+  });
+  p->pr_begin.assign(n2 + 1, 0);
+  p->pr_offdiag_end.assign(n2, 0);
+  p->sq_begin.assign(n2 + 1, 0);
+  for (const Term& t : prod) {
+    p->pr_j.push_back(static_cast<std::uint16_t>(t.j));
+    p->pr_k.push_back(static_cast<std::uint16_t>(t.k));
+    p->pr_v.push_back(static_cast<float>(t.v));
+    p->sq_j.push_back(static_cast<std::uint16_t>(t.j));
+    p->sq_k.push_back(static_cast<std::uint16_t>(t.k));
+    p->sq_v.push_back(static_cast<float>(t.j != t.k ? 2.0 * t.v : t.v));
+    ++p->pr_begin[t.i + 1];
+    if (t.j != t.k) ++p->pr_offdiag_end[t.i];
+  }
+  for (int i = 0; i < n2; ++i) {
+    p->pr_begin[i + 1] += p->pr_begin[i];
+    p->pr_offdiag_end[i] += p->pr_begin[i];
+  }
+  p->sq_begin = p->pr_begin;
+  cache[order] = std::move(p);
+  return *cache[order];
+}
+
+double kernel_flops_per_pair(int order, ReplacementRule rule, bool straddling) {
+  if (order < 3 || order > kMaxAccOrder) throw std::invalid_argument("kernel_flops_per_pair: order outside [3, 8]");
+  // Any table and geometry will do: the kernel is branch-free apart from the rule, which is uniform.
+  ZhTable t;
+  t.order = order;
+  t.rows = 4;
+  t.scale = static_cast<float>(3.0 / (sh::kPi / 2));
+  t.data.assign(static_cast<std::size_t>(t.rows) * 2 * order, 0.5f);
+  t.band.assign(t.data.size(), 0.5f);
+  BlockerList b;
+  b.order = order;
+  constexpr int kBlockers = 4;
+  // Centre height 1 above the receiver's tangent plane: radius 0.5 is entirely in front (the rules'
+  // fast path), radius 1.5 straddles the plane (the rules run).
+  for (int i = 0; i < kBlockers; ++i) b.push(glm::vec3(0.3f * i, 1.0f, 0.2f), straddling ? 1.5f : 0.5f, nullptr);
+  ReceiverSoA rec;
+  rec.resize(1);
+  rec.set(0, glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+  std::vector<float> out(static_cast<std::size_t>(order) * order);
+  kcount::g_flops = 0.0;
+  kcount::kernel_dispatch(order, t, rule, rec, 0, 1, b, out.data());
+  return kcount::g_flops / kBlockers;
+}
+
+}  // namespace softgi::techniques::shexp

@@ -1,0 +1,886 @@
+// SHEXP (paper 004, Ren et al. 2006) as a render::Technique: parameters, pass graph and the CPU
+// implementation of every pass. docs/techniques/shexp.md describes the graph and the measurements.
+#include "softgi/techniques/shexp.hpp"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+#include <tuple>
+
+#include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+
+#include "shexp_internal.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/render/gbuffer.hpp"
+#include "softgi/render/vertex_image.hpp"
+#include "softgi/sh/product.hpp"
+
+namespace softgi::techniques::shexp {
+
+namespace {
+
+using render::FrameContext;
+using render::ParamDesc;
+using render::PassDesc;
+
+// Inputs of SHEXP's graph besides the shared ones: empty when the scene has no blocker sphere / no
+// spherical light (or analytic lights are switched off), so the passes that need them are left out.
+constexpr const char* kBlockerSpheres = "blocker_spheres";
+constexpr const char* kSphericalLights = "spherical_lights";
+// Resources written by SHEXP's passes.
+constexpr const char* kTables = "shexp.tables";
+constexpr const char* kLightTables = "shexp.light_tables";
+constexpr const char* kHierarchy = "shexp.hierarchy";
+constexpr const char* kProxyPose = "shexp.proxy_pose";
+constexpr const char* kReceivers = "shexp.receivers";
+constexpr const char* kCuts = "shexp.cuts";
+constexpr const char* kLogVisibility = "shexp.log_visibility";
+constexpr const char* kVisibility = "shexp.visibility";
+constexpr const char* kShading = "shexp.vertex_shading";
+
+// Light-lobe table size (section 7): theta in [0, 90] degrees, f in [0, 180] degrees.
+constexpr int kLightRowsTheta = 48;
+constexpr int kLightRowsF = 96;
+// Receivers per cluster when receiver_clusters = 0 ("several hundred vertices per receiver
+// cluster", section 6.3).
+constexpr int kAutoReceiversPerCluster = 300;
+constexpr int kLloydIterations = 30;
+constexpr int kLloydIterationsMoving = 3;  // warm-started per frame when geometry moves
+
+enum class Mode { HYB, OL, PSStar, PS, Exact, Product, Projected };
+
+struct Settings {
+  int order = 4, acc_order = 4;
+  Mode mode = Mode::HYB;
+  int ps_degree = 2;
+  bool hierarchy = true, ratio_vectors = true;
+  double theta_max = 0.0, theta_min = 0.0;
+  int clusters = 0;
+  double window_h = 0.0;  // resolved: 0 = off
+  bool window_visibility = true;
+  ReplacementRule rule = ReplacementRule::Continuous;
+  int table_resolution = 256;
+  double log_threshold = 0.02;
+  bool lights = true;
+  KernelIsa isa = KernelIsa::Scalar;
+};
+
+Settings read_settings(const render::ParamSet& p) {
+  Settings s;
+  s.order = p.get_int("order");
+  const int acc = p.get_int("accumulation_order");
+  if (acc != 0 && acc < s.order)
+    throw std::invalid_argument("parameter 'accumulation_order': " + std::to_string(acc) + " is below order " +
+                                std::to_string(s.order) + " (expected 0 or a value in [order, 8])");
+  s.acc_order = acc == 0 ? s.order : acc;
+  const std::string& e = p.get_enum("exp");
+  s.mode = e == "hyb" ? Mode::HYB : e == "ol" ? Mode::OL : e == "ps*" ? Mode::PSStar : e == "ps" ? Mode::PS : e == "exact" ? Mode::Exact
+         : e == "product" ? Mode::Product : Mode::Projected;
+  s.ps_degree = p.get_int("ps_degree");
+  s.hierarchy = p.get_bool("hierarchy") && s.mode != Mode::Product && s.mode != Mode::Projected;
+  s.ratio_vectors = p.get_bool("ratio_vectors");
+  s.theta_max = p.get_float("theta_max_deg") * sh::kPi / 180.0;
+  s.theta_min = p.get_float("theta_min_deg") * sh::kPi / 180.0;
+  if (s.theta_min >= s.theta_max)
+    throw std::invalid_argument("parameter 'theta_min_deg': " + p.get_text("theta_min_deg") +
+                                " must be below theta_max_deg = " + p.get_text("theta_max_deg"));
+  s.clusters = p.get_int("receiver_clusters");
+  const double h = p.get_float("window_h");
+  s.window_h = h < 0.0 ? 2.0 * s.order : h;  // section 7: h = 2n works well
+  if (h > 0.0 && h < 1.0)
+    throw std::invalid_argument("parameter 'window_h': " + p.get_text("window_h") + " would zero every band above 0 (expected -1, 0 or >= 1)");
+  s.window_visibility = p.get_bool("window_visibility");
+  s.rule = p.get_bool("self_shadow_rules") ? parse_replacement_rule(p.get_enum("replacement_rule")) : ReplacementRule::Off;
+  s.table_resolution = p.get_int("table_resolution");
+  s.log_threshold = p.get_float("log_threshold");
+  s.lights = p.get_bool("analytic_lights");
+  const std::string& k = p.get_enum("kernel");
+  s.isa = k == "auto" ? best_kernel_isa() : k == "avx512" ? KernelIsa::Avx512 : k == "avx2" ? KernelIsa::Avx2 : KernelIsa::Scalar;
+  if (!kernel_isa_supported(s.isa))
+    throw std::invalid_argument("parameter 'kernel': this CPU cannot run '" + k + "' (it supports up to " +
+                                std::string(to_string(best_kernel_isa())) + ")");
+  return s;
+}
+
+// --- Frame resources ----------------------------------------------------------------------------
+
+struct Tables {
+  int acc_order = 0;
+  std::shared_ptr<const sh::ShTables> sh;  // cap log / visibility and OL tables at the accumulation order
+  ZhTable log, vis;                         // float copies for the hot loops
+  std::size_t bytes_used() const {
+    return log.bytes() + vis.bytes() + (sh->ol_norm().size() + sh->ol_a().size() + sh->ol_b().size()) * sizeof(double);
+  }
+};
+
+struct Receivers {
+  ReceiverSoA soa;                              // cluster order
+  std::vector<int> object, vertex;              // source of each receiver
+  std::vector<ReceiverCluster> clusters;
+  std::vector<std::vector<std::uint32_t>> index;  // [object][vertex] -> receiver
+  std::size_t bytes() const {
+    return soa.size() * (6 * sizeof(float) + 3 * sizeof(int)) + clusters.size() * sizeof(ReceiverCluster);
+  }
+};
+
+struct HierarchyRes {
+  std::vector<const proxies::SphereHierarchy*> trees;  // one per proxy set (null where empty)
+};
+
+struct Cuts {
+  std::vector<BlockerList> lists;
+  std::vector<int> list_of_cluster;
+  std::size_t bytes() const {
+    std::size_t b = list_of_cluster.size() * sizeof(int);
+    for (const auto& l : lists) b += l.bytes();
+    return b;
+  }
+};
+
+struct Field {  // per receiver, order^2 floats
+  int order = 0;
+  std::vector<float> v;
+};
+
+struct Shading {
+  std::vector<std::vector<glm::vec3>> irradiance;  // E/pi per vertex of every posed object (unit albedo)
+  std::vector<glm::vec3> env;                      // the SH light used (order n, windowed)
+  int order = 0;
+};
+
+// --- State kept across frames ----------------------------------------------------------------
+
+struct State {
+  std::mutex m;
+  std::map<std::tuple<int, int, double>, std::shared_ptr<const Tables>> tables;
+  std::map<std::tuple<int, double>, std::shared_ptr<const LightLobeTable>> light_tables;
+  // Sphere hierarchies, built at the first frame's pose, refit by proxy_update.
+  std::string hierarchy_key;
+  std::vector<std::unique_ptr<proxies::SphereHierarchy>> trees;
+  double hierarchy_build_seconds = 0.0;
+  // Receiver cluster assignment (per object, per vertex), reused while the receivers stay the same.
+  std::string receivers_key;
+  std::vector<std::vector<int>> assignment;  // [object][vertex] -> global cluster
+  std::vector<glm::vec3> cluster_centres;
+  std::vector<int> cluster_object;
+  std::vector<std::vector<glm::vec3>> last_positions;  // per object, when last clustered
+  // Environment SH.
+  std::string env_key;
+  std::vector<glm::vec3> env_sh;
+};
+
+std::string receivers_signature(const scene::Scene& scene, const scene::PosedScene& posed, int clusters) {
+  std::ostringstream os;
+  os << &scene << '|' << scene.source << '|' << scene.name << '|' << clusters;
+  for (const auto& o : posed.objects) os << '|' << o.node << ':' << o.positions.size();
+  return os.str();
+}
+
+std::string hierarchy_signature(const scene::Scene& scene) {
+  std::ostringstream os;
+  os << &scene << '|' << scene.source << '|' << scene.name;
+  for (const auto& p : scene.proxies) {
+    os << '|' << p.node << ':' << p.spheres.size();
+    if (!p.spheres.empty()) os << ':' << p.spheres[0].center.x << ',' << p.spheres[0].radius;
+  }
+  return os.str();
+}
+
+glm::vec3 vertex_albedo(const scene::Scene& scene, const scene::PosedObject& o, std::size_t v) {
+  glm::vec3 a(0.8f);
+  if (o.material >= 0 && o.material < static_cast<int>(scene.materials.size())) {
+    const scene::Material& m = scene.materials[o.material];
+    a = m.albedo;
+    if (m.albedo_texture >= 0 && m.albedo_texture < static_cast<int>(scene.textures.size()) && o.source &&
+        v < o.source->uvs.size())
+      a *= scene.textures[m.albedo_texture].sample(o.source->uvs[v]);
+  }
+  if (o.source && v < o.source->colors.size()) a *= o.source->colors[v];
+  return a;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// --- Passes ------------------------------------------------------------------------------------
+
+void pass_tables(State& st, const Settings& s, FrameContext& ctx) {
+  const auto key = std::make_tuple(s.acc_order, s.table_resolution, s.log_threshold);
+  std::shared_ptr<const Tables> t;
+  bool cached = true;
+  {
+    std::lock_guard<std::mutex> lock(st.m);
+    auto it = st.tables.find(key);
+    if (it != st.tables.end()) t = it->second;
+  }
+  if (!t) {
+    cached = false;
+    sh::TableOptions opt;
+    opt.order = s.acc_order;
+    opt.resolution = s.table_resolution;
+    opt.log_threshold = s.log_threshold;
+    opt.measure_error = false;
+    auto tab = std::make_shared<Tables>();
+    tab->acc_order = s.acc_order;
+    tab->sh = std::make_shared<const sh::ShTables>(opt);
+    tab->log = make_zh_table(tab->sh->cap_log(), s.acc_order, true);
+    tab->vis = make_zh_table(tab->sh->cap_visibility(), s.acc_order, false);
+    t = tab;
+    std::lock_guard<std::mutex> lock(st.m);
+    st.tables[key] = t;
+  }
+  auto& rec = ctx.record();
+  rec.counters["order"] = s.acc_order;
+  rec.counters["rows"] = s.table_resolution;
+  rec.counters["cached"] = cached;
+  rec.counters["table_bytes_used"] = static_cast<double>(t->bytes_used());
+  rec.bytes = t->sh->bytes() + t->log.bytes() + t->vis.bytes();
+  ctx.put<std::shared_ptr<const Tables>>(kTables, t);
+}
+
+void pass_light_tables(State& st, const Settings& s, FrameContext& ctx) {
+  const auto key = std::make_tuple(s.order, s.window_h);
+  std::shared_ptr<const LightLobeTable> t;
+  bool cached = true;
+  {
+    std::lock_guard<std::mutex> lock(st.m);
+    auto it = st.light_tables.find(key);
+    if (it != st.light_tables.end()) t = it->second;
+  }
+  if (!t) {
+    cached = false;
+    t = std::make_shared<const LightLobeTable>(make_light_lobe_table(s.order, kLightRowsTheta, kLightRowsF, s.window_h));
+    std::lock_guard<std::mutex> lock(st.m);
+    st.light_tables[key] = t;
+  }
+  auto& rec = ctx.record();
+  rec.counters["cached"] = cached;
+  rec.counters["lights"] = static_cast<double>(ctx.posed.lights.size());
+  rec.counters["max_fit_error"] = t->max_fit_error;
+  rec.bytes = t->bytes();
+  ctx.put<std::shared_ptr<const LightLobeTable>>(kLightTables, t);
+}
+
+void pass_hierarchy(State& st, FrameContext& ctx) {
+  const std::string key = hierarchy_signature(ctx.scene);
+  bool cached = true;
+  std::lock_guard<std::mutex> lock(st.m);
+  if (st.hierarchy_key != key) {
+    cached = false;
+    auto t0 = std::chrono::steady_clock::now();
+    st.trees.clear();
+    for (const auto& set : ctx.posed.proxies) {
+      for (const auto& sp : set)
+        if (!(sp.radius >= 0.0f) || !std::isfinite(sp.radius) || !std::isfinite(sp.center.x) || !std::isfinite(sp.center.y) ||
+            !std::isfinite(sp.center.z))
+          throw std::invalid_argument("shexp: proxy sphere with non-finite centre or radius in scene '" + ctx.scene.name + "'");
+      if (set.empty()) {
+        st.trees.push_back(nullptr);
+        continue;
+      }
+      st.trees.push_back(std::make_unique<proxies::SphereHierarchy>(proxies::SphereHierarchy::build(set, 4, 1)));
+    }
+    st.hierarchy_key = key;
+    st.hierarchy_build_seconds = seconds_since(t0);
+  }
+  auto res = std::make_shared<HierarchyRes>();
+  std::size_t nodes = 0, leaves = 0;
+  int depth = 0;
+  for (const auto& t : st.trees) {
+    res->trees.push_back(t.get());
+    if (!t) continue;
+    nodes += t->nodes().size();
+    depth = std::max(depth, t->depth());
+    for (const auto& nd : t->nodes()) leaves += nd.children.empty();
+  }
+  auto& rec = ctx.record();
+  rec.counters["cached"] = cached;
+  rec.counters["trees"] = static_cast<double>(res->trees.size());
+  rec.counters["leaves"] = static_cast<double>(leaves);
+  rec.counters["nodes"] = static_cast<double>(nodes);
+  rec.counters["depth"] = depth;
+  rec.counters["build_seconds"] = st.hierarchy_build_seconds;
+  rec.bytes = nodes * sizeof(proxies::SphereNode);
+  ctx.put<std::shared_ptr<const HierarchyRes>>(kHierarchy, res);
+}
+
+void pass_proxy_update(State& st, FrameContext& ctx) {
+  std::lock_guard<std::mutex> lock(st.m);
+  std::size_t moved = 0;
+  for (std::size_t i = 0; i < st.trees.size() && i < ctx.posed.proxies.size(); ++i) {
+    if (!st.trees[i]) continue;
+    st.trees[i]->update(ctx.posed.proxies[i]);  // section 6.3: bottom-up sphere-pair refit
+    moved += ctx.posed.proxies[i].size();
+  }
+  ctx.record().counters["spheres"] = static_cast<double>(moved);
+  ctx.put<int>(kProxyPose, 1);
+}
+
+void pass_receivers(State& st, const Settings& s, FrameContext& ctx) {
+  const scene::PosedScene& posed = ctx.posed;
+  std::size_t total = 0;
+  for (const auto& o : posed.objects) total += o.positions.size();
+  if (total == 0) throw std::invalid_argument("shexp: scene '" + ctx.scene.name + "' has no vertices to shade");
+  if (total > (std::size_t{1} << 31)) throw std::invalid_argument("shexp: scene '" + ctx.scene.name + "' has too many vertices");
+  for (const auto& o : posed.objects)
+    if (o.normals.size() != o.positions.size())
+      throw std::invalid_argument("shexp: object " + std::to_string(o.node) + " in scene '" + ctx.scene.name + "' has " +
+                                  std::to_string(o.normals.size()) + " normals for " + std::to_string(o.positions.size()) + " vertices");
+  const int want = s.clusters > 0 ? s.clusters : std::max<int>(1, static_cast<int>((total + kAutoReceiversPerCluster / 2) / kAutoReceiversPerCluster));
+  const std::string key = receivers_signature(ctx.scene, posed, want);
+
+  std::lock_guard<std::mutex> lock(st.m);
+  int iterations = 0, objects_reclustered = 0;
+  const bool recluster = st.receivers_key != key;
+  if (recluster) st.last_positions.assign(posed.objects.size(), {});
+  // Lloyd clustering per object (a cluster never spans two objects), the count split by vertex
+  // count. An object whose vertices did not move keeps its clusters; one that moved is re-clustered
+  // warm-started from its last centres (section 6.3: recompute when geometry moves).
+  std::vector<glm::vec3> centres;
+  std::vector<int> cobj;
+  std::vector<std::vector<int>> assign(posed.objects.size());
+  for (std::size_t o = 0; o < posed.objects.size(); ++o) {
+    const auto& pts = posed.objects[o].positions;
+    if (pts.empty()) continue;
+    std::vector<glm::vec3> old;
+    for (std::size_t c = 0; c < st.cluster_centres.size(); ++c)
+      if (!recluster && st.cluster_object[c] == static_cast<int>(o)) old.push_back(st.cluster_centres[c]);
+    const int base = static_cast<int>(centres.size());
+    assign[o].resize(pts.size());
+    if (!recluster && st.last_positions[o] == pts) {
+      const int old_base = st.assignment[o].empty() ? 0 : *std::min_element(st.assignment[o].begin(), st.assignment[o].end());
+      for (std::size_t v = 0; v < pts.size(); ++v) assign[o][v] = base + st.assignment[o][v] - old_base;
+      for (const auto& c : old) {
+        centres.push_back(c);
+        cobj.push_back(static_cast<int>(o));
+      }
+      continue;
+    }
+    const int k = std::max(1, static_cast<int>(std::lround(static_cast<double>(want) * pts.size() / total)));
+    const bool warm = !recluster && static_cast<int>(old.size()) == k;
+    LloydResult lr = lloyd_cluster(pts, k, warm ? kLloydIterationsMoving : kLloydIterations, 7u + static_cast<unsigned>(o),
+                                   warm ? &old : nullptr);
+    iterations += lr.iterations;
+    ++objects_reclustered;
+    for (std::size_t v = 0; v < pts.size(); ++v) assign[o][v] = base + lr.assignment[v];
+    for (const auto& c : lr.centres) {
+      centres.push_back(c);
+      cobj.push_back(static_cast<int>(o));
+    }
+    st.last_positions[o] = pts;
+  }
+  st.assignment = std::move(assign);
+  st.cluster_centres = std::move(centres);
+  st.cluster_object = std::move(cobj);
+  st.receivers_key = key;
+
+  // Receivers in cluster order; cluster bounds (p_R, r_R) and the central point p* from this pose.
+  auto r = std::make_shared<Receivers>();
+  const int nc = static_cast<int>(st.cluster_centres.size());
+  std::vector<std::size_t> count(nc + 1, 0);
+  for (const auto& a : st.assignment)
+    for (int c : a) ++count[c + 1];
+  for (int c = 0; c < nc; ++c) count[c + 1] += count[c];
+  r->soa.resize(total);
+  r->object.resize(total);
+  r->vertex.resize(total);
+  r->index.resize(posed.objects.size());
+  std::vector<std::size_t> fill(count.begin(), count.end() - 1);
+  for (std::size_t o = 0; o < posed.objects.size(); ++o) {
+    const auto& obj = posed.objects[o];
+    r->index[o].resize(obj.positions.size());
+    for (std::size_t v = 0; v < obj.positions.size(); ++v) {
+      const std::size_t i = fill[st.assignment[o][v]]++;
+      r->soa.set(i, obj.positions[v], obj.normals[v]);
+      r->object[i] = static_cast<int>(o);
+      r->vertex[i] = static_cast<int>(v);
+      r->index[o][v] = static_cast<std::uint32_t>(i);
+    }
+  }
+  r->clusters.resize(nc);
+  tbb::parallel_for(0, nc, [&](int c) {
+    ReceiverCluster& rc = r->clusters[c];
+    rc.begin = count[c];
+    rc.end = count[c + 1];
+    glm::dvec3 sum(0.0);
+    for (std::size_t i = rc.begin; i < rc.end; ++i) sum += glm::dvec3(r->soa.px[i], r->soa.py[i], r->soa.pz[i]);
+    rc.centre = glm::vec3(sum / static_cast<double>(std::max<std::size_t>(1, rc.end - rc.begin)));
+    float rad = 0.0f, best = std::numeric_limits<float>::max();
+    for (std::size_t i = rc.begin; i < rc.end; ++i) {
+      const float d = glm::length(glm::vec3(r->soa.px[i], r->soa.py[i], r->soa.pz[i]) - rc.centre);
+      rad = std::max(rad, d);
+      if (d < best) {
+        best = d;
+        rc.star = glm::vec3(r->soa.px[i], r->soa.py[i], r->soa.pz[i]);
+      }
+    }
+    rc.radius = rad;
+  });
+  std::size_t maxc = 0;
+  for (const auto& c : r->clusters) maxc = std::max(maxc, c.end - c.begin);
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(total);
+  rec.counters["clusters"] = nc;
+  rec.counters["receivers_per_cluster_mean"] = static_cast<double>(total) / std::max(1, nc);
+  rec.counters["receivers_per_cluster_max"] = static_cast<double>(maxc);
+  rec.counters["lloyd_iterations"] = iterations;
+  rec.counters["reclustered"] = recluster;
+  rec.counters["objects_reclustered"] = objects_reclustered;
+  rec.bytes = r->bytes();
+  ctx.put<std::shared_ptr<const Receivers>>(kReceivers, r);
+}
+
+void pass_cut(const Settings& s, FrameContext& ctx) {
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  auto cuts = std::make_shared<Cuts>();
+  const int nc = static_cast<int>(r.clusters.size());
+  CutStats total;
+  if (s.hierarchy) {
+    const auto& h = *ctx.get<std::shared_ptr<const HierarchyRes>>(kHierarchy);
+    CutOptions opt;
+    opt.theta_max = s.theta_max;
+    opt.theta_min = s.theta_min;
+    opt.ratio_vectors = s.ratio_vectors;
+    cuts->lists.resize(nc);
+    cuts->list_of_cluster.resize(nc);
+    tbb::combinable<CutStats> stats;
+    tbb::parallel_for(0, nc, [&](int c) {
+      const ReceiverCluster& rc = r.clusters[c];
+      cuts->lists[c] = make_cut(h.trees, ctx.posed.proxies, t.log, rc.centre, rc.radius, rc.star, opt, &stats.local());
+      cuts->list_of_cluster[c] = c;
+    });
+    stats.combine_each([&](const CutStats& cs) {
+      total.nodes_visited += cs.nodes_visited;
+      total.leaves += cs.leaves;
+      total.inner += cs.inner;
+      total.detail_spheres += cs.detail_spheres;
+    });
+  } else {
+    cuts->lists.push_back(flat_list(ctx.posed.proxies, t.acc_order));
+    cuts->list_of_cluster.assign(nc, 0);
+  }
+  std::size_t mx = 0, sum = 0;
+  for (int c = 0; c < nc; ++c) {
+    const std::size_t n = cuts->lists[cuts->list_of_cluster[c]].size();
+    mx = std::max(mx, n);
+    sum += n;
+  }
+  auto& rec = ctx.record();
+  rec.counters["clusters"] = nc;
+  rec.counters["hierarchy"] = s.hierarchy;
+  rec.counters["cut_mean"] = nc ? static_cast<double>(sum) / nc : 0.0;
+  rec.counters["cut_max"] = static_cast<double>(mx);
+  rec.counters["leaves_in_cuts"] = static_cast<double>(total.leaves);
+  rec.counters["inner_in_cuts"] = static_cast<double>(total.inner);
+  rec.counters["nodes_visited"] = static_cast<double>(total.nodes_visited);
+  rec.counters["detail_spheres"] = static_cast<double>(total.detail_spheres);
+  rec.bytes = cuts->bytes();
+  ctx.put<std::shared_ptr<const Cuts>>(kCuts, cuts);
+}
+
+// Blockers each receiver processes (mean and max): the cut of its cluster.
+void blocker_counters(render::PassRecord& rec, const Receivers& r, const Cuts& cuts, double& pairs) {
+  pairs = 0.0;
+  std::size_t mx = 0;
+  for (std::size_t c = 0; c < r.clusters.size(); ++c) {
+    const std::size_t n = cuts.lists[cuts.list_of_cluster[c]].size();
+    pairs += static_cast<double>(n) * static_cast<double>(r.clusters[c].end - r.clusters[c].begin);
+    if (r.clusters[c].end > r.clusters[c].begin) mx = std::max(mx, n);
+  }
+  const double nrec = static_cast<double>(r.soa.size());
+  rec.counters["receivers"] = nrec;
+  rec.counters["pairs"] = pairs;
+  rec.counters["blockers_per_receiver_mean"] = nrec > 0 ? pairs / nrec : 0.0;
+  rec.counters["blockers_per_receiver_max"] = static_cast<double>(mx);
+}
+
+void pass_accumulate(const Settings& s, FrameContext& ctx) {
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& cuts = *ctx.get<std::shared_ptr<const Cuts>>(kCuts);
+  auto f = std::make_shared<Field>();
+  f->order = t.acc_order;
+  const std::size_t n2 = static_cast<std::size_t>(f->order) * f->order;
+  f->v.assign(r.soa.size() * n2, 0.0f);
+  auto t0 = std::chrono::steady_clock::now();
+  // One task per receiver cluster: its receivers share the cut, 16 (or 8) at a time (kernel.cpp).
+  tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(r.clusters.size()), 1), [&](const tbb::blocked_range<int>& cr) {
+    for (int c = cr.begin(); c != cr.end(); ++c) {
+      const ReceiverCluster& rc = r.clusters[c];
+      accumulate_log(s.isa, t.log, s.rule, r.soa, rc.begin, rc.end, cuts.lists[cuts.list_of_cluster[c]], f->v.data());
+    }
+  });
+  const double secs = seconds_since(t0);
+  auto& rec = ctx.record();
+  double pairs = 0.0;
+  blocker_counters(rec, r, cuts, pairs);
+  // Flops of the rules' fast path (spheres in front of the tangent plane): a lower bound where the rules run.
+  const double fpp = kernel_flops_per_pair(f->order, s.rule);
+  rec.counters["kernel_lanes"] = kernel_lanes(s.isa);
+  rec.counters["flops_per_pair"] = fpp;
+  rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
+  rec.counters["gflops"] = secs > 0.0 ? pairs * fpp / secs * 1e-9 : 0.0;
+  rec.bytes = f->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(kLogVisibility, f);
+}
+
+void pass_exponentiate(const Settings& s, FrameContext& ctx) {
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& f = *ctx.get<std::shared_ptr<const Field>>(kLogVisibility);
+  auto g = std::make_shared<Field>();
+  g->order = s.order;
+  const int na = f.order, n2a = na * na, n2 = s.order * s.order;
+  g->v.assign(r.soa.size() * n2, 0.0f);
+  sh::ExpOptions opt;
+  opt.method = s.mode == Mode::HYB ? sh::ExpMethod::HYB
+               : s.mode == Mode::OL ? sh::ExpMethod::OL
+               : s.mode == Mode::PSStar ? sh::ExpMethod::PSStar
+               : s.mode == Mode::PS ? sh::ExpMethod::PS
+                                    : sh::ExpMethod::Exact;
+  opt.degree = s.ps_degree;
+  tbb::combinable<sh::ExpStats> stats;
+  const bool batched = exp_batch_supports(opt.method);
+  BatchExp be;
+  be.order = na;
+  be.method = opt.method;
+  be.degree = opt.degree;
+  be.tables = t.sh.get();
+  be.plan = &ProductPlan::get(na);
+  // Blocks of 256 receivers (a multiple of every lane count): HYB, OL and PS* run batched across
+  // receivers (kernel.cpp), PS and the exact exponential per receiver through sh::exp.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
+    std::vector<float> out(br.size() * n2a);
+    auto& st = stats.local();
+    try {
+      if (batched) {
+        exp_batch(s.isa, be, f.v.data() + br.begin() * n2a, out.data(), br.size(), br.begin(), st);
+      } else {
+        for (std::size_t i = br.begin(); i != br.end(); ++i)
+          sh::exp<float>(na, f.v.data() + i * n2a, out.data() + (i - br.begin()) * n2a, opt, t.sh.get(), &st);
+      }
+    } catch (const std::exception& e) {
+      throw std::runtime_error(std::string("shexp exponentiate (receivers of objects ") + std::to_string(r.object[br.begin()]) + ".." +
+                               std::to_string(r.object[br.end() - 1]) + "): " + e.what());
+    }
+    // Figure 7e: accumulated and exponentiated at order na, truncated to the shading order.
+    for (std::size_t i = br.begin(); i != br.end(); ++i)
+      std::copy(out.begin() + (i - br.begin()) * n2a, out.begin() + (i - br.begin()) * n2a + n2, g->v.begin() + i * n2);
+  });
+  sh::ExpStats total;
+  stats.combine_each([&](const sh::ExpStats& e) {
+    total.squarings += e.squarings;
+    total.squares += e.squares;
+    total.products += e.products;
+  });
+  auto& rec = ctx.record();
+  const double nrec = static_cast<double>(r.soa.size());
+  rec.counters["receivers"] = nrec;
+  rec.counters["squarings"] = total.squarings;
+  rec.counters["squares"] = total.squares;
+  rec.counters["products"] = total.products;
+  rec.counters["squarings_per_receiver"] = nrec > 0 ? total.squarings / nrec : 0.0;
+  rec.bytes = g->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(kVisibility, g);
+}
+
+void pass_product(const Settings& s, FrameContext& ctx) {
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& cuts = *ctx.get<std::shared_ptr<const Cuts>>(kCuts);
+  const int na = t.acc_order, n2a = na * na, n2 = s.order * s.order;
+  std::vector<float> acc(r.soa.size() * n2a, 0.0f);
+  std::atomic<long long> products{0};
+  tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(r.clusters.size()), 1), [&](const tbb::blocked_range<int>& cr) {
+    for (int c = cr.begin(); c != cr.end(); ++c) {
+      const ReceiverCluster& rc = r.clusters[c];
+      products += accumulate_product(t.vis, s.rule, r.soa, rc.begin, rc.end, cuts.lists[cuts.list_of_cluster[c]], acc.data());
+    }
+  });
+  auto g = std::make_shared<Field>();
+  g->order = s.order;
+  g->v.assign(r.soa.size() * n2, 0.0f);
+  for (std::size_t i = 0; i < r.soa.size(); ++i)
+    std::copy(acc.begin() + i * n2a, acc.begin() + i * n2a + n2, g->v.begin() + i * n2);
+  auto& rec = ctx.record();
+  double pairs = 0.0;
+  blocker_counters(rec, r, cuts, pairs);
+  rec.counters["products"] = static_cast<double>(products.load());
+  rec.bytes = (acc.size() + g->v.size()) * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(kVisibility, g);
+}
+
+// Quadrature bands of the projected-visibility mode: 4n + 8 bands (2 (4n + 8)^2 directions, 1152 at
+// n = 4) resolve the binary visibility's order-n projection to about 1e-3.
+void pass_projected(const Settings& s, FrameContext& ctx) {
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const auto& cuts = *ctx.get<std::shared_ptr<const Cuts>>(kCuts);
+  auto g = std::make_shared<Field>();
+  g->order = s.order;
+  const int n2 = s.order * s.order;
+  g->v.assign(r.soa.size() * n2, 0.0f);
+  tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(r.clusters.size()), 1), [&](const tbb::blocked_range<int>& cr) {
+    for (int c = cr.begin(); c != cr.end(); ++c) {
+      const ReceiverCluster& rc = r.clusters[c];
+      project_visibility(s.order, 4 * s.order + 8, s.rule, r.soa, rc.begin, rc.end, cuts.lists[cuts.list_of_cluster[c]], g->v.data());
+    }
+  });
+  auto& rec = ctx.record();
+  double pairs = 0.0;
+  blocker_counters(rec, r, cuts, pairs);
+  rec.counters["directions"] = 2.0 * (4 * s.order + 8) * (4 * s.order + 8);
+  rec.bytes = g->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(kVisibility, g);
+}
+
+void pass_shade(State& st, const Settings& s, FrameContext& ctx) {
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const int n = s.order, n2 = n * n;
+  std::shared_ptr<const Field> vis;
+  if (ctx.has(kVisibility)) vis = ctx.get<std::shared_ptr<const Field>>(kVisibility);
+  std::shared_ptr<const LightLobeTable> lt;
+  if (ctx.has(kLightTables)) lt = ctx.get<std::shared_ptr<const LightLobeTable>>(kLightTables);
+
+  auto sh_out = std::make_shared<Shading>();
+  sh_out->order = n;
+  {
+    const scene::Environment& env = ctx.scene.environment;
+    std::ostringstream key;
+    key << &env << '|' << n << '|' << s.window_h << '|' << static_cast<int>(env.kind) << '|' << env.map_path << '|'
+        << env.intensity << '|' << env.rotation_y << '|' << env.sun_direction.x << ',' << env.sun_direction.y << ','
+        << env.sun_direction.z << '|' << env.sun_radiance.x << '|' << env.map_rgb.size();
+    std::lock_guard<std::mutex> lock(st.m);
+    if (st.env_key != key.str()) {
+      st.env_sh = scene::environment_sh(env, n);
+      if (s.window_h > 0.0)  // section 7: window the lighting
+        for (int l = 0; l < n; ++l)
+          for (int m = -l; m <= l; ++m) st.env_sh[sh::index(l, m)] *= static_cast<float>(sh::window_factor(l, s.window_h));
+      st.env_key = key.str();
+    }
+    sh_out->env = st.env_sh;
+  }
+  std::array<std::vector<float>, 3> L;
+  for (int c = 0; c < 3; ++c) {
+    L[c].resize(n2);
+    for (int i = 0; i < n2; ++i) L[c][i] = sh_out->env[i][c];
+  }
+  // (L, H(N), g) = (H(N) * g) . L (eq. 9 and the triple-product identity of section 3): one SH
+  // product per receiver serves all three colour channels; batched across receivers (kernel.cpp).
+  std::vector<float> Lflat(3 * n2), hcoef(n2), gwin(n2, 1.0f);
+  const std::vector<double> cc = sh::clamped_cosine_zh(n);
+  for (int l = 0; l < n; ++l)
+    for (int m = -l; m <= l; ++m) {
+      const int k = sh::index(l, m);
+      hcoef[k] = static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+      if (vis && s.window_visibility && s.window_h > 0.0) gwin[k] = static_cast<float>(sh::window_factor(l, s.window_h));
+    }
+  for (int c = 0; c < 3; ++c) std::copy(L[c].begin(), L[c].end(), Lflat.begin() + c * n2);
+  BatchShade bs;
+  bs.order = n;
+  bs.plan = &ProductPlan::get(n);
+  bs.L = Lflat.data();
+  bs.hcoef = hcoef.data();
+  bs.gwin = gwin.data();
+  bs.g = vis ? vis->v.data() : nullptr;
+  std::vector<glm::vec3> shade(r.soa.size());
+  std::atomic<long long> clamped{0};
+  const auto& lights = ctx.posed.lights;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
+    shade_batch(s.isa, bs, r.soa, br.begin(), br.end(), shade.data() + br.begin());
+    std::array<float, sh::kMaxCoeffs> g{}, LH{};
+    long long cl = 0;
+    for (std::size_t i = br.begin(); i != br.end(); ++i) {
+      glm::vec3 e = shade[i];
+      if (lt && !lights.empty()) {
+        for (int k = 0; k < n2; ++k) g[k] = (vis ? vis->v[i * n2 + k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f)) * gwin[k];
+        const glm::vec3 p(r.soa.px[i], r.soa.py[i], r.soa.pz[i]), N(r.soa.nx[i], r.soa.ny[i], r.soa.nz[i]);
+        for (const auto& light : lights)
+          if (light_lh_world(*lt, p, N, light.position, light.radius, LH.data())) {
+            float d = 0.0f;
+            for (int k = 0; k < n2; ++k) d += LH[k] * g[k];
+            e += d * light.radiance;
+          }
+      }
+      // Truncated SH can ring below zero in deep shadow; outgoing radiance cannot.
+      if (e.x < 0.0f || e.y < 0.0f || e.z < 0.0f) ++cl;
+      shade[i] = glm::max(e, glm::vec3(0.0f));
+    }
+    clamped += cl;
+  });
+
+  const scene::PosedScene& posed = ctx.posed;
+  sh_out->irradiance.resize(posed.objects.size());
+  std::vector<std::vector<glm::vec3>> radiance(posed.objects.size());
+  for (std::size_t o = 0; o < posed.objects.size(); ++o) {
+    const auto& obj = posed.objects[o];
+    sh_out->irradiance[o].resize(obj.positions.size());
+    radiance[o].resize(obj.positions.size());
+    for (std::size_t v = 0; v < obj.positions.size(); ++v) {
+      const glm::vec3 e = shade[r.index[o][v]];
+      sh_out->irradiance[o][v] = e;
+      radiance[o][v] = e * vertex_albedo(ctx.scene, obj, v);
+    }
+  }
+  ctx.result.vertex_radiance = std::move(radiance);
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(r.soa.size());
+  rec.counters["shadowed"] = vis ? 1.0 : 0.0;
+  rec.counters["lights"] = lt ? static_cast<double>(lights.size()) : 0.0;
+  rec.counters["vertices_clamped"] = static_cast<double>(clamped.load());
+  rec.bytes = r.soa.size() * 2 * sizeof(glm::vec3);
+  ctx.put<std::shared_ptr<const Shading>>(kShading, sh_out);
+}
+
+void pass_to_image(FrameContext& ctx) {
+  const auto& gb = ctx.get<render::GBuffer>(render::kGBuffer);
+  const auto& shading = *ctx.get<std::shared_ptr<const Shading>>(kShading);
+  const int n = shading.order;
+  std::vector<float> L(static_cast<std::size_t>(n) * n * 3);
+  for (int i = 0; i < n * n; ++i)
+    for (int c = 0; c < 3; ++c) L[static_cast<std::size_t>(c) * n * n + i] = shading.env[i][c];
+  // Background: the SH light SHEXP shades with, seen along the ray (vertex_image.hpp convention).
+  render::BackgroundFn bg = [&L, n](const glm::vec3& d) {
+    std::array<float, sh::kMaxCoeffs> y{};
+    sh::eval_basis(n, sh::Vec3<float>{d.x, d.y, d.z}, y.data());
+    glm::vec3 v(0.0f);
+    for (int i = 0; i < n * n; ++i)
+      v += y[i] * glm::vec3(L[i], L[static_cast<std::size_t>(n) * n + i], L[2 * static_cast<std::size_t>(n) * n + i]);
+    return glm::max(v, glm::vec3(0.0f));
+  };
+  Image img = render::interpolate_vertex_values(gb, ctx.posed, shading.irradiance, bg);
+  // Irradiance is interpolated per vertex (section 8: vertex-rate shading); albedo is per pixel, so
+  // textures keep their detail.
+  const std::size_t np = img.rgb.size();
+  for (std::size_t i = 0; i < np; ++i)
+    if (gb.object[i] >= 0) img.rgb[i] *= gb.albedo[i];
+  auto& rec = ctx.record();
+  rec.counters["pixels"] = static_cast<double>(np);
+  rec.bytes = np * sizeof(glm::vec3);
+  ctx.result.direct = img;
+  ctx.put<Image>(render::kDirect, std::move(img));
+}
+
+// --- The technique ----------------------------------------------------------------------------
+
+class Shexp final : public render::Technique {
+ public:
+  std::string name() const override { return "shexp"; }
+  std::string description() const override {
+    return "SHEXP (paper 004, Ren et al. 2006): soft shadows of sphere-set blockers under low-frequency light by "
+           "accumulating log visibility in SH and exponentiating; per-vertex receivers; no indirect light";
+  }
+  std::vector<ParamDesc> params() const override {
+    std::vector<ParamDesc> d;
+    d.push_back(ParamDesc::integer("order", 4, kMinOrder, kMaxOrder, "SH order n of lighting, visibility and shading"));
+    d.push_back(ParamDesc::integer("accumulation_order", 0, 0, kMaxAccOrder,
+                                   "order at which blockers are accumulated and exponentiated before truncation to "
+                                   "`order` (0 = order; Figure 7e: 6 with order 4)"));
+    d.push_back(ParamDesc::choice("exp", "hyb", {"hyb", "ol", "ps*", "ps", "exact", "product", "projected"},
+                                  "SH exponential (section 4.3; exact = eq. 28, slow), or product = product-space "
+                                  "accumulation of Zhou et al. (eq. 6, the baseline), or projected = order-n projection "
+                                  "of the exact sphere visibility (quadrature, for error analysis)"));
+    d.push_back(ParamDesc::integer("ps_degree", 2, 1, 30, "series degree p of ps* and ps (PS*-2, PS-21 in Figure 9)"));
+    d.push_back(ParamDesc::boolean("hierarchy", true, "sphere hierarchy cuts per receiver cluster (section 6.3); product ignores it"));
+    d.push_back(ParamDesc::real("theta_max_deg", 25.0, 1.0, 60.0, "eq. 36 angular threshold of the cut (paper: 20-30)"));
+    d.push_back(ParamDesc::real("theta_min_deg", 0.0, 0.0, 30.0,
+                                "detail pruning: f_d stops at nodes subtending less than this at p* (0 = every leaf)"));
+    d.push_back(ParamDesc::boolean("ratio_vectors", true, "eq. 37 ratio vectors on cut nodes (off: Figure 6b)"));
+    d.push_back(ParamDesc::integer("receiver_clusters", 0, 0, 1 << 20,
+                                   "Lloyd receiver clusters (0 = one per ~300 vertices, section 6.3)"));
+    d.push_back(ParamDesc::real("window_h", -1.0, -1.0, 64.0, "cosine window size h (section 7): -1 = 2n, 0 = no window"));
+    d.push_back(ParamDesc::boolean("window_visibility", true, "window the visibility vector too (section 7), not only the light"));
+    d.push_back(ParamDesc::boolean("self_shadow_rules", true, "replacement rules for spheres near the receiver (section 6.2)"));
+    d.push_back(ParamDesc::choice("replacement_rule", "continuous", {"continuous", "clamped", "printed"},
+                                  "reading of the scale factor a (docs/techniques/shexp.md)"));
+    d.push_back(ParamDesc::integer("table_resolution", 256, 16, 4096, "samples in theta of the log-visibility table (paper: 256)"));
+    d.push_back(ParamDesc::real("log_threshold", 0.02, 0.001, 0.5, "eigenvalue clip of the SH log, times the largest (eq. 32)"));
+    d.push_back(ParamDesc::boolean("analytic_lights", true, "shade the scene's spherical lights (section 7, Analytic Lights)"));
+    d.push_back(ParamDesc::choice("kernel", "auto", {"auto", "avx512", "avx2", "scalar"}, "accumulation kernel instruction set"));
+    return d;
+  }
+
+  render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
+    const Settings s = read_settings(params);
+    render::add_scene_facts(scene, empty);
+    bool spheres = false;
+    for (const auto& p : scene.proxies) spheres = spheres || !p.spheres.empty();
+    if (!spheres) empty.insert(kBlockerSpheres);
+    if (scene.lights.empty() || !s.lights) empty.insert(kSphericalLights);
+
+    auto st = state_;
+    auto cpu = [](render::PassFn fn) { return std::map<std::string, render::PassFn>{{"cpu", std::move(fn)}}; };
+    render::PassGraph g;
+    g.add_input(render::kScene);
+    g.add_input(render::kMovingObjects);
+    g.add_input(kBlockerSpheres);
+    g.add_input(kSphericalLights);
+    // SHEXP has no indirect pass: compose reads the indirect image optionally, as an empty input.
+    g.add_input(render::kIndirect);
+    empty.insert(render::kIndirect);
+    render::add_gbuffer_pass(g);
+    g.add({"tables", {render::kScene, kBlockerSpheres}, {}, {kTables},
+           "cap log / visibility ZH and OL tables at the accumulation order only (section 6.1, eq. 24)",
+           cpu([st, s](FrameContext& c) { pass_tables(*st, s, c); })});
+    g.add({"light_tables", {kSphericalLights}, {}, {kLightTables}, "L_H(theta, f) single-lobe ZH table (section 7)",
+           cpu([st, s](FrameContext& c) { pass_light_tables(*st, s, c); })});
+    g.add({"receiver_setup", {render::kScene}, {}, {kReceivers},
+           "per-vertex receivers of every posed object, Lloyd receiver clusters (section 6.3)",
+           cpu([st, s](FrameContext& c) { pass_receivers(*st, s, c); })});
+    std::vector<std::string> cut_reads = {kReceivers, kTables, kBlockerSpheres}, cut_opt;
+    if (s.hierarchy) {
+      g.add({"hierarchy_build", {render::kScene, kBlockerSpheres}, {}, {kHierarchy},
+             "sphere hierarchy per proxy set, built once (section 6.3)", cpu([st](FrameContext& c) { pass_hierarchy(*st, c); })});
+      g.add({"proxy_update", {kHierarchy, render::kMovingObjects}, {}, {kProxyPose},
+             "refit the hierarchies to this frame's proxies (section 6.3, Animation)",
+             cpu([st](FrameContext& c) { pass_proxy_update(*st, c); })});
+      cut_reads.push_back(kHierarchy);
+      cut_opt.push_back(kProxyPose);
+    }
+    g.add({"blocker_cut", cut_reads, cut_opt, {kCuts},
+           s.hierarchy ? "per receiver cluster: eq. 36 cut and eq. 37 ratio vectors at p*" : "flat list of every leaf sphere",
+           cpu([s](FrameContext& c) { pass_cut(s, c); })});
+    if (s.mode == Mode::Projected) {
+      g.add({"project_visibility", {kReceivers, kCuts}, {}, {kVisibility},
+             "order-n projection of the exact binary visibility of the spheres (quadrature; error analysis)",
+             cpu([s](FrameContext& c) { pass_projected(s, c); })});
+    } else if (s.mode == Mode::Product) {
+      g.add({"product_accumulate", {kReceivers, kTables, kCuts}, {}, {kVisibility},
+             "product-space accumulation of blocker visibility (eq. 6, Zhou et al. 2005)",
+             cpu([s](FrameContext& c) { pass_product(s, c); })});
+    } else {
+      g.add({"accumulate_log", {kReceivers, kTables, kCuts}, {}, {kLogVisibility},
+             "sum of blocker log vectors per receiver (eqs. 8, 34, 38; rules of section 6.2)",
+             cpu([s](FrameContext& c) { pass_accumulate(s, c); })});
+      g.add({"exponentiate", {kReceivers, kTables, kLogVisibility}, {}, {kVisibility},
+             "SH exponential per receiver (section 4), truncated to the shading order",
+             cpu([s](FrameContext& c) { pass_exponentiate(s, c); })});
+    }
+    g.add({"shade", {kReceivers}, {kVisibility, kLightTables}, {kShading},
+           "L_H(N) . g per vertex, environment and spherical lights (section 7)",
+           cpu([st, s](FrameContext& c) { pass_shade(*st, s, c); })});
+    g.add({"to_image", {render::kGBuffer, kShading}, {}, {render::kDirect}, "per-vertex radiance through the G-buffer",
+           cpu([](FrameContext& c) { pass_to_image(c); })});
+    render::add_compose_pass(g);
+    return g;
+  }
+
+ private:
+  std::shared_ptr<State> state_ = std::make_shared<State>();
+};
+
+}  // namespace
+
+std::unique_ptr<render::Technique> create() { return std::make_unique<Shexp>(); }
+
+}  // namespace softgi::techniques::shexp

@@ -1,0 +1,640 @@
+// SHEXP building blocks: the accumulation kernel against the scalar formulas, eq. 34 against the
+// closed-form cap log, the exponentiated single sphere against the cap visibility, log-space order
+// independence, the replacement rules, the light-lobe table and Lloyd clustering.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "../../techniques/shexp/shexp_internal.hpp"
+#include "softgi/sh/exp_sweep.hpp"
+#include "softgi/sh/product.hpp"
+#include "softgi/sh/rotation.hpp"
+
+using namespace softgi;
+using namespace softgi::techniques::shexp;
+
+namespace {
+
+constexpr double kDeg = sh::kPi / 180.0;
+
+sh::ShTables make_tables(int order, bool measure = false) {
+  sh::TableOptions o;
+  o.order = order;
+  o.measure_error = measure;
+  return sh::ShTables(o);
+}
+
+// Scalar reference of the kernel: rules (scalar), then eq. 38 with sphere_zh_vector.
+std::vector<float> reference_accumulation(const ZhTable& t, ReplacementRule rule, const ReceiverSoA& rec, const BlockerList& b) {
+  const int n2 = t.order * t.order;
+  std::vector<float> out(rec.size() * n2, 0.0f), tmp(n2);
+  for (std::size_t i = 0; i < rec.size(); ++i) {
+    const glm::vec3 p(rec.px[i], rec.py[i], rec.pz[i]), n(rec.nx[i], rec.ny[i], rec.nz[i]);
+    for (std::size_t j = 0; j < b.size(); ++j) {
+      const AdjustedSphere s = apply_replacement_rule(rule, p, n, glm::vec3(b.cx[j], b.cy[j], b.cz[j]), b.r[j]);
+      if (!(s.radius > 0.0f)) continue;
+      sphere_zh_vector(t, p, s.center, s.radius, &b.w[j * t.order], tmp.data());
+      for (int k = 0; k < n2; ++k) out[i * n2 + k] += tmp[k];
+    }
+  }
+  return out;
+}
+
+struct RandomSetup {
+  ReceiverSoA rec;
+  BlockerList blockers;
+};
+
+// Receivers on a bumpy surface with tilted normals; blockers around and among them (some contain
+// receivers, some straddle tangent planes), with non-trivial band weights.
+RandomSetup random_setup(int order, std::size_t receivers, int blockers, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  RandomSetup s;
+  s.rec.resize(receivers);
+  for (std::size_t i = 0; i < receivers; ++i) {
+    glm::vec3 n = glm::normalize(glm::vec3(0.3f * u(rng), 1.0f, 0.3f * u(rng)));
+    s.rec.set(i, glm::vec3(1.5f * u(rng), 0.2f * u(rng), 1.5f * u(rng)), n);
+  }
+  s.blockers.order = order;
+  for (int j = 0; j < blockers; ++j) {
+    float w[kMaxAccOrder];
+    for (int l = 0; l < kMaxAccOrder; ++l) w[l] = 1.0f + 0.2f * u(rng);
+    s.blockers.push(glm::vec3(1.5f * u(rng), 0.4f + 0.6f * u(rng), 1.5f * u(rng)), 0.05f + 0.4f * std::abs(u(rng)), w);
+  }
+  return s;
+}
+
+// Shaded value v = (H(N) * g) . L for one receiver (section 7), with a light that has a bright lobe.
+double shade(int order, const float* g, const glm::vec3& n) {
+  std::array<double, sh::kMaxCoeffs> H{}, gd{}, HG{}, L{};
+  for (int i = 0; i < order * order; ++i) gd[i] = g[i];
+  sh::irradiance_weight(order, sh::Vec3<double>{n.x, n.y, n.z}, H.data());
+  sh::TripleProduct::get(order).product(H.data(), gd.data(), HG.data());
+  // Light: constant 0.3 plus a cosine-power lobe towards (0.3, 1, 0.2), projected once per order.
+  static std::array<std::vector<double>, kMaxAccOrder + 1> cache;
+  std::vector<double>& lobe = cache[order];
+  if (lobe.empty())
+    lobe = sh::project(order, sh::make_sphere_quadrature(order + 8), [&](const sh::Vec3<double>& s) {
+      glm::dvec3 d = glm::normalize(glm::dvec3(0.3, 1.0, 0.2));
+      double c = std::max(0.0, s.x * d.x + s.y * d.y + s.z * d.z);
+      return 0.3 + 4.0 * c * c * c;
+    });
+  for (int i = 0; i < order * order; ++i) L[i] = lobe[i];
+  double v = 0.0;
+  for (int i = 0; i < order * order; ++i) v += HG[i] * L[i];
+  return v;
+}
+
+}  // namespace
+
+// --- the kernel ----------------------------------------------------------------------------------
+
+// Float rounding over ~40 blockers of unit-sized terms (relative to the largest coefficient); the
+// vector versions use a refined rsqrt (28 bits) and a polynomial asin (2e-8 rad).
+constexpr double kKernelRelTol = 2e-5;
+
+// Neighbouring receivers on a plane under blockers well above it: every lane's table row within a
+// few rows of the others' (the kernels' windowed lookup) and every sphere in front of every tangent
+// plane (the rules' fast path).
+RandomSetup coherent_setup(int order, std::size_t receivers, int blockers, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  RandomSetup s;
+  s.rec.resize(receivers);
+  for (std::size_t i = 0; i < receivers; ++i) s.rec.set(i, glm::vec3(0.02f * (i % 16), 0.0f, 0.02f * (i / 16)), glm::vec3(0.0f, 1.0f, 0.0f));
+  s.blockers.order = order;
+  for (int j = 0; j < blockers; ++j) s.blockers.push(glm::vec3(u(rng), 1.5f + 0.3f * u(rng), u(rng)), 0.1f + 0.2f * std::abs(u(rng)), nullptr);
+  return s;
+}
+
+TEST(ShexpKernel, EveryInstructionSetMatchesTheScalarFormulas) {
+  for (int order = 3; order <= kMaxAccOrder; ++order)
+    for (int resolution : {256, 12})  // 12 rows: too few for the windowed lookup
+      for (bool coherent : {false, true}) {
+    sh::TableOptions o;
+    o.order = order;
+    o.resolution = resolution;
+    o.measure_error = false;
+    const ZhTable t = make_zh_table(sh::ShTables(o).cap_log(), order, true);
+    // 37 receivers: a partial last block.
+    RandomSetup s = coherent ? coherent_setup(order, 37, 23, 50 + order) : random_setup(order, 37, 41, 100 + order);
+    for (ReplacementRule rule : {ReplacementRule::Off, ReplacementRule::Continuous, ReplacementRule::Clamped, ReplacementRule::Printed}) {
+      const std::vector<float> ref = reference_accumulation(t, rule, s.rec, s.blockers);
+      double scale = 0.0;
+      for (float v : ref) scale = std::max(scale, static_cast<double>(std::abs(v)));
+      ASSERT_GT(scale, coherent ? 0.1 : 1.0);
+      for (KernelIsa isa : {KernelIsa::Scalar, KernelIsa::Avx2, KernelIsa::Avx512}) {
+        if (!kernel_isa_supported(isa)) continue;
+        std::vector<float> out(ref.size(), -7.0f);
+        accumulate_log(isa, t, rule, s.rec, 0, s.rec.size(), s.blockers, out.data());
+        double err = 0.0;
+        for (std::size_t k = 0; k < ref.size(); ++k) err = std::max(err, static_cast<double>(std::abs(out[k] - ref[k])));
+        EXPECT_LT(err, kKernelRelTol * scale) << "order " << order << " rule " << to_string(rule) << " isa " << to_string(isa)
+                                               << " resolution " << resolution << " coherent " << coherent;
+      }
+    }
+      }
+}
+
+TEST(ShexpKernel, SubRangesWriteOnlyTheirReceivers) {
+  const int order = 4;
+  sh::ShTables tables = make_tables(order);
+  const ZhTable t = make_zh_table(tables.cap_log(), order, true);
+  RandomSetup s = random_setup(order, 50, 10, 3);
+  std::vector<float> out(50 * 16, 123.0f);
+  accumulate_log(best_kernel_isa(), t, ReplacementRule::Continuous, s.rec, 10, 27, s.blockers, out.data());
+  for (std::size_t i = 0; i < 50; ++i)
+    for (int k = 0; k < 16; ++k)
+      if (i < 10 || i >= 27) {
+        EXPECT_EQ(out[i * 16 + k], 123.0f) << i;
+      } else {
+        EXPECT_NE(out[i * 16 + k], 123.0f) << i;
+      }
+}
+
+TEST(ShexpKernel, RejectsMismatchedInputs) {
+  sh::ShTables tables = make_tables(4);
+  const ZhTable t = make_zh_table(tables.cap_log(), 4, true);
+  RandomSetup s = random_setup(5, 4, 2, 1);  // weights of order 5
+  std::vector<float> out(4 * 16);
+  EXPECT_THROW(accumulate_log(KernelIsa::Scalar, t, ReplacementRule::Off, s.rec, 0, 4, s.blockers, out.data()), std::invalid_argument);
+  s.blockers.order = 4;
+  EXPECT_THROW(accumulate_log(KernelIsa::Scalar, t, ReplacementRule::Off, s.rec, 0, 5, s.blockers, out.data()), std::invalid_argument);
+}
+
+TEST(ShexpKernel, FlopCountGrowsWithOrderAndRules) {
+  double prev = 0.0;
+  for (int n = 3; n <= 8; ++n) {
+    const double f = kernel_flops_per_pair(n, ReplacementRule::Continuous);
+    // At least the n^2 multiply-adds of the accumulation itself, at most a few hundred more.
+    EXPECT_GE(f, 2.0 * n * n);
+    EXPECT_LT(f, 2.0 * n * n + 300.0);
+    EXPECT_GT(f, prev);
+    prev = f;
+  }
+  EXPECT_GT(kernel_flops_per_pair(4, ReplacementRule::Continuous, true), kernel_flops_per_pair(4, ReplacementRule::Off, true));
+  EXPECT_EQ(kernel_flops_per_pair(4, ReplacementRule::Continuous, false), kernel_flops_per_pair(4, ReplacementRule::Off, false));
+}
+
+// --- batched exponentiation and shading -----------------------------------------------------------
+
+// The batched HYB, OL and PS* follow the scalar sh::exp rules per lane; only the rounding of the
+// product sums differs (fused multiply-adds): 1e-5 of the largest coefficient.
+constexpr double kBatchRelTol = 1e-5;
+
+TEST(ShexpBatch, ExponentialsMatchShExpPerReceiver) {
+  for (int order : {3, 4, 6, 8}) {
+    sh::TableOptions o;
+    o.order = order;
+    o.measure_error = false;
+    sh::ShTables tables(o);
+    const int n2 = order * order;
+    // Log vectors of 1..50 caps (a spread of squaring counts within every block), 45 receivers.
+    std::vector<sh::LogVisInput> in = sh::cap_sum_sweep(order, {1, 2, 5, 10, 20, 50}, 2.0, 30.0, 8, 9);
+    in.resize(45);
+    std::vector<float> f(in.size() * n2);
+    for (std::size_t i = 0; i < in.size(); ++i)
+      for (int k = 0; k < n2; ++k) f[i * n2 + k] = static_cast<float>(in[i].f[k]);
+    for (auto [method, degree] : std::vector<std::pair<sh::ExpMethod, int>>{
+             {sh::ExpMethod::HYB, 2}, {sh::ExpMethod::OL, 2}, {sh::ExpMethod::PSStar, 2}, {sh::ExpMethod::PSStar, 5}}) {
+      sh::ExpOptions opt;
+      opt.method = method;
+      opt.degree = degree;
+      std::vector<float> ref(f.size());
+      sh::ExpStats ref_stats;
+      for (std::size_t i = 0; i < in.size(); ++i) sh::exp<float>(order, f.data() + i * n2, ref.data() + i * n2, opt, &tables, &ref_stats);
+      BatchExp be;
+      be.order = order;
+      be.method = method;
+      be.degree = degree;
+      be.tables = &tables;
+      be.plan = &ProductPlan::get(order);
+      for (KernelIsa isa : {KernelIsa::Scalar, KernelIsa::Avx2, KernelIsa::Avx512}) {
+        if (!kernel_isa_supported(isa)) continue;
+        std::vector<float> got(f.size(), -1.0f);
+        sh::ExpStats st;
+        exp_batch(isa, be, f.data(), got.data(), in.size(), 0, st);
+        double err = 0.0, scale = 0.0;
+        for (std::size_t k = 0; k < f.size(); ++k) {
+          err = std::max(err, static_cast<double>(std::abs(got[k] - ref[k])));
+          scale = std::max(scale, static_cast<double>(std::abs(ref[k])));
+        }
+        EXPECT_LT(err, kBatchRelTol * scale) << "order " << order << " method " << sh::to_string(method) << degree << " " << to_string(isa);
+        EXPECT_EQ(st.squarings, ref_stats.squarings);
+        EXPECT_EQ(st.squares, ref_stats.squares);
+        EXPECT_EQ(st.products, ref_stats.products);
+      }
+    }
+  }
+}
+
+TEST(ShexpBatch, NonFiniteLogVectorsAreReportedWithTheReceiver) {
+  sh::TableOptions o;
+  o.order = 4;
+  o.measure_error = false;
+  sh::ShTables tables(o);
+  std::vector<float> f(20 * 16, 0.0f), g(20 * 16);
+  f[17 * 16 + 3] = std::numeric_limits<float>::quiet_NaN();
+  BatchExp be;
+  be.order = 4;
+  be.tables = &tables;
+  be.plan = &ProductPlan::get(4);
+  try {
+    exp_batch(best_kernel_isa(), be, f.data(), g.data(), 20, 100, *std::make_unique<sh::ExpStats>());
+    FAIL() << "NaN accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("receiver 117"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
+  for (int order : {3, 4, 6}) {
+    const int n2 = order * order;
+    RandomSetup s = random_setup(order, 21, 1, 4);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    std::vector<float> g(21 * n2), L(3 * n2), gwin(n2), hcoef(n2);
+    for (auto& v : g) v = u(rng);
+    for (auto& v : L) v = u(rng);
+    const std::vector<double> cc = sh::clamped_cosine_zh(order);
+    for (int l = 0; l < order; ++l)
+      for (int m = -l; m <= l; ++m) {
+        hcoef[sh::index(l, m)] = static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+        gwin[sh::index(l, m)] = static_cast<float>(sh::window_factor(l, 2.0 * order));
+      }
+    BatchShade b;
+    b.order = order;
+    b.plan = &ProductPlan::get(order);
+    b.L = L.data();
+    b.hcoef = hcoef.data();
+    b.gwin = gwin.data();
+    b.g = g.data();
+    for (KernelIsa isa : {KernelIsa::Scalar, KernelIsa::Avx2, KernelIsa::Avx512}) {
+      if (!kernel_isa_supported(isa)) continue;
+      std::vector<glm::vec3> out(21);
+      shade_batch(isa, b, s.rec, 0, 21, out.data());
+      for (int i = 0; i < 21; ++i) {
+        std::array<double, sh::kMaxCoeffs> H{}, gd{}, Lc{};
+        sh::irradiance_weight(order, sh::Vec3<double>{s.rec.nx[i], s.rec.ny[i], s.rec.nz[i]}, H.data());
+        for (int k = 0; k < n2; ++k) gd[k] = g[i * n2 + k] * gwin[k];
+        for (int c = 0; c < 3; ++c) {
+          for (int k = 0; k < n2; ++k) Lc[k] = L[c * n2 + k];
+          const double expect = sh::TripleProduct::get(order).triple_integral(H.data(), gd.data(), Lc.data());
+          EXPECT_NEAR(out[i][c], expect, 1e-5 * (1.0 + std::abs(expect))) << "order " << order << " " << to_string(isa);
+        }
+      }
+    }
+  }
+}
+
+// --- single sphere over a plane (eq. 34) -----------------------------------------------------------
+
+// At a table sample the accumulated vector is the tabulated cap log rotated (eq. 34) up to float
+// rounding; between samples the table's own interpolation error (measured by ShTables) adds.
+constexpr double kAtSampleTol = 2e-5;
+
+TEST(ShexpSingleSphere, AccumulatedLogIsTheRotatedTableEntry) {
+  for (int order : {3, 4, 6}) {
+    sh::ShTables tables = make_tables(order, true);
+    const ZhTable t = make_zh_table(tables.cap_log(), order, true);
+    const int n2 = order * order;
+    ReceiverSoA rec;
+    rec.resize(1);
+    rec.set(0, glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+    for (int k : {5, 40, 100, 170}) {
+      for (bool at_sample : {true, false}) {
+        const double theta = (tables.cap_log().x[k] + (at_sample ? 0.0 : 0.5 * (tables.cap_log().x[k + 1] - tables.cap_log().x[k])));
+        // A sphere of angular radius theta at distance 2, direction tilted from the normal.
+        const glm::dvec3 dir = glm::normalize(glm::dvec3(0.4, 1.0, -0.3));
+        const double dist = 2.0;
+        BlockerList b;
+        b.order = order;
+        b.push(glm::vec3(dir * dist), static_cast<float>(dist * std::sin(theta)), nullptr);
+        std::vector<float> f(n2);
+        accumulate_log(best_kernel_isa(), t, ReplacementRule::Off, rec, 0, 1, b, f.data());
+        const std::vector<double> zh = sh::cap_log_zh(order, theta);
+        std::vector<double> expect(n2);
+        sh::zh_rotate(order, zh.data(), sh::Vec3<double>{dir.x, dir.y, dir.z}, expect.data());
+        double err = 0.0, tol = kAtSampleTol * 10.0;
+        for (int i = 0; i < n2; ++i) err = std::max(err, std::abs(f[i] - expect[i]));
+        // Off-sample: table interpolation error of any band, times the largest rotation factor
+        // sqrt(4 pi) |y_lm| <= sqrt(2l+1) (addition theorem).
+        if (!at_sample) tol += tables.cap_log().max_interp_error * std::sqrt(2.0 * order - 1.0);
+        EXPECT_LT(err, tol) << "order " << order << " theta " << theta / kDeg << " at_sample " << at_sample;
+      }
+    }
+  }
+}
+
+// docs/sh.md: HYB's distance to the eq. 28 reference on single caps <= 50 degrees is 0.0024 (n = 3),
+// 0.0056 (n = 4), 0.017 (n = 6); the log's round trip exp(log(g)) adds < 1e-4 up to 30 degrees.
+// Bounds: 2x those, plus the round trip.
+TEST(ShexpSingleSphere, ExponentiatedVisibilityMatchesTheCapVisibility) {
+  const std::array<std::pair<int, double>, 3> hyb_error = {{{3, 0.0048}, {4, 0.0112}, {6, 0.034}}};
+  for (const auto& [order, bound] : hyb_error) {
+    sh::ShTables tables = make_tables(order);
+    const ZhTable t = make_zh_table(tables.cap_log(), order, true);
+    const int n2 = order * order;
+    ReceiverSoA rec;
+    rec.resize(1);
+    rec.set(0, glm::vec3(0.0f, 0.0f, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+    for (double deg : {3.0, 10.0, 20.0, 30.0}) {
+      const double theta = deg * kDeg;
+      const glm::dvec3 dir = glm::normalize(glm::dvec3(-0.2, 1.0, 0.5));
+      BlockerList b;
+      b.order = order;
+      b.push(glm::vec3(dir * 3.0), static_cast<float>(3.0 * std::sin(theta)), nullptr);
+      std::vector<float> f(n2), g(n2);
+      accumulate_log(best_kernel_isa(), t, ReplacementRule::Continuous, rec, 0, 1, b, f.data());
+      sh::ExpOptions opt;
+      sh::exp<float>(order, f.data(), g.data(), opt, &tables);
+      std::vector<double> vis = sh::cap_visibility_zh(order, theta), expect(n2), got(g.begin(), g.end());
+      sh::zh_rotate(order, vis.data(), sh::Vec3<double>{dir.x, dir.y, dir.z}, expect.data());
+      const double err = sh::reconstruction_error(order, got.data(), expect.data());
+      EXPECT_LT(err, bound + 1e-4) << "order " << order << " cap " << deg << " deg";
+    }
+  }
+}
+
+// The projected-visibility reference (4n + 8 quadrature bands, as the technique uses) of one sphere
+// is the cap visibility rotated to the sphere's direction; the binary edge costs the quadrature
+// up to 0.036 in reconstruction at n = 4 (measured over these caps).
+constexpr double kProjectedCapTol = 0.05;
+
+TEST(ShexpSingleSphere, ProjectedVisibilityIsTheCapVisibility) {
+  const int order = 4, n2 = 16;
+  ReceiverSoA rec;
+  rec.resize(1);
+  rec.set(0, glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+  for (double deg : {5.0, 20.0, 40.0}) {
+    const glm::dvec3 dir = glm::normalize(glm::dvec3(0.3, 1.0, 0.4));
+    BlockerList b;
+    b.order = order;
+    b.push(glm::vec3(dir * 2.0), static_cast<float>(2.0 * std::sin(deg * kDeg)), nullptr);
+    std::vector<float> g(n2);
+    project_visibility(order, 4 * order + 8, ReplacementRule::Continuous, rec, 0, 1, b, g.data());
+    std::vector<double> vis = sh::cap_visibility_zh(order, deg * kDeg), expect(n2), got(g.begin(), g.end());
+    sh::zh_rotate(order, vis.data(), sh::Vec3<double>{dir.x, dir.y, dir.z}, expect.data());
+    EXPECT_LT(sh::reconstruction_error(order, got.data(), expect.data()), kProjectedCapTol) << deg;
+  }
+}
+
+// --- log space vs product space (section 3) -----------------------------------------------------
+
+TEST(ShexpOrder, LogSpaceIgnoresBlockerOrderProductSpaceDoesNot) {
+  const int order = 4, n2 = 16;
+  sh::ShTables tables = make_tables(order);
+  const ZhTable tlog = make_zh_table(tables.cap_log(), order, true);
+  const ZhTable tvis = make_zh_table(tables.cap_visibility(), order, false);
+  ReceiverSoA rec;
+  rec.resize(1);
+  rec.set(0, glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+  // Large overlapping blockers: the truncation after each product depends on what came before.
+  std::vector<std::pair<glm::vec3, float>> spheres = {
+      {{0.0f, 1.0f, 0.2f}, 0.6f}, {{0.5f, 1.2f, 0.0f}, 0.7f}, {{-0.4f, 0.9f, -0.3f}, 0.5f}, {{0.1f, 1.5f, 0.6f}, 0.8f}};
+  BlockerList fwd, rev;
+  fwd.order = rev.order = order;
+  for (std::size_t i = 0; i < spheres.size(); ++i) {
+    fwd.push(spheres[i].first, spheres[i].second, nullptr);
+    rev.push(spheres[spheres.size() - 1 - i].first, spheres[spheres.size() - 1 - i].second, nullptr);
+  }
+  std::vector<float> a(n2), b(n2), pa(n2), pb(n2);
+  accumulate_log(best_kernel_isa(), tlog, ReplacementRule::Continuous, rec, 0, 1, fwd, a.data());
+  accumulate_log(best_kernel_isa(), tlog, ReplacementRule::Continuous, rec, 0, 1, rev, b.data());
+  accumulate_product(tvis, ReplacementRule::Continuous, rec, 0, 1, fwd, pa.data());
+  accumulate_product(tvis, ReplacementRule::Continuous, rec, 0, 1, rev, pb.data());
+  double dlog = 0.0, dprod = 0.0;
+  for (int i = 0; i < n2; ++i) {
+    dlog = std::max(dlog, static_cast<double>(std::abs(a[i] - b[i])));
+    dprod = std::max(dprod, static_cast<double>(std::abs(pa[i] - pb[i])));
+  }
+  EXPECT_LT(dlog, 1e-5);   // a sum: only float rounding differs
+  EXPECT_GT(dprod, 1e-3);  // non-associative products: a real difference
+}
+
+// --- replacement rules (section 6.2) ----------------------------------------------------------------
+
+TEST(ShexpRules, CasesOfFigure5) {
+  const glm::vec3 p(0.0f), n(0.0f, 1.0f, 0.0f);
+  for (ReplacementRule rule : {ReplacementRule::Continuous, ReplacementRule::Clamped, ReplacementRule::Printed}) {
+    // purple: entirely behind T_p
+    EXPECT_EQ(apply_replacement_rule(rule, p, n, {2.0f, -1.5f, 0.0f}, 1.0f).radius, 0.0f);
+    // yellow: entirely in front: unaltered
+    AdjustedSphere y = apply_replacement_rule(rule, p, n, {2.0f, 1.5f, 0.0f}, 1.0f);
+    EXPECT_EQ(y.radius, 1.0f);
+    EXPECT_EQ(y.center, glm::vec3(2.0f, 1.5f, 0.0f));
+    // blue: contains p, centre behind T_p: eliminated
+    EXPECT_EQ(apply_replacement_rule(rule, p, n, {0.3f, -0.2f, 0.0f}, 1.0f).radius, 0.0f);
+    // contains p, centre in front: shrunk about its centre until tangent to T_p
+    AdjustedSphere s = apply_replacement_rule(rule, p, n, {0.3f, 0.4f, 0.0f}, 1.0f);
+    EXPECT_FLOAT_EQ(s.radius, 0.4f);
+    EXPECT_NEAR(glm::length(s.center - glm::vec3(0.3f, 0.4f, 0.0f)), 0.0f, 1e-6f);
+    // red/orange: p outside, straddling, far away (>= d from S along T_p): S' with diameter q0 q1
+    AdjustedSphere o = apply_replacement_rule(rule, p, n, {5.0f, 0.5f, 0.0f}, 1.0f);
+    const float expect_r = rule == ReplacementRule::Printed ? 0.75f * ((5.0f - std::sqrt(0.75f)) / std::sqrt(0.75f)) : 0.75f;
+    EXPECT_NEAR(o.radius, expect_r, 1e-5f * expect_r);
+    EXPECT_NEAR(o.center.y, o.radius, 1e-6f);  // tangent to T_p
+    EXPECT_NEAR(o.center.x, 5.0f, 1e-6f);      // at q1, the foot of the centre
+  }
+  // Off: unaltered even when behind.
+  EXPECT_EQ(apply_replacement_rule(ReplacementRule::Off, p, n, {2.0f, -1.5f, 0.0f}, 1.0f).radius, 1.0f);
+}
+
+namespace {
+// Shaded value at receiver p (normal +y) with one blocker sphere, through the whole per-receiver
+// chain: kernel, HYB, shading.
+double shaded_with_sphere(const sh::ShTables& tables, const ZhTable& t, ReplacementRule rule, const glm::vec3& p,
+                          const glm::vec3& c, float r, const glm::vec3& n = glm::vec3(0.0f, 1.0f, 0.0f)) {
+  const int order = t.order;
+  ReceiverSoA rec;
+  rec.resize(1);
+  rec.set(0, p, n);
+  BlockerList b;
+  b.order = order;
+  b.push(c, r, nullptr);
+  std::vector<float> f(order * order), g(order * order);
+  accumulate_log(best_kernel_isa(), t, rule, rec, 0, 1, b, f.data());
+  sh::ExpOptions opt;
+  sh::exp<float>(order, f.data(), g.data(), opt, &tables);
+  return shade(order, g.data(), n);
+}
+
+struct PathScan {
+  double max_gradient = 0.0;  // max |dv/ds| from a coarse scan along the path
+  double boundary_jump = 0.0; // |v(b + eps) - v(b - eps)| across the boundary of S
+  double eps = 0.0;
+};
+
+// Receiver moving along the plane y = 0 through x in [x0, x1]; the sphere (c, r) straddles the plane
+// and its boundary circle crosses the path at x = b.
+PathScan scan_boundary(const sh::ShTables& tables, const ZhTable& t, ReplacementRule rule, const glm::vec3& c, float r) {
+  PathScan s;
+  const float h = c.y;  // receivers on y = 0 with normal +y: centre height h
+  const float d = std::sqrt(r * r - h * h);
+  const float b = c.x + d;  // where the path leaves S
+  constexpr int kSteps = 400;
+  const float x0 = b - 0.8f * d, x1 = b + 2.5f * d, step = (x1 - x0) / kSteps;
+  double prev = shaded_with_sphere(tables, t, rule, {x0, 0.0f, c.z}, c, r);
+  for (int i = 1; i <= kSteps; ++i) {
+    const float x = x0 + step * i;
+    const double v = shaded_with_sphere(tables, t, rule, {x, 0.0f, c.z}, c, r);
+    // The coarse slope, skipping the step that contains the boundary itself.
+    if (!(x - step < b && x >= b)) s.max_gradient = std::max(s.max_gradient, std::abs(v - prev) / step);
+    prev = v;
+  }
+  s.eps = 1e-4f * d;
+  s.boundary_jump = std::abs(shaded_with_sphere(tables, t, rule, {b + static_cast<float>(s.eps), 0.0f, c.z}, c, r) -
+                             shaded_with_sphere(tables, t, rule, {b - static_cast<float>(s.eps), 0.0f, c.z}, c, r));
+  return s;
+}
+}  // namespace
+
+// A continuous rule changes the shaded value across the boundary of S by at most the path's own
+// slope times the distance travelled: |v(b + eps) - v(b - eps)| <= K 2 eps max|dv/ds| with K = 10
+// (the coarse scan may miss the steepest point of the slope by a few times; a jump does not shrink
+// with eps and exceeds this by orders of magnitude).
+constexpr double kContinuityK = 10.0;
+
+TEST(ShexpRules, NoDiscontinuityAcrossTheSphereBoundary) {
+  sh::ShTables tables = make_tables(4);
+  const ZhTable t = make_zh_table(tables.cap_log(), 4, true);
+  // Centre in front of and behind the receivers' tangent plane; small and large spheres.
+  for (const auto& [c, r] : std::vector<std::pair<glm::vec3, float>>{
+           {{0.0f, 0.3f, 0.0f}, 0.5f}, {{0.0f, -0.2f, 0.1f}, 0.5f}, {{1.0f, 0.6f, 0.0f}, 1.2f}, {{0.0f, -0.05f, 0.0f}, 0.2f}}) {
+    const PathScan s = scan_boundary(tables, t, ReplacementRule::Continuous, c, r);
+    EXPECT_GT(s.max_gradient, 0.0);
+    EXPECT_LE(s.boundary_jump, kContinuityK * 2.0 * s.eps * s.max_gradient)
+        << "centre height " << c.y << " radius " << r << ": jump " << s.boundary_jump << ", slope " << s.max_gradient;
+  }
+}
+
+// The other readings of the scale factor are discontinuous where docs/techniques/shexp.md says: the
+// clamped one (a = min(1, .)) when the centre is in front of T_p, the printed one (a = max(1, .))
+// whenever S straddles T_p. "Discontinuous" = the same bound as above fails by more than 10x.
+TEST(ShexpRules, OtherReadingsJumpWhereDocumented) {
+  sh::ShTables tables = make_tables(4);
+  const ZhTable t = make_zh_table(tables.cap_log(), 4, true);
+  const glm::vec3 in_front(0.0f, 0.3f, 0.0f), behind(0.0f, -0.2f, 0.1f);
+  auto jumps = [&](ReplacementRule rule, const glm::vec3& c) {
+    const PathScan s = scan_boundary(tables, t, rule, c, 0.5f);
+    return s.boundary_jump > 10.0 * kContinuityK * 2.0 * s.eps * s.max_gradient;
+  };
+  EXPECT_TRUE(jumps(ReplacementRule::Clamped, in_front));
+  EXPECT_FALSE(jumps(ReplacementRule::Clamped, behind));
+  EXPECT_TRUE(jumps(ReplacementRule::Printed, in_front));
+  EXPECT_TRUE(jumps(ReplacementRule::Printed, behind));
+  EXPECT_FALSE(jumps(ReplacementRule::Continuous, in_front));
+  EXPECT_FALSE(jumps(ReplacementRule::Continuous, behind));
+}
+
+TEST(ShexpRules, SphereBehindTheTangentPlaneIsRemoved) {
+  sh::ShTables tables = make_tables(4);
+  const ZhTable t = make_zh_table(tables.cap_log(), 4, true);
+  ReceiverSoA rec;
+  rec.resize(2);
+  rec.set(0, glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+  rec.set(1, glm::vec3(0.0f), glm::normalize(glm::vec3(1.0f, 1.0f, 0.0f)));
+  // Sphere A lies entirely below y = 0 (centre height -1.2 for the upward normal) but pokes through
+  // the tilted plane (height -0.49); sphere B lies below the tilted plane (height -1.77) but straddles y = 0.
+  BlockerList a, b;
+  a.order = b.order = 4;
+  a.push({0.5f, -1.2f, 0.3f}, 1.0f, nullptr);
+  b.push({-2.0f, -0.5f, 0.0f}, 1.0f, nullptr);
+  auto norm_of = [](const std::vector<float>& f, int i) {
+    double s = 0.0;
+    for (int k = 0; k < 16; ++k) s += std::abs(f[i * 16 + k]);
+    return s;
+  };
+  std::vector<float> fa(2 * 16, 1.0f), fb(2 * 16, 1.0f);
+  accumulate_log(best_kernel_isa(), t, ReplacementRule::Continuous, rec, 0, 2, a, fa.data());
+  accumulate_log(best_kernel_isa(), t, ReplacementRule::Continuous, rec, 0, 2, b, fb.data());
+  for (int k = 0; k < 16; ++k) EXPECT_EQ(fa[k], 0.0f) << k;       // A behind y = 0: removed
+  for (int k = 0; k < 16; ++k) EXPECT_EQ(fb[16 + k], 0.0f) << k;  // B behind the tilted plane: removed
+  EXPECT_GT(norm_of(fa, 1), 0.01);  // A straddles the tilted plane: kept, reduced
+  EXPECT_GT(norm_of(fb, 0), 0.01);  // B straddles y = 0
+  // Without the rules both receivers see both spheres.
+  accumulate_log(best_kernel_isa(), t, ReplacementRule::Off, rec, 0, 2, a, fa.data());
+  EXPECT_GT(norm_of(fa, 0), 0.1);
+}
+
+// --- tables ------------------------------------------------------------------------------------
+
+TEST(ShexpTables, ZhTableInterpolatesTheShTable) {
+  sh::ShTables tables = make_tables(4);
+  const ZhTable t = make_zh_table(tables.cap_log(), 4, true);
+  std::array<float, 4> got{};
+  std::array<double, 4> expect{};
+  for (double theta : {0.0, 0.1, 0.5, 1.0, 1.5, sh::kPi / 2}) {
+    t.lookup(static_cast<float>(theta), got.data());
+    tables.cap_log().lookup(theta, expect.data());
+    for (int l = 0; l < 4; ++l)
+      EXPECT_NEAR(got[l], (theta == 0.0 ? 0.0 : expect[l]) * sh::zh_rotation_factor(l), 2e-5 * (1 + std::abs(got[l]))) << theta;
+  }
+  t.lookup(0.0f, got.data());
+  for (float v : got) EXPECT_EQ(v, 0.0f);  // a sphere of radius 0 contributes exactly nothing
+}
+
+// --- analytic lights (section 7) -------------------------------------------------------------------
+
+TEST(ShexpLights, SingleLobeFitAndRotationMatchTheExactLH) {
+  const int order = 4, n2 = 16;
+  const LightLobeTable t = make_light_lobe_table(order, 24, 48, 0.0);
+  // The fit's worst residual relative to the light's largest L_H at the same size (measured 0.15 at
+  // n = 4, for a hemisphere-sized light half below the horizon; 0.04..0.09 for lights <= 30 degrees):
+  // the error of the paper's single-lobe model itself.
+  EXPECT_LT(t.max_fit_error, 0.2);
+  const glm::vec3 p(0.0f), n = glm::normalize(glm::vec3(0.2f, 1.0f, -0.1f));
+  for (const auto& [c, radius] : std::vector<std::pair<glm::vec3, float>>{{{1.0f, 3.0f, 0.5f}, 0.3f}, {{2.0f, 0.5f, 0.0f}, 0.4f}}) {
+    std::array<float, sh::kMaxCoeffs> lh{};
+    ASSERT_TRUE(light_lh_world(t, p, n, c, radius, lh.data()));
+    // Exact: canonical L_H turned into the world frame (N -> n, light side -> +x of the frame).
+    const glm::vec3 d = glm::normalize(c - p);
+    const double theta = std::asin(radius / glm::length(c - p)), f = std::acos(glm::dot(d, n));
+    std::vector<double> canon = light_lh_canonical(order, theta, f, 0.0);
+    glm::vec3 tx = glm::normalize(d - glm::dot(d, n) * n), ty = glm::cross(n, tx);
+    sh::Mat3 R = {{{tx.x, ty.x, n.x}, {tx.y, ty.y, n.y}, {tx.z, ty.z, n.z}}};
+    std::vector<double> exact(n2);
+    sh::ShRotation(order, R).apply(canon.data(), exact.data());
+    double err = 0.0, peak = 0.0;
+    for (int k = 0; k < n2; ++k) err += (lh[k] - exact[k]) * (lh[k] - exact[k]);
+    for (double ff = 0.0; ff <= sh::kPi; ff += sh::kPi / 36) {
+      double norm = 0.0;
+      for (double v : light_lh_canonical(order, theta, ff, 0.0)) norm += v * v;
+      peak = std::max(peak, std::sqrt(norm));
+    }
+    // Fit error of the cell plus bilinear interpolation over coarse (24 x 48) cells.
+    EXPECT_LT(std::sqrt(err) / peak, t.max_fit_error + 0.05) << c.x;
+  }
+}
+
+// --- receiver clusters ----------------------------------------------------------------------------
+
+TEST(ShexpLloyd, ClustersAreCompactDeterministicAndComplete) {
+  std::vector<glm::vec3> pts;
+  for (int i = 0; i < 64; ++i)
+    for (int j = 0; j < 64; ++j) pts.emplace_back(i * 0.1f, 0.0f, j * 0.1f);
+  LloydResult a = lloyd_cluster(pts, 16, 30, 5), b = lloyd_cluster(pts, 16, 30, 5);
+  EXPECT_EQ(a.assignment, b.assignment);
+  ASSERT_EQ(a.centres.size(), 16u);
+  std::vector<int> count(16, 0);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    ASSERT_GE(a.assignment[i], 0);
+    ++count[a.assignment[i]];
+    // Voronoi property of a converged Lloyd step: the assigned centre is the nearest.
+    float own = glm::length(pts[i] - a.centres[a.assignment[i]]);
+    for (const auto& c : a.centres) EXPECT_LE(own, glm::length(pts[i] - c) + 1e-4f);
+  }
+  // A 6.4 x 6.4 square in 16 cells: about 256 points each; none degenerate.
+  for (int c : count) {
+    EXPECT_GT(c, 128);
+    EXPECT_LT(c, 512);
+  }
+  EXPECT_THROW(lloyd_cluster(pts, 0, 10, 1), std::invalid_argument);
+}
