@@ -132,7 +132,7 @@ void run_compare(const CompareArgs& args) {
             << techs.size() << " technique(s), reference " << args.spp << " spp\n";
 
   // The shared G-buffer once on its own: its cost, and the surface mask errors are measured over.
-  CpuBackendWithImages backend;
+  backends::CpuBackend backend;
   const scene::PosedScene posed = scene::evaluate(sc, args.frame);
   render::FrameResult gb_frame;
   render::GBuffer gb;

@@ -40,7 +40,7 @@ void run_render(const RenderArgs& args) {
 
   std::cerr << "render: " << technique->name() << " on '" << sc.name << "' at " << w << "x" << h << ", t = " << args.frame
             << " s\n";
-  CpuBackendWithImages backend;
+  backends::CpuBackend backend;
   render::RenderRequest req;
   req.time = args.frame;
   req.width = w;

@@ -19,17 +19,6 @@ namespace softgi::app {
 
 namespace fs = std::filesystem;
 
-void CpuBackendWithImages::execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) {
-  backends::CpuBackend::execute_pass(pass, ctx);
-  for (const auto& w : pass.writes) {
-    Image* field = w == render::kDirect     ? &ctx.result.direct
-                   : w == render::kIndirect ? &ctx.result.indirect
-                   : w == render::kFinal    ? &ctx.result.final_image
-                                            : nullptr;
-    if (field && field->empty() && ctx.has(w)) *field = ctx.get<Image>(w);
-  }
-}
-
 std::string check_backend(const std::string& name) {
   if (name != "cpu") throw std::invalid_argument("--backend: unknown backend '" + name + "' (available: cpu)");
   return name;

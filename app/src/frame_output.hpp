@@ -1,5 +1,4 @@
-// What `softgi render` and `softgi compare` share: the CPU backend that also returns the frame's
-// images, image writing, and the JSON run record generated from a FrameResult and a ParamSet.
+// What `softgi render` and `softgi compare` share: image writing, and the JSON run record generated from a FrameResult and a ParamSet.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -15,14 +14,6 @@ namespace softgi::app {
 
 // Records keep insertion order (parameters in description order, fields as written).
 using Json = nlohmann::ordered_json;
-
-// The CPU backend, plus: when a pass writes "direct", "indirect" or "final", the image is copied into
-// the FrameResult (unless the pass filled that field itself). Backend::render does not yet move the
-// frame's output images into FrameResult; once it does, this class can go.
-class CpuBackendWithImages : public backends::CpuBackend {
- protected:
-  void execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) override;
-};
 
 // Backends the CLI can run (--backend).
 std::string check_backend(const std::string& name);

@@ -8,11 +8,16 @@ inline void square_soa(const ProductPlan& p, const float* f, float* out) {
   using F = typename V::F;
   constexpr int W = V::W;
   const int n2 = p.order * p.order;
+  // Four partial sums per output: a single one would chain every term on the multiply-add latency.
   for (int i = 0; i < n2; ++i) {
-    F acc = V::set(0.0f);
-    for (int t = p.sq_begin[i]; t < p.sq_begin[i + 1]; ++t)
-      acc = V::fma(V::set(p.sq_v[t]), V::mul(V::load(f + p.sq_j[t] * W), V::load(f + p.sq_k[t] * W)), acc);
-    V::store(out + i * W, acc);
+    F acc[4] = {V::set(0.0f), V::set(0.0f), V::set(0.0f), V::set(0.0f)};
+    const int b = p.sq_begin[i], e = p.sq_begin[i + 1];
+    int t = b;
+    for (; t + 4 <= e; t += 4)
+      for (int u = 0; u < 4; ++u)
+        acc[u] = V::fma(V::set(p.sq_v[t + u]), V::mul(V::load(f + p.sq_j[t + u] * W), V::load(f + p.sq_k[t + u] * W)), acc[u]);
+    for (; t < e; ++t) acc[0] = V::fma(V::set(p.sq_v[t]), V::mul(V::load(f + p.sq_j[t] * W), V::load(f + p.sq_k[t] * W)), acc[0]);
+    V::store(out + i * W, V::add(V::add(acc[0], acc[1]), V::add(acc[2], acc[3])));
   }
 }
 
@@ -23,16 +28,24 @@ inline void product_soa(const ProductPlan& p, const float* f, const float* g, fl
   constexpr int W = V::W;
   const int n2 = p.order * p.order;
   for (int i = 0; i < n2; ++i) {
-    F acc = V::set(0.0f);
-    for (int t = p.pr_begin[i]; t < p.pr_offdiag_end[i]; ++t) {
+    F acc[4] = {V::set(0.0f), V::set(0.0f), V::set(0.0f), V::set(0.0f)};  // see square_soa
+    const int b = p.pr_begin[i], m = p.pr_offdiag_end[i], e = p.pr_begin[i + 1];
+    auto off = [&](int t, F a) {
       const int j = p.pr_j[t] * W, k = p.pr_k[t] * W;
-      acc = V::fma(V::set(p.pr_v[t]), V::fma(V::load(f + j), V::load(g + k), V::mul(V::load(f + k), V::load(g + j))), acc);
-    }
-    for (int t = p.pr_offdiag_end[i]; t < p.pr_begin[i + 1]; ++t) {
+      return V::fma(V::set(p.pr_v[t]), V::fma(V::load(f + j), V::load(g + k), V::mul(V::load(f + k), V::load(g + j))), a);
+    };
+    auto diag = [&](int t, F a) {
       const int j = p.pr_j[t] * W;
-      acc = V::fma(V::set(p.pr_v[t]), V::mul(V::load(f + j), V::load(g + j)), acc);
-    }
-    V::store(out + i * W, acc);
+      return V::fma(V::set(p.pr_v[t]), V::mul(V::load(f + j), V::load(g + j)), a);
+    };
+    int t = b;
+    for (; t + 4 <= m; t += 4)
+      for (int u = 0; u < 4; ++u) acc[u] = off(t + u, acc[u]);
+    for (; t < m; ++t) acc[0] = off(t, acc[0]);
+    for (; t + 4 <= e; t += 4)
+      for (int u = 0; u < 4; ++u) acc[u] = diag(t + u, acc[u]);
+    for (; t < e; ++t) acc[1] = diag(t, acc[1]);
+    V::store(out + i * W, V::add(V::add(acc[0], acc[1]), V::add(acc[2], acc[3])));
   }
 }
 
@@ -48,21 +61,27 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
   const ProductPlan& p = *e.plan;
   alignas(64) float x[sh::kMaxCoeffs * W], g[sh::kMaxCoeffs * W], t0[sh::kMaxCoeffs * W], t1[sh::kMaxCoeffs * W],
       t2[sh::kMaxCoeffs * W], t3[sh::kMaxCoeffs * W];
-  alignas(64) float sq[W], dcv[W];
+  alignas(64) float sq[W], dcv[W], scv[W], av[W], bv[W];
   int s[W];
   int smax = 0;
+  // Per lane: one pass over the input (finite check, ||f^|| in double as sh::exp, transposition),
+  // then the scalar decisions of the method; the per-coefficient scaling runs vectorised below.
   for (int l = 0; l < W; ++l) {
     const std::size_t src_lane = static_cast<std::size_t>(l) < cnt ? l : cnt - 1;
     const float* src = f_rm + src_lane * n2;
-    double norm2 = 0.0;
-    for (int i = 0; i < n2; ++i) {
-      if (!std::isfinite(src[i]))
-        throw std::invalid_argument("shexp exponentiate: receiver " + std::to_string(first + src_lane) + " has log coefficient " +
-                                    std::to_string(i) + " = " + std::to_string(src[i]));
-      if (i > 0) norm2 += static_cast<double>(src[i]) * src[i];
+    double norm2 = 0.0, check = 0.0;
+    for (int i = 1; i < n2; ++i) {
+      norm2 += static_cast<double>(src[i]) * src[i];
+      check += 0.0 * src[i];  // NaN when any coefficient is NaN or infinite
+      x[i * W + l] = src[i];
     }
+    if (!std::isfinite(check) || !std::isfinite(src[0]))
+      for (int i = 0; i < n2; ++i)
+        if (!std::isfinite(src[i]))
+          throw std::invalid_argument("shexp exponentiate: receiver " + std::to_string(first + src_lane) + " has log coefficient " +
+                                      std::to_string(i) + " = " + std::to_string(src[i]));
     const double norm = std::sqrt(norm2);
-    s[l] = e.method == sh::ExpMethod::OL ? 0 : sh::paper_squarings(norm);
+    s[l] = e.method == sh::ExpMethod::OL || e.method == sh::ExpMethod::PS ? 0 : sh::paper_squarings(norm);
     smax = s[l] > smax ? s[l] : smax;
     sq[l] = static_cast<float>(s[l]);
     const double dc = std::exp(static_cast<double>(src[0]) / sh::kSqrt4Pi / std::ldexp(1.0, s[l]));
@@ -70,18 +89,44 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
       throw std::overflow_error("shexp exponentiate: receiver " + std::to_string(first + src_lane) + ": DC coefficient " +
                                 std::to_string(src[0]) + " gives a mean log value whose exponential overflows");
     dcv[l] = static_cast<float>(dc);
-    const float scale = static_cast<float>(std::ldexp(1.0, -s[l]));
-    x[l] = 0.0f;
-    for (int i = 1; i < n2; ++i) x[i * W + l] = src[i] * scale;
-    if (e.method != sh::ExpMethod::PSStar) {
+    scv[l] = static_cast<float>(std::ldexp(1.0, -s[l]));
+    if (e.method == sh::ExpMethod::HYB || e.method == sh::ExpMethod::OL) {
       double a = 1.0, b = 1.0;
       e.tables->ol_lookup(std::ldexp(norm, -s[l]), a, b);  // eq. 23
-      g[l] = static_cast<float>(a * sh::kSqrt4Pi) * dcv[l];
-      for (int i = 1; i < n2; ++i) g[i * W + l] = static_cast<float>(b) * x[i * W + l] * dcv[l];
+      av[l] = static_cast<float>(a * sh::kSqrt4Pi) * dcv[l];
+      bv[l] = static_cast<float>(b);
+    }
+  }
+  // x = f^ / 2^s (eqs. 19, 21); OL/HYB: g = a 1 + b x, times the DC factor (eq. 23).
+  {
+    const F scale = V::load(scv), dc = V::load(dcv), bb = V::load(bv);
+    V::store(x, V::set(0.0f));
+    for (int i = 1; i < n2; ++i) V::store(x + i * W, V::mul(V::load(x + i * W), scale));
+    if (e.method == sh::ExpMethod::HYB || e.method == sh::ExpMethod::OL) {
+      V::store(g, V::load(av));
+      for (int i = 1; i < n2; ++i) V::store(g + i * W, V::mul(V::mul(bb, V::load(x + i * W)), dc));
     }
   }
   long long series_squares = 0, series_products = 0;
-  if (e.method == sh::ExpMethod::PSStar) {
+  if (e.method == sh::ExpMethod::PS) {
+    // Plain product series (eq. 17) on the whole f (no DC isolation, no scaling), powers
+    // accumulated left to right: term_k = term_{k-1} * f / k. Subnormal terms are flushed to zero by
+    // the FTZ mode kernel.cpp sets (sh::exp_ps flushes them explicitly).
+    for (int l = 0; l < W; ++l) x[l] = f_rm[(static_cast<std::size_t>(l) < cnt ? l : cnt - 1) * n2];
+    float *term = t0, *next = t1;
+    for (int i = 0; i < n2 * W; ++i) term[i] = x[i];
+    for (int i = 0; i < n2; ++i) V::store(g + i * W, V::add(V::set(i == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f), V::load(x + i * W)));
+    for (int k = 2; k <= e.degree; ++k) {
+      product_soa<V>(p, term, x, next);
+      ++series_products;
+      const F inv = V::set(1.0f / static_cast<float>(k));
+      for (int i = 0; i < n2; ++i) {
+        const F tk = V::mul(V::load(next + i * W), inv);
+        V::store(term + i * W, tk);
+        V::store(g + i * W, V::add(V::load(g + i * W), tk));
+      }
+    }
+  } else if (e.method == sh::ExpMethod::PSStar) {
     // Factored series (eq. 22): even powers x^2 = x*x, x^4 = x^2*x^2, x^6 = x^4*x^2, ...
     float *even = g, *odd = t0, *pw = t1, *x2 = t2, *tmp = t3;
     for (int i = 0; i < n2 * W; ++i) even[i] = odd[i] = 0.0f;
@@ -216,4 +261,69 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
 inline void shade_dispatch(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out) {
   constexpr std::size_t W = Vec::W;
   for (std::size_t i = begin; i < end; i += W) shade_block<Vec>(b, rec, i, end - i < W ? end - i : W, out + (i - begin));
+}
+
+// Product-space accumulation (eq. 6) for V::W receivers at once: acc = 1, then acc = acc * g[i] for
+// every blocker in list order, g[i] the cap visibility of the rule-adjusted sphere (eq. 34 with the
+// visibility table). A blocker eliminated on every lane is skipped; on some lanes only, those lanes
+// multiply by the constant 1. Returns the products done per receiver, summed over the lanes.
+template <class V, int N>
+long long product_block(const ZhTable& vis, ReplacementRule rule, const float (*lanes)[V::W], std::size_t cnt, const BlockerList& b,
+                        const ProductPlan& plan, float* acc) {
+  using F = typename V::F;
+  constexpr int W = V::W, N2 = N * N;
+  alignas(64) float gi[N2 * W], y[N2 * W], tmp[N2 * W];
+  F p[6];
+  for (int a = 0; a < 6; ++a) p[a] = V::load(lanes[a]);
+  for (int c = 0; c < N2; ++c) V::store(acc + c * W, V::set(c == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f));
+  long long products = 0;
+  for (std::size_t j = 0; j < b.size(); ++j) {
+    F fl[N], sx, sy, sz;
+    const F st = blocker_view<V, N>(vis, rule, p, b.cx[j], b.cy[j], b.cz[j], b.r[j], fl, sx, sy, sz);
+    if (V::count(V::lt(V::set(0.0f), st)) == 0) continue;
+    alignas(64) float stv[W];
+    V::store(stv, st);
+    for (std::size_t k = 0; k < cnt; ++k) products += stv[k] > 0.0f;  // padding lanes are not receivers
+    basis_soa<V>(N, sx, sy, sz, y);
+    for (int l = 0; l < N; ++l)
+      for (int m = -l; m <= l; ++m) {
+        const int k = l * l + l + m;
+        V::store(gi + k * W, V::mul(fl[l], V::load(y + k * W)));
+      }
+    product_soa<V>(plan, acc, gi, tmp);
+    for (int c = 0; c < N2 * W; ++c) acc[c] = tmp[c];
+  }
+  return products;
+}
+
+template <class V, int N>
+long long product_range(const ZhTable& vis, ReplacementRule rule, const ReceiverSoA& rec, std::size_t begin, std::size_t end,
+                        const BlockerList& b, const ProductPlan& plan, float* out) {
+  constexpr int W = V::W, N2 = N * N;
+  alignas(64) float lanes[6][W];
+  alignas(64) float res[N2 * W];
+  const float* src[6] = {rec.px.data(), rec.py.data(), rec.pz.data(), rec.nx.data(), rec.ny.data(), rec.nz.data()};
+  long long products = 0;
+  for (std::size_t i0 = begin; i0 < end; i0 += W) {
+    const std::size_t cnt = end - i0 < static_cast<std::size_t>(W) ? end - i0 : static_cast<std::size_t>(W);
+    for (int a = 0; a < 6; ++a)
+      for (int k = 0; k < W; ++k) lanes[a][k] = src[a][i0 + (static_cast<std::size_t>(k) < cnt ? k : cnt - 1)];
+    products += product_block<V, N>(vis, rule, lanes, cnt, b, plan, res);
+    for (std::size_t k = 0; k < cnt; ++k)
+      for (int c = 0; c < N2; ++c) out[(i0 + k) * N2 + c] = res[c * W + k];
+  }
+  return products;
+}
+
+inline long long product_dispatch(int order, const ZhTable& vis, ReplacementRule rule, const ReceiverSoA& rec, std::size_t begin,
+                                  std::size_t end, const BlockerList& b, const ProductPlan& plan, float* out) {
+  switch (order) {
+    case 3: return product_range<Vec, 3>(vis, rule, rec, begin, end, b, plan, out);
+    case 4: return product_range<Vec, 4>(vis, rule, rec, begin, end, b, plan, out);
+    case 5: return product_range<Vec, 5>(vis, rule, rec, begin, end, b, plan, out);
+    case 6: return product_range<Vec, 6>(vis, rule, rec, begin, end, b, plan, out);
+    case 7: return product_range<Vec, 7>(vis, rule, rec, begin, end, b, plan, out);
+    case 8: return product_range<Vec, 8>(vis, rule, rec, begin, end, b, plan, out);
+    default: return 0;
+  }
 }

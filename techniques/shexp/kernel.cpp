@@ -108,6 +108,7 @@ struct Vec {
   static I iclamp(I i, int lo, int hi) { return i < lo ? lo : (i > hi ? hi : i); }
   static F rsqrt(F a) { return 1.0f / std::sqrt(a); }
   static bool all(M m) { return m; }
+  static int count(M m) { return m ? 1 : 0; }
   template <int N>
   static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
     const float* r = t.data.data() + static_cast<std::size_t>(row) * 2 * N;
@@ -151,6 +152,7 @@ struct Vec {
   // A refined reciprocal square root stands for the square root and division it replaces.
   static F rsqrt(F a) { g_flops += 2; return {1.0f / std::sqrt(a.v)}; }
   static bool all(M m) { return m; }
+  static int count(M m) { return m ? 1 : 0; }
   template <int N>
   static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
     const float* r = t.data.data() + static_cast<std::size_t>(row) * 2 * N;
@@ -195,6 +197,7 @@ struct Vec {
     return _mm256_mul_ps(y, _mm256_fnmadd_ps(_mm256_mul_ps(hx, y), y, _mm256_set1_ps(1.5f)));
   }
   static bool all(M m) { return _mm256_movemask_ps(m) == 0xFF; }
+  static int count(M m) { return __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(m))); }
   template <int N>
   static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
     const I idx = _mm256_mullo_epi32(row, _mm256_set1_epi32(2 * N));
@@ -243,6 +246,7 @@ struct Vec {
     return _mm512_mul_ps(y, _mm512_fnmadd_ps(_mm512_mul_ps(hx, y), y, _mm512_set1_ps(1.5f)));
   }
   static bool all(M m) { return m == 0xFFFF; }
+  static int count(M m) { return __builtin_popcount(static_cast<unsigned>(m)); }
   // Neighbouring receivers see a blocker at nearly the same angle, so the 16 lanes' table rows
   // usually fall in a window of 16 rows around lane 0's: then each band is two loads and two
   // in-register permutes. Otherwise (value, slope) pairs come from one 64-bit gather per 8 lanes,
@@ -328,17 +332,36 @@ void accumulate_log(KernelIsa isa, const ZhTable& table, ReplacementRule rule, c
   }
 }
 
+long long accumulate_product_batch(KernelIsa isa, const ZhTable& vis_table, ReplacementRule rule, const ReceiverSoA& rec,
+                                   std::size_t begin, std::size_t end, const BlockerList& blockers, float* out) {
+  const int order = vis_table.order;
+  if (order < 3 || order > kMaxAccOrder)
+    throw std::invalid_argument("shexp accumulate_product_batch: table order " + std::to_string(order) + " outside [3, 8]");
+  if (vis_table.rows < 2) throw std::invalid_argument("shexp accumulate_product_batch: table has fewer than 2 rows");
+  if (end > rec.size() || begin > end) throw std::invalid_argument("shexp accumulate_product_batch: receiver range outside the receivers");
+  if (!kernel_isa_supported(isa))
+    throw std::invalid_argument(std::string("shexp accumulate_product_batch: this CPU cannot run ") + to_string(isa));
+  const ProductPlan& plan = ProductPlan::get(order);
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: return kscalar::product_dispatch(order, vis_table, rule, rec, begin, end, blockers, plan, out);
+    case KernelIsa::Avx2: return kavx2::product_dispatch(order, vis_table, rule, rec, begin, end, blockers, plan, out);
+    case KernelIsa::Avx512: return kavx512::product_dispatch(order, vis_table, rule, rec, begin, end, blockers, plan, out);
+  }
+  return 0;
+}
+
 bool exp_batch_supports(sh::ExpMethod m) {
-  return m == sh::ExpMethod::HYB || m == sh::ExpMethod::OL || m == sh::ExpMethod::PSStar;
+  return m == sh::ExpMethod::HYB || m == sh::ExpMethod::OL || m == sh::ExpMethod::PSStar || m == sh::ExpMethod::PS;
 }
 
 void exp_batch(KernelIsa isa, const BatchExp& e, const float* f, float* g, std::size_t count, std::size_t first,
                sh::ExpStats& stats) {
   if (!exp_batch_supports(e.method)) throw std::invalid_argument(std::string("shexp exp_batch: method ") + sh::to_string(e.method) + " is not batched");
   if (!e.plan || e.plan->order != e.order) throw std::invalid_argument("shexp exp_batch: product plan missing or of another order");
-  if (e.method != sh::ExpMethod::PSStar && (!e.tables || e.tables->order() != e.order))
+  if ((e.method == sh::ExpMethod::HYB || e.method == sh::ExpMethod::OL) && (!e.tables || e.tables->order() != e.order))
     throw std::invalid_argument("shexp exp_batch: OL tables missing or of another order");
-  if (e.method == sh::ExpMethod::PSStar && (e.degree < 1 || e.degree > 200))
+  if ((e.method == sh::ExpMethod::PSStar || e.method == sh::ExpMethod::PS) && (e.degree < 1 || e.degree > 200))
     throw std::invalid_argument("shexp exp_batch: series degree " + std::to_string(e.degree) + " outside [1, 200]");
   if (count == 0) return;
   if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("shexp exp_batch: this CPU cannot run ") + to_string(isa));

@@ -19,89 +19,102 @@ inline typename V::F asin01(typename V::F x) {
   return V::max(V::fnma(s, p, V::set(static_cast<float>(sh::kPi / 2))), V::set(0.0f));
 }
 
+// One blocker seen from V::W receivers (p = px, py, pz, nx, ny, nz): the replacement rules
+// (section 6.2), the angular radius and direction of the adjusted sphere, and the table row F(theta)
+// of eq. 34 (fl[N], not yet weighted). Returns sin(theta), 0 on lanes where the sphere is eliminated.
+template <class V, int N>
+__attribute__((always_inline)) inline typename V::F blocker_view(const ZhTable& table, ReplacementRule rule, const typename V::F* p,
+                                                                 float bx, float by, float bz, float rj, typename V::F* fl,
+                                                                 typename V::F& sx, typename V::F& sy, typename V::F& sz) {
+  using F = typename V::F;
+  using I = typename V::I;
+  const F &px = p[0], &py = p[1], &pz = p[2], &nx = p[3], &ny = p[4], &nz = p[5];
+  const F zero = V::set(0.0f), one = V::set(1.0f), half = V::set(0.5f), tiny = V::set(1e-30f);
+  const F r = V::set(rj);
+  const F dx = V::sub(V::set(bx), px), dy = V::sub(V::set(by), py), dz = V::sub(V::set(bz), pz);
+  const F h = V::fma(dx, nx, V::fma(dy, ny, V::mul(dz, nz)));  // centre height above T_p
+  const F d2 = V::fma(dx, dx, V::fma(dy, dy, V::mul(dz, dz)));
+  const F a2 = V::max(V::fnma(h, h, d2), zero);  // squared distance along T_p from p to q1
+
+  // Replacement rules (section 6.2, shexp_internal.hpp): the adjusted sphere is tangent to T_p at
+  // q1 with radius rho, so seen from p its centre is at (in-plane offset) + hh N.
+  F rho = r, hh = h;
+  // The rules leave a sphere entirely in front of every lane's tangent plane unaltered: the common
+  // case of distant blockers costs one compare.
+  if (rule != ReplacementRule::Off && !V::all(V::ge(h, r))) {
+    const F r2 = V::set(rj * rj);
+    const auto inside = V::lt(d2, r2);
+    const F rin = V::max(h, zero);
+    const F rout = V::max(V::mul(half, V::add(h, r)), zero);
+    // d = sqrt(r^2 - h^2) and (|p - q1| - d)/max(d, dmin) through reciprocal square roots (no
+    // divisions or square roots in the loop). Below dmin the ratio only needs to be large.
+    const F dmin = V::set(1e-6f * rj);
+    const F q = V::max(V::fnma(h, h, r2), zero);
+    const F rq = V::rsqrt(V::max(q, V::set(1e-12f * rj * rj)));
+    const F dd = V::mul(q, rq);
+    const F dist = V::mul(a2, V::rsqrt(V::max(a2, tiny)));
+    const F ratio = V::mul(V::sub(dist, dd), rq);
+    if (rule == ReplacementRule::Continuous) {
+      const F t = V::select(inside, zero, V::min(V::max(ratio, zero), one));
+      rho = V::fma(t, V::sub(rout, rin), rin);
+    } else if (rule == ReplacementRule::Clamped) {
+      const F t = V::min(V::max(ratio, zero), one);
+      rho = V::select(inside, rin, V::mul(t, rout));
+    } else {
+      const F a = V::select(V::lt(dmin, dd), V::max(ratio, one), one);
+      rho = V::select(inside, rin, V::mul(a, rout));
+    }
+    const auto front = V::ge(h, r);
+    rho = V::select(front, r, rho);
+    hh = V::select(front, h, rho);
+  }
+  // v = P' - p = d + (hh - h) N. Its length is taken from v itself (not from a2 + hh^2) so that
+  // s = v/|v| stays a unit vector under the cancellation of a receiver on its own sphere.
+  const F dh = V::sub(hh, h);
+  const F vx = V::fma(dh, nx, dx), vy = V::fma(dh, ny, dy), vz = V::fma(dh, nz, dz);
+  const F inv = V::rsqrt(V::max(V::fma(vx, vx, V::fma(vy, vy, V::mul(vz, vz))), tiny));
+  // eq. 34: asin(r/|P - p|); exactly 0 for an eliminated sphere (the polynomial leaves ~1e-7 there)
+  // and for one that rounding shrank below 1e-6 of its radius (its direction is then noise).
+  const F st = V::select(V::lt(V::set(1e-6f * rj), rho), V::min(V::mul(rho, inv), one), zero);
+  const F theta = V::select(V::lt(zero, st), asin01<V>(st), zero);
+
+  // F(theta) by linear interpolation of the table (rows: (value, slope) per band).
+  const F u = V::mul(theta, V::set(table.scale));
+  const I k = V::iclamp(V::trunc(u), 0, table.rows - 2);
+  const F fr = V::sub(u, V::to_float(k));
+  V::template fetch_bands<N>(table, k, fr, fl);
+
+  // s = direction to the adjusted centre.
+  sx = V::mul(vx, inv);
+  sy = V::mul(vy, inv);
+  sz = V::mul(vz, inv);
+  return st;
+}
+
 // One block of V::W receivers (lane arrays lanes[0..5] = px, py, pz, nx, ny, nz) against every
 // blocker of `b`; writes the N*N accumulated coefficients, coefficient-major, to out[c * W + lane].
 template <class V, int N>
 void kernel_block(const ZhTable& table, ReplacementRule rule, const float (*lanes)[V::W], const BlockerList& b,
                   float* out) {
   using F = typename V::F;
-  using I = typename V::I;
   constexpr int N2 = N * N;
-  const F px = V::load(lanes[0]), py = V::load(lanes[1]), pz = V::load(lanes[2]);
-  const F nx = V::load(lanes[3]), ny = V::load(lanes[4]), nz = V::load(lanes[5]);
+  F p[6];
+  for (int a = 0; a < 6; ++a) p[a] = V::load(lanes[a]);
   F acc[N2];
 #pragma GCC unroll 64
   for (int c = 0; c < N2; ++c) acc[c] = V::set(0.0f);
 
   const BasisConsts& bc = basis_consts();
-  const F tscale = V::set(table.scale);
-  const int rmax = table.rows - 2;
-  const F zero = V::set(0.0f), one = V::set(1.0f), half = V::set(0.5f), tiny = V::set(1e-30f);
+  const F zero = V::set(0.0f), one = V::set(1.0f);
   const float *bx = b.cx.data(), *by = b.cy.data(), *bz = b.cz.data(), *br = b.r.data(), *bw = b.w.data();
   const std::size_t count = b.size();
 
 #pragma GCC unroll 2
   for (std::size_t j = 0; j < count; ++j) {
-    const float rj = br[j];
-    const F r = V::set(rj);
-    const F dx = V::sub(V::set(bx[j]), px), dy = V::sub(V::set(by[j]), py), dz = V::sub(V::set(bz[j]), pz);
-    const F h = V::fma(dx, nx, V::fma(dy, ny, V::mul(dz, nz)));  // centre height above T_p
-    const F d2 = V::fma(dx, dx, V::fma(dy, dy, V::mul(dz, dz)));
-    const F a2 = V::max(V::fnma(h, h, d2), zero);  // squared distance along T_p from p to q1
-
-    // Replacement rules (section 6.2, shexp_internal.hpp): the adjusted sphere is tangent to T_p at
-    // q1 with radius rho, so seen from p its centre is at (in-plane offset) + hh N.
-    F rho = r, hh = h;
-    // The rules leave a sphere entirely in front of every lane's tangent plane unaltered: the common
-    // case of distant blockers costs one compare.
-    if (rule != ReplacementRule::Off && !V::all(V::ge(h, r))) {
-      const F r2 = V::set(rj * rj);
-      const auto inside = V::lt(d2, r2);
-      const F rin = V::max(h, zero);
-      const F rout = V::max(V::mul(half, V::add(h, r)), zero);
-      // d = sqrt(r^2 - h^2) and (|p - q1| - d)/max(d, dmin) through reciprocal square roots (no
-      // divisions or square roots in the loop). Below dmin the ratio only needs to be large.
-      const F dmin = V::set(1e-6f * rj);
-      const F q = V::max(V::fnma(h, h, r2), zero);
-      const F rq = V::rsqrt(V::max(q, V::set(1e-12f * rj * rj)));
-      const F dd = V::mul(q, rq);
-      const F dist = V::mul(a2, V::rsqrt(V::max(a2, tiny)));
-      const F ratio = V::mul(V::sub(dist, dd), rq);
-      if (rule == ReplacementRule::Continuous) {
-        const F t = V::select(inside, zero, V::min(V::max(ratio, zero), one));
-        rho = V::fma(t, V::sub(rout, rin), rin);
-      } else if (rule == ReplacementRule::Clamped) {
-        const F t = V::min(V::max(ratio, zero), one);
-        rho = V::select(inside, rin, V::mul(t, rout));
-      } else {
-        const F a = V::select(V::lt(dmin, dd), V::max(ratio, one), one);
-        rho = V::select(inside, rin, V::mul(a, rout));
-      }
-      const auto front = V::ge(h, r);
-      rho = V::select(front, r, rho);
-      hh = V::select(front, h, rho);
-    }
-    // v = P' - p = d + (hh - h) N. Its length is taken from v itself (not from a2 + hh^2) so that
-    // s = v/|v| stays a unit vector under the cancellation of a receiver on its own sphere.
-    const F dh = V::sub(hh, h);
-    const F vx = V::fma(dh, nx, dx), vy = V::fma(dh, ny, dy), vz = V::fma(dh, nz, dz);
-    const F inv = V::rsqrt(V::max(V::fma(vx, vx, V::fma(vy, vy, V::mul(vz, vz))), tiny));
-    // eq. 34: asin(r/|P - p|); exactly 0 for an eliminated sphere (the polynomial leaves ~1e-7 there)
-    // and for one that rounding shrank below 1e-6 of its radius (its direction is then noise).
-    const F st = V::select(V::lt(V::set(1e-6f * rj), rho), V::min(V::mul(rho, inv), one), zero);
-    const F theta = V::select(V::lt(zero, st), asin01<V>(st), zero);
-
-    // F(theta) by linear interpolation of the table (rows: (value, slope) per band), times W (eq. 38).
-    const F u = V::mul(theta, tscale);
-    const I k = V::iclamp(V::trunc(u), 0, rmax);
-    const F fr = V::sub(u, V::to_float(k));
-    F fl[N];
-    V::template fetch_bands<N>(table, k, fr, fl);
+    F fl[N], sx, sy, sz;
+    blocker_view<V, N>(table, rule, p, bx[j], by[j], bz[j], br[j], fl, sx, sy, sz);
 #pragma GCC unroll 16
-    for (int l = 0; l < N; ++l) fl[l] = V::mul(fl[l], V::set(bw[j * N + l]));
-
-    // s = direction to the adjusted centre.
-    const F sx = V::mul(vx, inv), sy = V::mul(vy, inv), sz = V::mul(vz, inv);
+    for (int l = 0; l < N; ++l) fl[l] = V::mul(fl[l], V::set(bw[j * N + l]));  // W of eq. 38
 
     // Real SH by the polynomial recurrence: y_{l,+-m} = Q_l^m(z) {C_m, S_m}(x, y), C_m + i S_m = (x + i y)^m.
     F C[N], S[N];

@@ -271,6 +271,24 @@ void pass_light_tables(State& st, const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const LightLobeTable>>(kLightTables, t);
 }
 
+// Blocker spheres must be finite with radius >= 0: a bad one would turn every receiver's log vector
+// into NaN. The error names the proxy set and the sphere.
+void check_proxies(const FrameContext& ctx) {
+  for (std::size_t s = 0; s < ctx.posed.proxies.size(); ++s)
+    for (std::size_t i = 0; i < ctx.posed.proxies[s].size(); ++i) {
+      const scene::Sphere& sp = ctx.posed.proxies[s][i];
+      if (!(sp.radius >= 0.0f) || !std::isfinite(sp.radius) || !std::isfinite(sp.center.x) || !std::isfinite(sp.center.y) ||
+          !std::isfinite(sp.center.z)) {
+        const std::string name = s < ctx.scene.proxies.size() ? ctx.scene.proxies[s].name : std::to_string(s);
+        std::ostringstream os;
+        os << "shexp: proxy set '" << name << "' of scene '" << ctx.scene.name << "': sphere " << i << " at time " << ctx.posed.time
+           << " has centre (" << sp.center.x << ", " << sp.center.y << ", " << sp.center.z << ") and radius " << sp.radius
+           << " (expected finite values, radius >= 0)";
+        throw std::invalid_argument(os.str());
+      }
+    }
+}
+
 void pass_hierarchy(State& st, FrameContext& ctx) {
   const std::string key = hierarchy_signature(ctx.scene);
   bool cached = true;
@@ -279,11 +297,8 @@ void pass_hierarchy(State& st, FrameContext& ctx) {
     cached = false;
     auto t0 = std::chrono::steady_clock::now();
     st.trees.clear();
+    check_proxies(ctx);
     for (const auto& set : ctx.posed.proxies) {
-      for (const auto& sp : set)
-        if (!(sp.radius >= 0.0f) || !std::isfinite(sp.radius) || !std::isfinite(sp.center.x) || !std::isfinite(sp.center.y) ||
-            !std::isfinite(sp.center.z))
-          throw std::invalid_argument("shexp: proxy sphere with non-finite centre or radius in scene '" + ctx.scene.name + "'");
       if (set.empty()) {
         st.trees.push_back(nullptr);
         continue;
@@ -315,6 +330,7 @@ void pass_hierarchy(State& st, FrameContext& ctx) {
 }
 
 void pass_proxy_update(State& st, FrameContext& ctx) {
+  check_proxies(ctx);
   std::lock_guard<std::mutex> lock(st.m);
   std::size_t moved = 0;
   for (std::size_t i = 0; i < st.trees.size() && i < ctx.posed.proxies.size(); ++i) {
@@ -467,6 +483,7 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
       total.detail_spheres += cs.detail_spheres;
     });
   } else {
+    check_proxies(ctx);
     cuts->lists.push_back(flat_list(ctx.posed.proxies, t.acc_order));
     cuts->list_of_cluster.assign(nc, 0);
   }
@@ -558,8 +575,8 @@ void pass_exponentiate(const Settings& s, FrameContext& ctx) {
   be.degree = opt.degree;
   be.tables = t.sh.get();
   be.plan = &ProductPlan::get(na);
-  // Blocks of 256 receivers (a multiple of every lane count): HYB, OL and PS* run batched across
-  // receivers (kernel.cpp), PS and the exact exponential per receiver through sh::exp.
+  // Blocks of 256 receivers (a multiple of every lane count): HYB, OL, PS* and PS run batched across
+  // receivers (kernel.cpp), the exact exponential per receiver through sh::exp.
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
     std::vector<float> out(br.size() * n2a);
     auto& st = stats.local();
@@ -605,7 +622,7 @@ void pass_product(const Settings& s, FrameContext& ctx) {
   tbb::parallel_for(tbb::blocked_range<int>(0, static_cast<int>(r.clusters.size()), 1), [&](const tbb::blocked_range<int>& cr) {
     for (int c = cr.begin(); c != cr.end(); ++c) {
       const ReceiverCluster& rc = r.clusters[c];
-      products += accumulate_product(t.vis, s.rule, r.soa, rc.begin, rc.end, cuts.lists[cuts.list_of_cluster[c]], acc.data());
+      products += accumulate_product_batch(s.isa, t.vis, s.rule, r.soa, rc.begin, rc.end, cuts.lists[cuts.list_of_cluster[c]], acc.data());
     }
   });
   auto g = std::make_shared<Field>();

@@ -138,8 +138,8 @@ struct ProductPlan {
 
 struct BatchExp {
   int order = 0;
-  sh::ExpMethod method = sh::ExpMethod::HYB;  // HYB, OL or PSStar
-  int degree = 2;                             // PS*-p
+  sh::ExpMethod method = sh::ExpMethod::HYB;  // HYB, OL, PSStar or PS
+  int degree = 2;                             // PS*-p, PS-p
   const sh::ShTables* tables = nullptr;       // OL a, b (HYB, OL)
   const ProductPlan* plan = nullptr;
 };
@@ -168,6 +168,13 @@ void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std
 // list are ignored (ratio vectors are defined for log vectors). Returns the number of SH products.
 long long accumulate_product(const ZhTable& vis_table, ReplacementRule rule, const ReceiverSoA& rec,
                              std::size_t begin, std::size_t end, const BlockerList& blockers, float* out);
+// The same, vectorised across receivers like the log-space kernel (the product pass's
+// implementation, so that log and product space are compared with equal vectorisation): the
+// visibility vectors come from the kernel's own geometry code, the products from ProductPlan. Lanes
+// where a blocker is eliminated multiply by the constant 1. Returns the SH products done (per
+// receiver, summed).
+long long accumulate_product_batch(KernelIsa isa, const ZhTable& vis_table, ReplacementRule rule, const ReceiverSoA& rec,
+                                   std::size_t begin, std::size_t end, const BlockerList& blockers, float* out);
 
 // The order-n projection of the exact binary visibility of the (rule-adjusted) spheres, by a product
 // quadrature with `bands` bands (2 bands^2 directions): what no order-n accumulation can beat, for

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -158,6 +159,25 @@ TEST(ShexpGraph, InconsistentParametersAreRejectedByName) {
   EXPECT_THROW(t->plan(test_scene(false, true, false), p, empty), std::invalid_argument);
   EXPECT_THROW(p.set_assignment("order=7"), std::invalid_argument);
   EXPECT_THROW(p.set_assignment("exp=taylor"), std::invalid_argument);
+}
+
+TEST(ShexpGraph, NonFiniteProxySpheresAreNamed) {
+  techniques::register_all();
+  backends::CpuBackend cpu;
+  for (const char* h : {"hierarchy=true", "hierarchy=false"}) {
+    scene::Scene s = test_scene(false, true, false);
+    s.proxies[0].spheres[3].radius = std::numeric_limits<float>::quiet_NaN();
+    auto t = render::create_technique("shexp");
+    render::ParamSet p = render::default_params(*t);
+    p.set_assignment(h);
+    try {
+      cpu.render(*t, s, p, render::RenderRequest{});
+      ADD_FAILURE() << "NaN sphere accepted with " << h;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("proxy set 'blocker'"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("sphere 3"), std::string::npos) << e.what();
+    }
+  }
 }
 
 // --- hierarchy with ratio vectors vs the flat list (section 6.3) -------------------------------------

@@ -4,6 +4,7 @@
 #include <map>
 #include <mutex>
 #include <stdexcept>
+#include <utility>
 
 #include "softgi/render/backend.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -89,6 +90,10 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
     execute_pass(pass, ctx);
     result.passes.back().wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - p0).count();
   }
+  // The frame's output images, unless a pass filled the result itself.
+  for (auto [resource, field] : {std::pair<const char*, Image*>{kDirect, &result.direct},
+                                 {kIndirect, &result.indirect}, {kFinal, &result.final_image}})
+    if (field->empty() && ctx.has(resource)) *field = std::move(ctx.get<Image>(resource));
   result.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.peak_rss_bytes = peak_rss_bytes();
   return result;

@@ -62,7 +62,7 @@ namespace {
 std::string range_text(const ParamDesc& d) {
   std::ostringstream os;
   switch (d.type) {
-    case ParamType::Int:
+    case ParamType::Int: os << "[" << static_cast<long long>(d.min) << ", " << static_cast<long long>(d.max) << "]"; break;
     case ParamType::Float: os << "[" << d.min << ", " << d.max << "]"; break;
     case ParamType::Bool: os << "true|false"; break;
     case ParamType::Enum:

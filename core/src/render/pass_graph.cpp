@@ -26,14 +26,19 @@ CompiledGraph PassGraph::compile(const std::vector<std::string>& outputs, const 
     if (!writer.count(r) && !inputs_.count(r))
       throw std::invalid_argument("pass graph: pass '" + p.name + "' reads '" + r + "', which no pass writes and is no input");
   };
+  // An optional read that nothing writes is simply empty (e.g. compose's "indirect" for a technique
+  // without indirect light); a required one is an error.
+  std::set<std::string> absent;
   for (const auto& p : passes_) {
     for (const auto& r : p.reads) check_read(p, r);
-    for (const auto& r : p.optional_reads) check_read(p, r);
+    for (const auto& r : p.optional_reads)
+      if (!writer.count(r) && !inputs_.count(r)) absent.insert(r);
   }
 
   // Forward: which passes can run (no required read empty); their outputs are live.
   CompiledGraph g;
   g.empty = empty;
+  g.empty.insert(absent.begin(), absent.end());
   std::vector<int> state(n, 0);  // 0 unvisited, 1 runnable, 2 pruned (empty input), 3 being visited
   std::vector<std::string> reason(n);
   std::function<bool(int)> runnable = [&](int i) -> bool {
@@ -41,7 +46,7 @@ CompiledGraph PassGraph::compile(const std::vector<std::string>& outputs, const 
     if (state[i]) return state[i] == 1;
     state[i] = 3;
     auto is_empty = [&](const std::string& r) -> bool {
-      if (empty.count(r)) return true;
+      if (empty.count(r) || absent.count(r)) return true;
       auto w = writer.find(r);
       if (w == writer.end()) return false;  // an input
       return !runnable(w->second);
