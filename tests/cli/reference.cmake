@@ -1,14 +1,6 @@
 # `softgi reference`: a tiny render writes every promised file; bad arguments exit non-zero with a
 # message naming the problem.
-function(expect_failure pattern)
-  execute_process(COMMAND ${SOFTGI} ${ARGN} OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
-  if(rc EQUAL 0)
-    message(FATAL_ERROR "softgi ${ARGN} succeeded; expected failure")
-  endif()
-  if(NOT "${out}${err}" MATCHES "${pattern}")
-    message(FATAL_ERROR "softgi ${ARGN}: message does not mention '${pattern}':\n${out}${err}")
-  endif()
-endfunction()
+include(${CMAKE_CURRENT_LIST_DIR}/lib/expect.cmake)
 
 file(REMOVE_RECURSE ${WORK_DIR})
 file(MAKE_DIRECTORY ${WORK_DIR})
