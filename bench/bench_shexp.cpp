@@ -9,7 +9,9 @@
 //  - BM_Figure7/<scene>: errors of (b) ray traced with sphere blockers, (c) product space n = 4,
 //    (d) SHEXP n = 4, (e) SHEXP accumulated at n = 6 and shaded at n = 4 against (a) ray traced with
 //    the real geometry, all under order-4 SH lighting;
-//  - BM_CrowdHierarchy: hierarchy with ratio vectors against the flat list on `crowd`.
+//  - BM_CrowdHierarchy: hierarchy with ratio vectors against the flat list on `crowd`;
+//  - BM_Frame/<scene>/<backend>: whole frames on the CPU or Vulkan backend (`--backend`), the
+//    accumulation passes' pairs per second, GFLOP/s and share of the FMA peak (frame_bench.hpp).
 // GCC 12 reports its own AVX-512 intrinsics as maybe uninitialised (see techniques/shexp/kernel.cpp).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
@@ -24,12 +26,15 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <string>
 #include <thread>
 #include <vector>
 
 #include <tbb/parallel_for.h>
 
 #include "../techniques/shexp/shexp_internal.hpp"
+#include "fma_peak.hpp"
+#include "frame_bench.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/metrics/image_metrics.hpp"
 #include "softgi/proxies/sphere_fit.hpp"
@@ -45,66 +50,17 @@ namespace {
 using namespace softgi;
 namespace sx = softgi::techniques::shexp;
 
-// --- FMA peak ---------------------------------------------------------------------------------
+// --- FMA peak (bench/fma_peak.hpp) ----------------------------------------------------------
 
-constexpr int kFmaChains = 12;  // independent accumulators: > latency (4) x FMA ports (2)
-
-__attribute__((target("avx512f"))) float fma_loop_avx512(long iters) {
-  __m512 a[kFmaChains];
-  const __m512 m = _mm512_set1_ps(0.9999999f), c = _mm512_set1_ps(1e-7f);
-  for (int i = 0; i < kFmaChains; ++i) a[i] = _mm512_set1_ps(static_cast<float>(i));
-  for (long k = 0; k < iters; ++k)
-#pragma GCC unroll 12
-    for (int i = 0; i < kFmaChains; ++i) a[i] = _mm512_fmadd_ps(a[i], m, c);
-  __m512 s = a[0];
-  for (int i = 1; i < kFmaChains; ++i) s = _mm512_add_ps(s, a[i]);
-  return _mm512_reduce_add_ps(s);
-}
-
-__attribute__((target("avx2,fma"))) float fma_loop_avx2(long iters) {
-  __m256 a[kFmaChains];
-  const __m256 m = _mm256_set1_ps(0.9999999f), c = _mm256_set1_ps(1e-7f);
-  for (int i = 0; i < kFmaChains; ++i) a[i] = _mm256_set1_ps(static_cast<float>(i));
-  for (long k = 0; k < iters; ++k)
-#pragma GCC unroll 12
-    for (int i = 0; i < kFmaChains; ++i) a[i] = _mm256_fmadd_ps(a[i], m, c);
-  alignas(32) float out[8];
-  __m256 s = a[0];
-  for (int i = 1; i < kFmaChains; ++i) s = _mm256_add_ps(s, a[i]);
-  _mm256_store_ps(out, s);
-  return out[0];
-}
-
-// GFLOP/s of `threads` threads each running the widest FMA loop this CPU has for `iters` rounds.
-double fma_gflops(int threads, long iters) {
-  const bool avx512 = __builtin_cpu_supports("avx512f");
-  const int lanes = avx512 ? 16 : 8;
-  std::vector<std::thread> pool;
-  std::vector<float> sink(threads);
-  auto t0 = std::chrono::steady_clock::now();
-  for (int t = 0; t < threads; ++t)
-    pool.emplace_back([&, t] { sink[t] = avx512 ? fma_loop_avx512(iters) : fma_loop_avx2(iters); });
-  for (auto& th : pool) th.join();
-  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  benchmark::DoNotOptimize(sink);
-  return static_cast<double>(threads) * iters * kFmaChains * lanes * 2.0 / s * 1e-9;
-}
-
-double g_peak = 0.0;  // GFLOP/s, 2 threads, measured in this run
-
-double peak_gflops() {
-  if (g_peak <= 0.0) {
-    for (int i = 0; i < 5; ++i) g_peak = std::max(g_peak, fma_gflops(2, 20'000'000));
-  }
-  return g_peak;
-}
+using softgi::bench::fma_gflops;
+using softgi::bench::peak_gflops;
 
 void BM_FmaPeak(benchmark::State& state) {
   const int threads = static_cast<int>(state.range(0));
   double best = 0.0;
   for (auto _ : state) best = std::max(best, fma_gflops(threads, 20'000'000));
   state.counters["GFLOP/s"] = best;
-  if (threads == 2) g_peak = std::max(g_peak, best);
+  if (threads == 2) softgi::bench::record_peak(best);
 }
 BENCHMARK(BM_FmaPeak)->Arg(1)->Arg(2)->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
 
@@ -510,7 +466,70 @@ void BM_CrowdHierarchy(benchmark::State& state) {
   state.counters["image_ssim"] = m.ssim;
 }
 
+// --- whole frames on both backends ----------------------------------------------------------------
+
+// SHEXP with its default parameters (HYB, order 4, hierarchy cuts) on a built-in scene at 512 x 512,
+// one frame per iteration 1/30 s apart, on the CPU or the Vulkan backend (`--backend`,
+// frame_bench.hpp): accumulate_log's pairs per second, GFLOP/s and share of the FMA peak with
+// kernel_flops_per_pair (the GLSL kernel follows the CPU kernel's arithmetic), exponentiate's
+// receivers per second and GFLOP/s (its squares and products). Manual time: the two passes' walls.
+void BM_Frame(benchmark::State& state, const std::string& scene_name, const std::string& backend) {
+  constexpr int kFrameSide = 512;  // docs/backends.md's timing table
+  constexpr double kStep = 1.0 / 30.0;
+  techniques::register_all();
+  render::Backend* be = nullptr;
+  try {
+    be = &softgi::bench::backend_named(backend);
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+    return;
+  }
+  const scene::Scene sc = scene::make_builtin(scene_name);
+  auto tech = render::create_technique("shexp");
+  const render::ParamSet params = render::default_params(*tech);
+  softgi::bench::FlopModel fm;
+  const int acc = params.get_int("accumulation_order");
+  fm.acc_order = acc == 0 ? params.get_int("order") : acc;
+  fm.rule = params.get_bool("self_shadow_rules") ? sx::parse_replacement_rule(params.get_enum("replacement_rule")) : sx::ReplacementRule::Off;
+  render::RenderRequest req;
+  req.width = req.height = kFrameSide;
+  req.time = 0.0;
+  try {
+    be->render(*tech, sc, params, req);  // warm-up: tables, clusters, hierarchy, pipelines
+  } catch (const std::exception& e) {
+    state.SkipWithError((std::string("shexp failed: ") + e.what()).c_str());
+    return;
+  }
+  std::map<std::string, softgi::bench::PassSums> sums;
+  double frame = 0.0;
+  for (auto _ : state) {
+    req.time += kStep;
+    const render::FrameResult r = be->render(*tech, sc, params, req);
+    double t = 0.0;
+    for (const auto& p : r.passes)
+      if (p.name == "accumulate_log" || p.name == "exponentiate") {
+        sums[p.name].add(p);
+        t += p.wall_seconds;
+      }
+    frame += r.total_seconds;
+    state.SetIterationTime(t);
+  }
+  if (sums["accumulate_log"].pairs <= 0.0) {
+    state.SkipWithError("the frame ran no accumulate_log pass with pairs (pass names or counters changed?)");
+    return;
+  }
+  state.counters["frame_ms"] = frame / static_cast<double>(state.iterations()) * 1e3;
+  state.counters["receivers"] = sums["accumulate_log"].receivers / static_cast<double>(state.iterations());
+  softgi::bench::Row base;
+  base.bench = "shexp";
+  base.scene = scene_name;
+  base.technique = "shexp";
+  base.backend = backend;
+  softgi::bench::report_passes(state, sums, fm, base);
+}
+
 }  // namespace
+
 
 BENCHMARK(BM_Kernel)
     ->ArgsProduct({{3, 4, 5, 6, 8}, {static_cast<long>(sx::KernelIsa::Avx512)}, {0, 1}})
@@ -523,4 +542,15 @@ BENCHMARK(BM_Figure9)->Iterations(5)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK(BM_Figure7)->Arg(0)->Arg(1)->Iterations(1)->Unit(benchmark::kSecond)->UseRealTime();
 BENCHMARK(BM_CrowdHierarchy)->Iterations(3)->Unit(benchmark::kSecond)->UseRealTime();
 
-BENCHMARK_MAIN();
+// --backend=cpu|vulkan|both (default both), parsed before benchmark::Initialize: BM_Frame/<scene>/<backend>
+// on `character` and `crowd`.
+int main(int argc, char** argv) {
+  return softgi::bench::frame_bench_main(argc, argv, [](const std::vector<std::string>& backends) {
+    for (const std::string scene : {"character", "crowd"})
+      for (const auto& b : backends)
+        benchmark::RegisterBenchmark(("BM_Frame/" + scene + "/" + b).c_str(), [=](benchmark::State& st) { BM_Frame(st, scene, b); })
+            ->Iterations(5)
+            ->UseManualTime()
+            ->Unit(benchmark::kMillisecond);
+  });
+}

@@ -26,3 +26,5 @@ endif()
 if(SOFTGI_BUILD_BENCH)
   find_package(benchmark CONFIG REQUIRED)
 endif()
+# Build-time GLSL -> SPIR-V (softgi_add_shaders); needs Vulkan::glslangValidator found above.
+include(SoftgiShaders)

@@ -3,13 +3,17 @@
 #include <mutex>
 
 #include "softgi/render/technique.hpp"
+#include "softgi/techniques/image_splat.hpp"
 #include "softgi/techniques/shexp.hpp"
 
 namespace softgi::techniques {
 
 void register_all() {
   static std::once_flag once;
-  std::call_once(once, [] { render::register_technique("shexp", [] { return shexp::create(); }); });
+  std::call_once(once, [] {
+    render::register_technique("shexp", [] { return shexp::create(); });
+    render::register_technique("image_splat", [] { return image_splat::create(); });
+  });
 }
 
 }  // namespace softgi::techniques

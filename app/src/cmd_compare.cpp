@@ -40,7 +40,7 @@ constexpr int kDefaultShOrder = 4;
 constexpr double kWarmupFrameSeconds = 1.0 / 30.0;
 
 struct CompareArgs {
-  std::string scene, out, techniques;
+  std::string scene, out, techniques, backends = "cpu", device;
   double frame = 0.0;
   int spp = 64;
   int width = 0, height = 0;
@@ -107,11 +107,14 @@ struct Reference {
 
 struct TechniqueRun {
   std::string name, settings, error;
+  std::string backend = "cpu", label;  // label: output folder and table name (name, or name-backend off the CPU)
+  Json device = Json::object();
   render::ParamSet params;
   render::FrameResult frame;
   double first_frame_seconds = 0.0;
   int order = kDefaultShOrder;
   std::map<std::string, metrics::Metrics> vs_final, vs_direct;  // keyed by reference key
+  double vs_cpu = -1.0;  // relMSE of the final image against the CPU backend's (other backends, when both ran)
 };
 
 void run_compare(const CompareArgs& args) {
@@ -122,6 +125,11 @@ void run_compare(const CompareArgs& args) {
   if (names.empty()) throw std::invalid_argument("compare: no technique to compare (--techniques is empty or none is registered)");
   std::vector<std::unique_ptr<render::Technique>> techs;
   for (const auto& n : names) techs.push_back(render::create_technique(n));  // unknown names fail here
+  const std::vector<std::string> backend_names = parse_backends(args.backends);
+  if (!args.device.empty() && std::find(backend_names.begin(), backend_names.end(), "vulkan") == backend_names.end())
+    throw std::invalid_argument("--device '" + args.device + "': only the vulkan backend selects a device");
+  std::vector<std::unique_ptr<render::Backend>> backends_used;
+  for (const auto& b : backend_names) backends_used.push_back(make_backend(b, b == "vulkan" ? args.device : "", "compare"));
 
   const scene::Scene sc = io::load_scene(args.scene);
   int w = args.width, h = args.height;
@@ -131,8 +139,9 @@ void run_compare(const CompareArgs& args) {
   std::cerr << "compare: scene '" << sc.name << "' at " << w << "x" << h << ", t = " << args.frame << " s, "
             << techs.size() << " technique(s), reference " << args.spp << " spp\n";
 
-  // The shared G-buffer once on its own: its cost, and the surface mask errors are measured over.
-  backends::CpuBackend backend;
+  // The shared G-buffer once on its own (CPU, Embree): its cost, and the surface mask errors are
+  // measured over.
+  backends::CpuBackend cpu_gbuffer_backend;
   const scene::PosedScene posed = scene::evaluate(sc, args.frame);
   render::FrameResult gb_frame;
   render::GBuffer gb;
@@ -155,41 +164,49 @@ void run_compare(const CompareArgs& args) {
   const render::PassRecord& gbr = gb_frame.passes.back();
   std::cerr << "compare: G-buffer " << ms(gbr.wall_seconds) << " ms, " << surface_pixels << " surface pixels\n";
 
-  // Techniques: one warm-up frame (one-time setup such as tables), then the timed frame.
+  // Techniques: one warm-up frame (one-time setup such as tables), then the timed frame; on every
+  // backend asked for (each technique instance keeps per-backend-independent state only).
   std::vector<TechniqueRun> runs;
   std::set<int> orders;
-  for (std::size_t k = 0; k < techs.size(); ++k) {
-    render::Technique& t = *techs[k];
-    TechniqueRun run;
-    run.name = t.name();
-    run.params = render::default_params(t);
-    run.order = sh_order_of(run.params);
-    for (const auto& [pn, pv] : run.params.values()) run.settings += (run.settings.empty() ? "" : ", ") + pn + "=" + pv;
-    std::cerr << "compare: [" << k + 1 << "/" << techs.size() << "] " << run.name << " (" << run.settings << ")\n";
-    render::RenderRequest req;
-    req.time = args.frame;
-    req.width = w;
-    req.height = h;
-    req.outputs = {"final"};
-    try {
-      // The warm-up frame is the previous frame of a 30 Hz animation, so the timed frame pays the
-      // per-frame updates (proxy refits, BVH refits) of a running animation and no one-time setup.
-      render::RenderRequest warm = req;
-      warm.time = args.frame - kWarmupFrameSeconds;
-      run.first_frame_seconds = backend.render(t, sc, run.params, warm).total_seconds;
-      run.frame = backend.render(t, sc, run.params, req);
-      if (run.frame.final_image.width != w || run.frame.final_image.height != h)
-        throw std::runtime_error("final image is " + std::to_string(run.frame.final_image.width) + "x" +
-                                 std::to_string(run.frame.final_image.height) + ", expected " + std::to_string(w) + "x" +
-                                 std::to_string(h));
-      orders.insert(run.order);
-      std::cerr << "compare:   " << ms(run.frame.total_seconds) << " ms per frame (first frame " << ms(run.first_frame_seconds)
-                << " ms)\n";
-    } catch (const std::exception& e) {
-      run.error = e.what();
-      std::cerr << "compare:   FAILED: " << run.error << "\n";
+  for (std::size_t bi = 0; bi < backends_used.size(); ++bi) {
+    for (std::size_t k = 0; k < techs.size(); ++k) {
+      render::Backend& backend = *backends_used[bi];
+      render::Technique& t = *techs[k];
+      TechniqueRun run;
+      run.name = t.name();
+      run.backend = backend.name();
+      run.label = run.backend == "cpu" ? run.name : run.name + "-" + run.backend;
+      run.device = device_json(backend);
+      run.params = render::default_params(t);
+      run.order = sh_order_of(run.params);
+      for (const auto& [pn, pv] : run.params.values()) run.settings += (run.settings.empty() ? "" : ", ") + pn + "=" + pv;
+      std::cerr << "compare: [" << bi * techs.size() + k + 1 << "/" << techs.size() * backends_used.size() << "] " << run.name
+                << " on " << run.backend << " (" << run.settings << ")\n";
+      render::RenderRequest req;
+      req.time = args.frame;
+      req.width = w;
+      req.height = h;
+      req.outputs = {"final"};
+      try {
+        // The warm-up frame is the previous frame of a 30 Hz animation, so the timed frame pays the
+        // per-frame updates (proxy refits, BVH refits) of a running animation and no one-time setup.
+        render::RenderRequest warm = req;
+        warm.time = args.frame - kWarmupFrameSeconds;
+        run.first_frame_seconds = backend.render(t, sc, run.params, warm).total_seconds;
+        run.frame = backend.render(t, sc, run.params, req);
+        if (run.frame.final_image.width != w || run.frame.final_image.height != h)
+          throw std::runtime_error("final image is " + std::to_string(run.frame.final_image.width) + "x" +
+                                   std::to_string(run.frame.final_image.height) + ", expected " + std::to_string(w) + "x" +
+                                   std::to_string(h));
+        orders.insert(run.order);
+        std::cerr << "compare:   " << ms(run.frame.total_seconds) << " ms per frame (first frame " << ms(run.first_frame_seconds)
+                  << " ms)\n";
+      } catch (const std::exception& e) {
+        run.error = e.what();
+        std::cerr << "compare:   FAILED: " << run.error << "\n";
+      }
+      runs.push_back(std::move(run));
     }
-    runs.push_back(std::move(run));
   }
 
   // Ground truth: real geometry as blockers, un-jittered (each pixel sampled at its centre, as the
@@ -223,20 +240,21 @@ void run_compare(const CompareArgs& args) {
   std::vector<std::string> failures;
   Json jtechs = Json::array();
   for (auto& run : runs) {
-    Json jt = {{"name", run.name}, {"params", params_json(run.params)}, {"sh_order", run.order}};
+    Json jt = {{"name", run.name}, {"backend", run.backend}, {"device", run.device}, {"params", params_json(run.params)},
+               {"sh_order", run.order}};
     if (!run.error.empty()) {
       jt["error"] = run.error;
-      failures.push_back(run.name + ": " + run.error);
+      failures.push_back(run.label + ": " + run.error);
       jtechs.push_back(jt);
       continue;
     }
-    const std::string dir = (fs::path(args.out) / run.name).string();
+    const std::string dir = (fs::path(args.out) / run.label).string();
     make_output_dir(dir);
     Json images = Json::object();
-    images["final"] = run.name + "/" + write_image_pair(dir, "final", run.frame.final_image);
-    if (!run.frame.direct.empty()) images["direct"] = run.name + "/" + write_image_pair(dir, "direct", run.frame.direct);
+    images["final"] = run.label + "/" + write_image_pair(dir, "final", run.frame.final_image);
+    if (!run.frame.direct.empty()) images["direct"] = run.label + "/" + write_image_pair(dir, "direct", run.frame.direct);
     if (!run.frame.indirect.empty())
-      images["indirect"] = run.name + "/" + write_image_pair(dir, "indirect", run.frame.indirect);
+      images["indirect"] = run.label + "/" + write_image_pair(dir, "indirect", run.frame.indirect);
     Json errors = Json::object(), direct_errors = Json::object();
     try {
       for (const Reference* ref : {static_cast<const Reference*>(&refs.front()), &ref_for_order(run.order)}) {
@@ -247,7 +265,7 @@ void run_compare(const CompareArgs& args) {
         io::write_png_display((fs::path(dir) / map).string(),
                               metrics::error_map(on_surface(run.frame.final_image, surface),
                                                  on_surface(ref->result.final_image, surface)));
-        images["error_" + ref->key] = run.name + "/" + map;
+        images["error_" + ref->key] = run.label + "/" + map;
         if (!run.frame.direct.empty()) {
           run.vs_direct[ref->key] = metrics::compare(run.frame.direct, ref->result.direct, surface);
           direct_errors[ref->key] = metrics_json(run.vs_direct[ref->key]);
@@ -256,8 +274,16 @@ void run_compare(const CompareArgs& args) {
     } catch (const std::exception& e) {
       run.error = std::string("metrics: ") + e.what();
       jt["error"] = run.error;
-      failures.push_back(run.name + ": " + run.error);
+      failures.push_back(run.label + ": " + run.error);
     }
+    // The same technique on the CPU backend, when both ran: how far the backends' images differ.
+    if (run.backend != "cpu")
+      for (const auto& other : runs)
+        if (other.name == run.name && other.backend == "cpu" && other.error.empty()) {
+          const metrics::Metrics m = metrics::compare(run.frame.final_image, other.frame.final_image, surface);
+          jt["vs_cpu_backend"] = metrics_json(m);
+          run.vs_cpu = m.relmse;
+        }
     jt["frame_seconds"] = run.frame.total_seconds;
     jt["first_frame_seconds"] = run.first_frame_seconds;
     jt.update(frame_json(run.frame));
@@ -269,7 +295,7 @@ void run_compare(const CompareArgs& args) {
     rec["date"] = utc_now();
     rec["command"] = "compare";
     rec["scene"] = sc.name;
-    rec["backend"] = backend.name();
+    rec["backend"] = run.backend;
     rec["frame_time"] = args.frame;
     rec["resolution"] = {w, h};
     write_json((fs::path(dir) / "record.json").string(), rec);
@@ -303,7 +329,7 @@ void run_compare(const CompareArgs& args) {
   std::ostringstream md;
   md << "# softgi compare: " << sc.name << "\n\n"
      << "Scene `" << args.scene << "` (" << sc.source << "), " << w << "x" << h << ", frame t = " << args.frame
-     << " s; softgi " << softgi_version() << ", " << utc_now() << ", CPU backend.\n\n"
+     << " s; softgi " << softgi_version() << ", " << utc_now() << ", backend(s): " << args.backends << ".\n\n"
      << "Ground truth: the Embree path tracer with the real geometry as blockers and one-bounce diffuse indirect, "
      << args.spp << " spp through each pixel centre (the visibility of the techniques' one-sample G-buffer); "
      << "lit by the full environment";
@@ -320,21 +346,26 @@ void run_compare(const CompareArgs& args) {
     if (!run.error.empty()) {
       std::string why = run.error;  // a '|' would end the table cell
       for (std::size_t p = why.find('|'); p != std::string::npos; p = why.find('|', p + 2)) why.replace(p, 1, "\\|");
-      md << "| " << run.name << " | " << run.settings << " | failed: " << why << " | | | | | | |\n";
+      md << "| " << run.label << " | " << run.settings << " | failed: " << why << " | | | | | | |\n";
       continue;
     }
     std::string passes;
-    for (const auto& p : run.frame.passes) passes += (passes.empty() ? "" : ", ") + p.name + " " + ms(p.wall_seconds);
+    for (const auto& p : run.frame.passes)
+      passes += (passes.empty() ? "" : ", ") + p.name + " " + ms(p.wall_seconds) + (p.gpu_seconds >= 0.0 ? " (GPU " + ms(p.gpu_seconds) + ")" : "");
     const std::string shk = "sh" + std::to_string(run.order);
     auto get = [&](const std::string& key, bool ssim) {
       auto it = run.vs_final.find(key);
       return it == run.vs_final.end() ? std::string("-") : fmt(ssim ? it->second.ssim : it->second.relmse);
     };
-    md << "| " << run.name << " | " << run.settings << " | " << ms(run.frame.total_seconds) << " | " << passes << " | "
+    md << "| " << run.label << " | " << run.settings << " | " << ms(run.frame.total_seconds) << " | " << passes << " | "
        << get("full", false) << " | " << get("full", true) << " | " << get(shk, false) << " (n=" << run.order << ") | "
-       << get(shk, true) << " | [final](" << run.name << "/final.png) · [error vs full](" << run.name
-       << "/error_full.png) · [error vs SH](" << run.name << "/error_" << shk << ".png) |\n";
+       << get(shk, true) << " | [final](" << run.label << "/final.png) · [error vs full](" << run.label
+       << "/error_full.png) · [error vs SH](" << run.label << "/error_" << shk << ".png) |\n";
   }
+  std::string cross;
+  for (const auto& run : runs)
+    if (run.vs_cpu >= 0.0) cross += "- " + run.name + " on " + run.backend + " against the CPU backend: relMSE " + fmt(run.vs_cpu) + "\n";
+  if (!cross.empty()) md << "\nBackends against each other (final images, surface pixels):\n\n" << cross;
   bool any_direct = false;
   for (const auto& run : runs) any_direct = any_direct || !run.vs_direct.empty();
   if (any_direct) {
@@ -347,7 +378,7 @@ void run_compare(const CompareArgs& args) {
         auto it = run.vs_direct.find(key);
         return it == run.vs_direct.end() ? std::string("-") : fmt(ssim ? it->second.ssim : it->second.relmse);
       };
-      md << "| " << run.name << " | " << get("full", false) << " | " << get("full", true) << " | " << get(shk, false)
+      md << "| " << run.label << " | " << get("full", false) << " | " << get("full", true) << " | " << get(shk, false)
          << " | " << get(shk, true) << " |\n";
     }
   }
@@ -358,7 +389,7 @@ void run_compare(const CompareArgs& args) {
   md << "\n";
   std::string pruned;
   for (const auto& run : runs)
-    for (const auto& p : run.frame.pruned) pruned += "- " + run.name + ": `" + p.name + "`: " + p.reason + "\n";
+    for (const auto& p : run.frame.pruned) pruned += "- " + run.label + ": `" + p.name + "`: " + p.reason + "\n";
   if (!pruned.empty()) md << "\nPruned passes:\n\n" << pruned;
   write_text((fs::path(args.out) / "summary.md").string(), md.str());
   std::cerr << "compare: wrote " << (fs::path(args.out) / "summary.md").string() << "\n";
@@ -382,6 +413,10 @@ void register_compare(CLI::App& app) {
   sub->add_option("--height", args->height, "image height (default: the scene camera's)")->check(CLI::Range(1, 16384));
   sub->add_option("--techniques", args->techniques, "comma-separated subset of the registered techniques (default: all)");
   sub->add_option("--seed", args->seed, "reference random seed (default 1)");
+  sub->add_option("--backend", args->backends,
+                  "comma-separated backends to render the techniques with: cpu (default), vulkan, or cpu,vulkan (both, compared)");
+  sub->add_option("--device", args->device,
+                  "Vulkan device: index or name substring (default: $SOFTGI_VULKAN_DEVICE, else a GPU, else lavapipe)");
   sub->callback([args] { run_compare(*args); });
 }
 const CommandRegistrar registrar(register_compare);

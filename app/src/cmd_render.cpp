@@ -19,7 +19,7 @@ namespace softgi::app {
 namespace {
 
 struct RenderArgs {
-  std::string scene, technique, backend = "cpu", out;
+  std::string scene, technique, backend = "cpu", device, out;
   std::vector<std::string> params;
   double frame = 0.0;
   int width = 0, height = 0;
@@ -28,10 +28,14 @@ struct RenderArgs {
 void run_render(const RenderArgs& args) {
   techniques::register_all();
   check_backend(args.backend);
+  if (args.backend == "cpu" && !args.device.empty())
+    throw std::invalid_argument("--device '" + args.device + "': only the vulkan backend selects a device");
   if (!std::isfinite(args.frame)) throw std::invalid_argument("--frame: time must be finite");
   // Cheap checks first: an unknown technique or parameter fails before the scene is loaded.
   std::unique_ptr<render::Technique> technique = render::create_technique(args.technique);
   const render::ParamSet params = technique_params(*technique, args.params);
+  std::unique_ptr<render::Backend> backend_ptr = make_backend(args.backend, args.device, "render");  // device errors early
+  render::Backend& backend = *backend_ptr;
   const scene::Scene sc = io::load_scene(args.scene);
   int w = args.width, h = args.height;
   render::resolve_resolution(sc.camera, w, h);
@@ -40,7 +44,6 @@ void run_render(const RenderArgs& args) {
 
   std::cerr << "render: " << technique->name() << " on '" << sc.name << "' at " << w << "x" << h << ", t = " << args.frame
             << " s\n";
-  backends::CpuBackend backend;
   render::RenderRequest req;
   req.time = args.frame;
   req.width = w;
@@ -66,6 +69,7 @@ void run_render(const RenderArgs& args) {
                         {"scene", {{"name", sc.name}, {"source", sc.source}, {"spec", args.scene}}},
                         {"technique", technique->name()},
                         {"backend", backend.name()},
+                        {"device", device_json(backend)},
                         {"params", params_json(params)},
                         {"frame_time", args.frame},
                         {"resolution", {w, h}},
@@ -78,7 +82,8 @@ void run_render(const RenderArgs& args) {
 
   std::cerr << "render: " << r.passes.size() << " passes in " << r.total_seconds * 1e3 << " ms (";
   for (std::size_t i = 0; i < r.passes.size(); ++i)
-    std::cerr << (i ? ", " : "") << r.passes[i].name << " " << r.passes[i].wall_seconds * 1e3 << " ms";
+    std::cerr << (i ? ", " : "") << r.passes[i].name << " " << r.passes[i].wall_seconds * 1e3 << " ms"
+              << (r.passes[i].gpu_seconds >= 0.0 ? " (GPU " + std::to_string(r.passes[i].gpu_seconds * 1e3) + " ms)" : "");
   std::cerr << "); " << r.pruned.size() << " pruned; wrote " << args.out << "\n";
 }
 
@@ -91,7 +96,9 @@ void register_render(CLI::App& app) {
   sub->add_option("--frame", args->frame, "animation time in seconds (default 0)");
   sub->add_option("--width", args->width, "image width (default: the scene camera's)")->check(CLI::Range(1, 16384));
   sub->add_option("--height", args->height, "image height (default: the scene camera's)")->check(CLI::Range(1, 16384));
-  sub->add_option("--backend", args->backend, "backend (cpu)");
+  sub->add_option("--backend", args->backend, "backend: cpu (default) or vulkan");
+  sub->add_option("--device", args->device,
+                  "Vulkan device: index or name substring (default: $SOFTGI_VULKAN_DEVICE, else a GPU, else lavapipe)");
   sub->add_option("--out", args->out, "output directory")->required();
   sub->footer([] { return techniques_help(); });  // lazily: only --help pays for creating every technique
   sub->callback([args] { run_render(*args); });

@@ -1,12 +1,15 @@
 #include "frame_output.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <ctime>
+#include <iostream>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 
+#include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/io/image_io.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/techniques/registry.hpp"
@@ -20,8 +23,46 @@ namespace softgi::app {
 namespace fs = std::filesystem;
 
 std::string check_backend(const std::string& name) {
-  if (name != "cpu") throw std::invalid_argument("--backend: unknown backend '" + name + "' (available: cpu)");
+  if (name != "cpu" && name != "vulkan")
+    throw std::invalid_argument("--backend: unknown backend '" + name + "' (available: cpu, vulkan)");
   return name;
+}
+
+std::vector<std::string> parse_backends(const std::string& list) {
+  std::vector<std::string> out;
+  std::stringstream ss(list);
+  for (std::string item; std::getline(ss, item, ',');) {
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    if (item.empty()) continue;
+    check_backend(item);
+    if (std::find(out.begin(), out.end(), item) != out.end()) throw std::invalid_argument("--backend: '" + item + "' listed twice");
+    out.push_back(item);
+  }
+  if (out.empty()) throw std::invalid_argument("--backend: no backend given (available: cpu, vulkan)");
+  return out;
+}
+
+std::unique_ptr<render::Backend> make_backend(const std::string& name, const std::string& device, const std::string& command) {
+  check_backend(name);
+  if (name == "cpu") {
+    if (!device.empty()) throw std::invalid_argument("--device '" + device + "': only the vulkan backend selects a device");
+    return std::make_unique<backends::CpuBackend>();
+  }
+  backends::VulkanBackendOptions o;
+  o.device = device;
+  auto b = std::make_unique<backends::VulkanBackend>(o);
+  const auto d = b->device_record();
+  std::cerr << command << ": vulkan device " << d.at("index") << ": " << d.at("name") << " [" << d.at("type") << "; " << d.at("driver")
+            << " " << d.at("driver_info") << "; Vulkan " << d.at("api_version") << "; validation " << d.at("validation") << "]\n";
+  return b;
+}
+
+Json device_json(const render::Backend& backend) {
+  Json j = Json::object();
+  if (const auto* vk = dynamic_cast<const backends::VulkanBackend*>(&backend))
+    for (const auto& [k, v] : vk->device_record()) j[k] = v;
+  return j;
 }
 
 render::ParamSet technique_params(const render::Technique& t, const std::vector<std::string>& assignments) {

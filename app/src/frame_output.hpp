@@ -1,10 +1,13 @@
 // What `softgi render` and `softgi compare` share: image writing, and the JSON run record generated from a FrameResult and a ParamSet.
 #pragma once
 
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "softgi/backends/cpu_backend.hpp"
+#include "softgi/render/backend.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/render/params.hpp"
 #include "softgi/render/technique.hpp"
@@ -15,8 +18,17 @@ namespace softgi::app {
 // Records keep insertion order (parameters in description order, fields as written).
 using Json = nlohmann::ordered_json;
 
-// Backends the CLI can run (--backend).
+// Backends the CLI can run (--backend): "cpu" and "vulkan". Errors name the backend and list the
+// available ones.
 std::string check_backend(const std::string& name);
+// A comma-separated list of backends ("cpu,vulkan"), each checked, without duplicates.
+std::vector<std::string> parse_backends(const std::string& list);
+// The backend `name`; `device` (--device NAME|INDEX) selects the Vulkan device and is an error for
+// the CPU backend. The Vulkan device chosen is printed on stderr.
+std::unique_ptr<render::Backend> make_backend(const std::string& name, const std::string& device, const std::string& command);
+// What a record says about the device a frame ran on: {} for the CPU backend, the Vulkan device's
+// name, type, driver, API version, ids and validation state for the Vulkan backend.
+Json device_json(const render::Backend& backend);
 
 // A technique's parameters, defaults overridden by "name=value" assignments (errors name the
 // technique and the parameter).

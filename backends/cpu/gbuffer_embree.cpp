@@ -1,7 +1,8 @@
 // The CPU implementation of the shared "gbuffer" pass: primary visibility through Embree 3, one ray
 // through each pixel centre of the shared pinhole camera (softgi/render/camera.hpp), so that pixel
-// (x, y) sees what the reference renderer's un-jittered sample of (x, y) sees. One of the few
-// translation units that include Embree.
+// (x, y) sees what the reference renderer's un-jittered sample of (x, y) sees; and of the shared
+// "receiver_gbuffer" pass (paper 000 section 4), the same trace through every s-th display point.
+// One of the few translation units that include Embree.
 //
 // What each plane holds (softgi/render/gbuffer.hpp):
 //   position    w p0 + b1 p1 + b2 p2 of the visible triangle (world space), so that the barycentrics
@@ -251,21 +252,6 @@ EmbreeScene& cached_scene() {
   return *s;
 }
 
-render::GBuffer make_gbuffer(int w, int h) {
-  render::GBuffer gb;
-  gb.width = w;
-  gb.height = h;
-  const std::size_t n = static_cast<std::size_t>(w) * h;
-  gb.position.assign(n, vec3(0.0f));
-  gb.normal.assign(n, vec3(0.0f));
-  gb.depth.assign(n, kInf);
-  gb.albedo.assign(n, vec3(0.0f));
-  gb.object.assign(n, -1);
-  gb.primitive.assign(n, -1);
-  gb.barycentric.assign(n, glm::vec2(0.0f));
-  gb.view_dir.assign(n, vec3(0.0f));
-  return gb;
-}
 
 // Fills pixel i from an Embree hit of object `obj` (the same attribute rules as the reference
 // renderer's intersect(), so both see the same surface).
@@ -290,14 +276,7 @@ void shade_hit(const scene::Scene& sc, const scene::PosedObject& obj, int object
       ns = glm::dot(n, ng) < 0.0f ? -n : n;
     }
   }
-  const scene::Material& m =
-      obj.material >= 0 && obj.material < static_cast<int>(sc.materials.size()) ? sc.materials[obj.material] : kDefault;
-  vec3 albedo = m.albedo;
-  if (m.albedo_texture >= 0 && m.albedo_texture < static_cast<int>(sc.textures.size()) &&
-      mesh.uvs.size() == mesh.positions.size())
-    albedo *= sc.textures[m.albedo_texture].sample(w * mesh.uvs[tri.x] + u * mesh.uvs[tri.y] + v * mesh.uvs[tri.z]);
-  if (mesh.colors.size() == mesh.positions.size())
-    albedo *= w * mesh.colors[tri.x] + u * mesh.colors[tri.y] + v * mesh.colors[tri.z];
+  const vec3 albedo = scene::surface_albedo(sc, obj, prim, u, v);
 
   gb.position[i] = p;
   gb.normal[i] = ns;
@@ -309,17 +288,29 @@ void shade_hit(const scene::Scene& sc, const scene::PosedObject& obj, int object
   gb.view_dir[i] = -dir;
 }
 
-void gbuffer_pass(render::FrameContext& ctx) {
+// What one trace over a buffer did, for the pass records.
+struct TraceStats {
+  long long rays = 0, hits = 0;
+  double update_seconds = 0.0, trace_seconds = 0.0;
+  EmbreeScene::Update update = EmbreeScene::Update::Reused;
+};
+
+// The one primary-visibility loop of the CPU backend: a buffer of ceil(W/s) x ceil(H/s) pixels whose
+// pixel (x, y) holds the hit of the display camera's ray through display point ((x + 0.5) s,
+// (y + 0.5) s). s = 1 is the display G-buffer; s > 1 the receiver buffer of paper 000 section 4, whose
+// samples then lie exactly on display points, so that upsampling can place them (gbuffer.hpp).
+render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* who, TraceStats& stats) {
   using clock = std::chrono::steady_clock;
-  const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, "gbuffer");
+  const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, who);
   std::lock_guard<std::mutex> lock(cache_mutex());
   const auto t0 = clock::now();
   EmbreeScene& es = cached_scene();
-  const EmbreeScene::Update update = es.update(ctx.posed);
-  const double update_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  stats.update = es.update(ctx.posed);
+  stats.update_seconds = std::chrono::duration<double>(clock::now() - t0).count();
 
-  render::GBuffer gb = make_gbuffer(ctx.width, ctx.height);
-  const int W = ctx.width, H = ctx.height;
+  const int W = (ctx.width + scale - 1) / scale, H = (ctx.height + scale - 1) / scale;
+  render::GBuffer gb = render::GBuffer::background(W, H, scale);
+  const float fs = static_cast<float>(scale);
   const int tiles_x = (W + kTile - 1) / kTile, tiles = tiles_x * ((H + kTile - 1) / kTile);
   std::atomic<long long> hits{0};
   const auto t1 = clock::now();
@@ -335,7 +326,8 @@ void gbuffer_pass(render::FrameContext& ctx) {
       unsigned m = 0;
       for (int y = ty; y < std::min(H, ty + kTile); ++y)
         for (int x = tx; x < std::min(W, tx + kTile); ++x) {
-          const vec3 dir = cam.pixel_center_direction(x, y);
+          // (x + 0.5) * 1 is exact in float, so s = 1 traces exactly pixel_center_direction(x, y).
+          const vec3 dir = cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs);
           RTCRayHit& rh = rays[m];
           pixel[m++] = static_cast<std::size_t>(y) * W + x;
           rh.ray.org_x = cam.position.x;
@@ -373,24 +365,38 @@ void gbuffer_pass(render::FrameContext& ctx) {
     hits += local_hits;
   });
   es.check("tracing primary rays");
-  const double trace_seconds = std::chrono::duration<double>(clock::now() - t1).count();
+  stats.trace_seconds = std::chrono::duration<double>(clock::now() - t1).count();
+  stats.rays = static_cast<long long>(W) * H;
+  stats.hits = hits.load();
+  return gb;
+}
 
-  render::PassRecord& rec = ctx.record();
-  rec.counters["rays"] = static_cast<double>(W) * H;
-  rec.counters["hits"] = static_cast<double>(hits.load());
+void trace_counters(render::PassRecord& rec, const TraceStats& st) {
+  const EmbreeScene& es = cached_scene();
+  rec.counters["rays"] = static_cast<double>(st.rays);
+  rec.counters["hits"] = static_cast<double>(st.hits);
   rec.counters["triangles"] = static_cast<double>(es.triangles());
-  rec.counters["bvh_update_seconds"] = update_seconds;
-  rec.counters["trace_seconds"] = trace_seconds;
-  rec.counters["bvh_rebuilt"] = update == EmbreeScene::Update::Rebuilt ? 1.0 : 0.0;
-  rec.counters["bvh_refit"] = update == EmbreeScene::Update::Refit ? 1.0 : 0.0;
+  rec.counters["bvh_update_seconds"] = st.update_seconds;
+  rec.counters["trace_seconds"] = st.trace_seconds;
+  rec.counters["bvh_rebuilt"] = st.update == EmbreeScene::Update::Rebuilt ? 1.0 : 0.0;
+  rec.counters["bvh_refit"] = st.update == EmbreeScene::Update::Refit ? 1.0 : 0.0;
   rec.counters["embree_bytes"] = static_cast<double>(es.bytes());
-  // The G-buffer itself plus what Embree holds (geometry copies and BVHs), kept for the next frame.
-  rec.bytes = gb.bytes() + static_cast<std::size_t>(std::max(0LL, es.bytes()));
-  ctx.put<render::GBuffer>(render::kGBuffer, std::move(gb));
+}
+
+// The "gbuffer" and "receiver_gbuffer" renderer. Paper 000 section 4, receiver setup: the receiver
+// buffer at 1/s of the display resolution per axis; at s = 1 it is the display G-buffer itself,
+// copied when the frame has one (render::run_receiver_gbuffer_pass: no second trace). Held: what
+// Embree keeps for the next frame (geometry copies and BVHs).
+render::GBuffer produce_gbuffer(render::FrameContext& ctx, int s, const char* pass, std::size_t& held) {
+  TraceStats st;
+  render::GBuffer gb = trace_buffer(ctx, s, pass, st);
+  trace_counters(ctx.record(), st);
+  held = static_cast<std::size_t>(std::max(0LL, cached_scene().bytes()));
+  return gb;
 }
 
 }  // namespace
 
-void register_cpu_shared_passes() { render::register_shared_pass_impl("gbuffer", "cpu", gbuffer_pass); }
+void register_cpu_shared_passes() { render::register_gbuffer_pass_impls("cpu", produce_gbuffer); }
 
 }  // namespace softgi::backends

@@ -18,6 +18,8 @@
 #include <string>
 
 #include "shexp_internal.hpp"
+#include "shexp_passes.hpp"
+#include "softgi_shared.h"
 #include "softgi/sh/product.hpp"
 
 namespace softgi::techniques::shexp {
@@ -79,6 +81,23 @@ constexpr float kAsin[8] = {1.5707963050f, -0.2145988016f, 0.0889789874f, -0.050
                             0.0308918810f, -0.0170881256f, 0.0066700901f, -0.0012624911f};
 
 }  // namespace
+
+// The same constants for the Vulkan shaders (shexp_vulkan.cpp), in softgi_shared.h's layout.
+std::vector<float> basis_recurrence_constants() {
+  const BasisConsts& c = basis_consts();
+  std::vector<float> v(gpu::kBasisFloats, 0.0f);
+  static_assert(kMaxAccOrder == static_cast<int>(gpu::kShexpMaxOrder), "softgi_shared.h and shexp_internal.hpp disagree");
+  for (int m = 0; m < kMaxAccOrder; ++m) {
+    v[gpu::kBasisQmm + m] = c.qmm[m];
+    v[gpu::kBasisA1 + m] = c.a1[m];
+    for (int l = 0; l < kMaxAccOrder; ++l) {
+      v[gpu::kBasisA + l * kMaxAccOrder + m] = c.A[l][m];
+      v[gpu::kBasisB + l * kMaxAccOrder + m] = c.B[l][m];
+    }
+  }
+  for (int k = 0; k < 8; ++k) v[gpu::kBasisAsin + k] = kAsin[k];
+  return v;
+}
 
 // ---------------------------------------------------------------------------------------------
 // Portable scalar version (also the reference the vector versions are tested against).

@@ -19,60 +19,14 @@
 #include <tbb/parallel_for.h>
 
 #include "shexp_internal.hpp"
+#include "shexp_passes.hpp"
+#include "../common/pass_support.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/render/vertex_image.hpp"
 #include "softgi/sh/product.hpp"
 
 namespace softgi::techniques::shexp {
-
-namespace {
-
-using render::FrameContext;
-using render::ParamDesc;
-using render::PassDesc;
-
-// Inputs of SHEXP's graph besides the shared ones: empty when the scene has no blocker sphere / no
-// spherical light (or analytic lights are switched off), so the passes that need them are left out.
-constexpr const char* kBlockerSpheres = "blocker_spheres";
-constexpr const char* kSphericalLights = "spherical_lights";
-// Resources written by SHEXP's passes.
-constexpr const char* kTables = "shexp.tables";
-constexpr const char* kLightTables = "shexp.light_tables";
-constexpr const char* kHierarchy = "shexp.hierarchy";
-constexpr const char* kProxyPose = "shexp.proxy_pose";
-constexpr const char* kReceivers = "shexp.receivers";
-constexpr const char* kCuts = "shexp.cuts";
-constexpr const char* kLogVisibility = "shexp.log_visibility";
-constexpr const char* kVisibility = "shexp.visibility";
-constexpr const char* kShading = "shexp.vertex_shading";
-
-// Light-lobe table size (section 7): theta in [0, 90] degrees, f in [0, 180] degrees.
-constexpr int kLightRowsTheta = 48;
-constexpr int kLightRowsF = 96;
-// Receivers per cluster when receiver_clusters = 0 ("several hundred vertices per receiver
-// cluster", section 6.3).
-constexpr int kAutoReceiversPerCluster = 300;
-constexpr int kLloydIterations = 30;
-constexpr int kLloydIterationsMoving = 3;  // warm-started per frame when geometry moves
-
-enum class Mode { HYB, OL, PSStar, PS, Exact, Product, Projected };
-
-struct Settings {
-  int order = 4, acc_order = 4;
-  Mode mode = Mode::HYB;
-  int ps_degree = 2;
-  bool hierarchy = true, ratio_vectors = true;
-  double theta_max = 0.0, theta_min = 0.0;
-  int clusters = 0;
-  double window_h = 0.0;  // resolved: 0 = off
-  bool window_visibility = true;
-  ReplacementRule rule = ReplacementRule::Continuous;
-  int table_resolution = 256;
-  double log_threshold = 0.02;
-  bool lights = true;
-  KernelIsa isa = KernelIsa::Scalar;
-};
 
 Settings read_settings(const render::ParamSet& p) {
   Settings s;
@@ -111,58 +65,40 @@ Settings read_settings(const render::ParamSet& p) {
   return s;
 }
 
-// --- Frame resources ----------------------------------------------------------------------------
-
-struct Tables {
-  int acc_order = 0;
-  std::shared_ptr<const sh::ShTables> sh;  // cap log / visibility and OL tables at the accumulation order
-  ZhTable log, vis;                         // float copies for the hot loops
-  std::size_t bytes_used() const {
-    return log.bytes() + vis.bytes() + (sh->ol_norm().size() + sh->ol_a().size() + sh->ol_b().size()) * sizeof(double);
+// Blockers each receiver processes (mean and max): the cut of its cluster.
+void blocker_counters(render::PassRecord& rec, const Receivers& r, const Cuts& cuts, double& pairs) {
+  pairs = 0.0;
+  std::size_t mx = 0;
+  for (std::size_t c = 0; c < r.clusters.size(); ++c) {
+    const std::size_t n = cuts.lists[cuts.list_of_cluster[c]].size();
+    pairs += static_cast<double>(n) * static_cast<double>(r.clusters[c].end - r.clusters[c].begin);
+    if (r.clusters[c].end > r.clusters[c].begin) mx = std::max(mx, n);
   }
-};
+  const double nrec = static_cast<double>(r.soa.size());
+  rec.counters["receivers"] = nrec;
+  rec.counters["pairs"] = pairs;
+  rec.counters["blockers_per_receiver_mean"] = nrec > 0 ? pairs / nrec : 0.0;
+  rec.counters["blockers_per_receiver_max"] = static_cast<double>(mx);
+}
 
-struct Receivers {
-  ReceiverSoA soa;                              // cluster order
-  std::vector<int> object, vertex;              // source of each receiver
-  std::vector<ReceiverCluster> clusters;
-  std::vector<std::vector<std::uint32_t>> index;  // [object][vertex] -> receiver
-  std::size_t bytes() const {
-    return soa.size() * (6 * sizeof(float) + 3 * sizeof(int)) + clusters.size() * sizeof(ReceiverCluster);
-  }
-};
+namespace {
 
-struct HierarchyRes {
-  std::vector<const proxies::SphereHierarchy*> trees;  // one per proxy set (null where empty)
-};
+using render::FrameContext;
+using render::ParamDesc;
+using render::PassDesc;
 
-struct Cuts {
-  std::vector<BlockerList> lists;
-  std::vector<int> list_of_cluster;
-  std::size_t bytes() const {
-    std::size_t b = list_of_cluster.size() * sizeof(int);
-    for (const auto& l : lists) b += l.bytes();
-    return b;
-  }
-};
-
-struct Field {  // per receiver, order^2 floats
-  int order = 0;
-  std::vector<float> v;
-};
-
-struct Shading {
-  std::vector<std::vector<glm::vec3>> irradiance;  // E/pi per vertex of every posed object (unit albedo)
-  std::vector<glm::vec3> env;                      // the SH light used (order n, windowed)
-  int order = 0;
-};
+// Receivers per cluster when receiver_clusters = 0 ("several hundred vertices per receiver
+// cluster", section 6.3).
+constexpr int kAutoReceiversPerCluster = 300;
+constexpr int kLloydIterations = 30;
+constexpr int kLloydIterationsMoving = 3;  // warm-started per frame when geometry moves
 
 // --- State kept across frames ----------------------------------------------------------------
 
 struct State {
   std::mutex m;
-  std::map<std::tuple<int, int, double>, std::shared_ptr<const Tables>> tables;
-  std::map<std::tuple<int, double>, std::shared_ptr<const LightLobeTable>> light_tables;
+  common::SharedCache<std::tuple<int, int, double>, Tables> tables;
+  common::LightTableCache light_tables;
   // Sphere hierarchies, built at the first frame's pose, refit by proxy_update.
   std::string hierarchy_key;
   std::vector<std::unique_ptr<proxies::SphereHierarchy>> trees;
@@ -208,37 +144,22 @@ glm::vec3 vertex_albedo(const scene::Scene& scene, const scene::PosedObject& o, 
   return a;
 }
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // --- Passes ------------------------------------------------------------------------------------
 
 void pass_tables(State& st, const Settings& s, FrameContext& ctx) {
-  const auto key = std::make_tuple(s.acc_order, s.table_resolution, s.log_threshold);
-  std::shared_ptr<const Tables> t;
-  bool cached = true;
-  {
-    std::lock_guard<std::mutex> lock(st.m);
-    auto it = st.tables.find(key);
-    if (it != st.tables.end()) t = it->second;
-  }
-  if (!t) {
-    cached = false;
-    sh::TableOptions opt;
-    opt.order = s.acc_order;
-    opt.resolution = s.table_resolution;
-    opt.log_threshold = s.log_threshold;
-    opt.measure_error = false;
-    auto tab = std::make_shared<Tables>();
-    tab->acc_order = s.acc_order;
-    tab->sh = std::make_shared<const sh::ShTables>(opt);
-    tab->log = make_zh_table(tab->sh->cap_log(), s.acc_order, true);
-    tab->vis = make_zh_table(tab->sh->cap_visibility(), s.acc_order, false);
-    t = tab;
-    std::lock_guard<std::mutex> lock(st.m);
-    st.tables[key] = t;
-  }
+  bool cached = false;
+  const std::shared_ptr<const Tables> t = st.tables.get(
+      std::make_tuple(s.acc_order, s.table_resolution, s.log_threshold),
+      [&s] {
+        auto tab = std::make_shared<Tables>();
+        tab->acc_order = s.acc_order;
+        tab->sh = common::accumulation_tables(s.acc_order, s.table_resolution, s.log_threshold);
+        tab->log = make_zh_table(tab->sh->cap_log(), s.acc_order, true);
+        tab->vis = make_zh_table(tab->sh->cap_visibility(), s.acc_order, false);
+        return std::shared_ptr<const Tables>(tab);
+      },
+      cached);
   auto& rec = ctx.record();
   rec.counters["order"] = s.acc_order;
   rec.counters["rows"] = s.table_resolution;
@@ -248,46 +169,11 @@ void pass_tables(State& st, const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const Tables>>(kTables, t);
 }
 
-void pass_light_tables(State& st, const Settings& s, FrameContext& ctx) {
-  const auto key = std::make_tuple(s.order, s.window_h);
-  std::shared_ptr<const LightLobeTable> t;
-  bool cached = true;
-  {
-    std::lock_guard<std::mutex> lock(st.m);
-    auto it = st.light_tables.find(key);
-    if (it != st.light_tables.end()) t = it->second;
-  }
-  if (!t) {
-    cached = false;
-    t = std::make_shared<const LightLobeTable>(make_light_lobe_table(s.order, kLightRowsTheta, kLightRowsF, s.window_h));
-    std::lock_guard<std::mutex> lock(st.m);
-    st.light_tables[key] = t;
-  }
-  auto& rec = ctx.record();
-  rec.counters["cached"] = cached;
-  rec.counters["lights"] = static_cast<double>(ctx.posed.lights.size());
-  rec.counters["max_fit_error"] = t->max_fit_error;
-  rec.bytes = t->bytes();
-  ctx.put<std::shared_ptr<const LightLobeTable>>(kLightTables, t);
-}
+void pass_light_tables(State& st, const Settings& s, FrameContext& ctx) { st.light_tables.run_pass(s.order, s.window_h, ctx, kLightTables); }
 
 // Blocker spheres must be finite with radius >= 0: a bad one would turn every receiver's log vector
 // into NaN. The error names the proxy set and the sphere.
-void check_proxies(const FrameContext& ctx) {
-  for (std::size_t s = 0; s < ctx.posed.proxies.size(); ++s)
-    for (std::size_t i = 0; i < ctx.posed.proxies[s].size(); ++i) {
-      const scene::Sphere& sp = ctx.posed.proxies[s][i];
-      if (!(sp.radius >= 0.0f) || !std::isfinite(sp.radius) || !std::isfinite(sp.center.x) || !std::isfinite(sp.center.y) ||
-          !std::isfinite(sp.center.z)) {
-        const std::string name = s < ctx.scene.proxies.size() ? ctx.scene.proxies[s].name : std::to_string(s);
-        std::ostringstream os;
-        os << "shexp: proxy set '" << name << "' of scene '" << ctx.scene.name << "': sphere " << i << " at time " << ctx.posed.time
-           << " has centre (" << sp.center.x << ", " << sp.center.y << ", " << sp.center.z << ") and radius " << sp.radius
-           << " (expected finite values, radius >= 0)";
-        throw std::invalid_argument(os.str());
-      }
-    }
-}
+void check_proxies(const FrameContext& ctx) { common::check_proxy_spheres("shexp", ctx, false); }
 
 void pass_hierarchy(State& st, FrameContext& ctx) {
   const std::string key = hierarchy_signature(ctx.scene);
@@ -306,7 +192,7 @@ void pass_hierarchy(State& st, FrameContext& ctx) {
       st.trees.push_back(std::make_unique<proxies::SphereHierarchy>(proxies::SphereHierarchy::build(set, 4, 1)));
     }
     st.hierarchy_key = key;
-    st.hierarchy_build_seconds = seconds_since(t0);
+    st.hierarchy_build_seconds = common::seconds_since(t0);
   }
   auto res = std::make_shared<HierarchyRes>();
   std::size_t nodes = 0, leaves = 0;
@@ -506,21 +392,6 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const Cuts>>(kCuts, cuts);
 }
 
-// Blockers each receiver processes (mean and max): the cut of its cluster.
-void blocker_counters(render::PassRecord& rec, const Receivers& r, const Cuts& cuts, double& pairs) {
-  pairs = 0.0;
-  std::size_t mx = 0;
-  for (std::size_t c = 0; c < r.clusters.size(); ++c) {
-    const std::size_t n = cuts.lists[cuts.list_of_cluster[c]].size();
-    pairs += static_cast<double>(n) * static_cast<double>(r.clusters[c].end - r.clusters[c].begin);
-    if (r.clusters[c].end > r.clusters[c].begin) mx = std::max(mx, n);
-  }
-  const double nrec = static_cast<double>(r.soa.size());
-  rec.counters["receivers"] = nrec;
-  rec.counters["pairs"] = pairs;
-  rec.counters["blockers_per_receiver_mean"] = nrec > 0 ? pairs / nrec : 0.0;
-  rec.counters["blockers_per_receiver_max"] = static_cast<double>(mx);
-}
 
 void pass_accumulate(const Settings& s, FrameContext& ctx) {
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
@@ -538,7 +409,7 @@ void pass_accumulate(const Settings& s, FrameContext& ctx) {
       accumulate_log(s.isa, t.log, s.rule, r.soa, rc.begin, rc.end, cuts.lists[cuts.list_of_cluster[c]], f->v.data());
     }
   });
-  const double secs = seconds_since(t0);
+  const double secs = common::seconds_since(t0);
   auto& rec = ctx.record();
   double pairs = 0.0;
   blocker_counters(rec, r, cuts, pairs);
@@ -661,7 +532,9 @@ void pass_projected(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const Field>>(kVisibility, g);
 }
 
-void pass_shade(State& st, const Settings& s, FrameContext& ctx) {
+// gpu: the batch shading (H(N) * g) . L runs on the Vulkan backend's device (shexp_vulkan.cpp);
+// everything else, including the analytic lights, is the same host code.
+void pass_shade(State& st, const Settings& s, FrameContext& ctx, bool gpu = false) {
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
   const int n = s.order, n2 = n * n;
   std::shared_ptr<const Field> vis;
@@ -672,18 +545,11 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx) {
   auto sh_out = std::make_shared<Shading>();
   sh_out->order = n;
   {
-    const scene::Environment& env = ctx.scene.environment;
-    std::ostringstream key;
-    key << &env << '|' << n << '|' << s.window_h << '|' << static_cast<int>(env.kind) << '|' << env.map_path << '|'
-        << env.intensity << '|' << env.rotation_y << '|' << env.sun_direction.x << ',' << env.sun_direction.y << ','
-        << env.sun_direction.z << '|' << env.sun_radiance.x << '|' << env.map_rgb.size();
+    const std::string key = common::environment_signature(ctx.scene.environment) + std::to_string(n) + '|' + std::to_string(s.window_h);
     std::lock_guard<std::mutex> lock(st.m);
-    if (st.env_key != key.str()) {
-      st.env_sh = scene::environment_sh(env, n);
-      if (s.window_h > 0.0)  // section 7: window the lighting
-        for (int l = 0; l < n; ++l)
-          for (int m = -l; m <= l; ++m) st.env_sh[sh::index(l, m)] *= static_cast<float>(sh::window_factor(l, s.window_h));
-      st.env_key = key.str();
+    if (st.env_key != key) {
+      st.env_sh = common::windowed_environment_sh("shexp", ctx.scene, n, s.window_h);
+      st.env_key = key;
     }
     sh_out->env = st.env_sh;
   }
@@ -711,10 +577,11 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx) {
   bs.gwin = gwin.data();
   bs.g = vis ? vis->v.data() : nullptr;
   std::vector<glm::vec3> shade(r.soa.size());
+  if (gpu) vulkan_shade_batch(ctx, bs, r.soa, shade);
   std::atomic<long long> clamped{0};
   const auto& lights = ctx.posed.lights;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
-    shade_batch(s.isa, bs, r.soa, br.begin(), br.end(), shade.data() + br.begin());
+    if (!gpu) shade_batch(s.isa, bs, r.soa, br.begin(), br.end(), shade.data() + br.begin());
     std::array<float, sh::kMaxCoeffs> g{}, LH{};
     long long cl = 0;
     for (std::size_t i = br.begin(); i != br.end(); ++i) {
@@ -836,7 +703,13 @@ class Shexp final : public render::Technique {
     if (scene.lights.empty() || !s.lights) empty.insert(kSphericalLights);
 
     auto st = state_;
-    auto cpu = [](render::PassFn fn) { return std::map<std::string, render::PassFn>{{"cpu", std::move(fn)}}; };
+    // Host passes: the same function on the CPU and the Vulkan backend (tables, receivers,
+    // hierarchy, cuts and image composition are host work on both).
+    auto cpu = [](render::PassFn fn) { return std::map<std::string, render::PassFn>{{"cpu", fn}, {"vulkan", fn}}; };
+    // GPU passes: the CPU implementation and the Vulkan one (shexp_vulkan.cpp).
+    auto both = [](render::PassFn on_cpu, render::PassFn on_vulkan) {
+      return std::map<std::string, render::PassFn>{{"cpu", std::move(on_cpu)}, {"vulkan", std::move(on_vulkan)}};
+    };
     render::PassGraph g;
     g.add_input(render::kScene);
     g.add_input(render::kMovingObjects);
@@ -878,14 +751,16 @@ class Shexp final : public render::Technique {
     } else {
       g.add({"accumulate_log", {kReceivers, kTables, kCuts}, {}, {kLogVisibility},
              "sum of blocker log vectors per receiver (eqs. 8, 34, 38; rules of section 6.2)",
-             cpu([s](FrameContext& c) { pass_accumulate(s, c); })});
+             both([s](FrameContext& c) { pass_accumulate(s, c); }, [s](FrameContext& c) { vulkan_accumulate(s, c); })});
+      // The Vulkan exponential covers HYB and OL; PS*, PS and the exact exponential run the host pass.
+      render::PassFn exp_cpu = [s](FrameContext& c) { pass_exponentiate(s, c); };
       g.add({"exponentiate", {kReceivers, kTables, kLogVisibility}, {}, {kVisibility},
              "SH exponential per receiver (section 4), truncated to the shading order",
-             cpu([s](FrameContext& c) { pass_exponentiate(s, c); })});
+             vulkan_exp_supports(s.mode) ? both(exp_cpu, [s](FrameContext& c) { vulkan_exponentiate(s, c); }) : cpu(exp_cpu)});
     }
     g.add({"shade", {kReceivers}, {kVisibility, kLightTables}, {kShading},
            "L_H(N) . g per vertex, environment and spherical lights (section 7)",
-           cpu([st, s](FrameContext& c) { pass_shade(*st, s, c); })});
+           both([st, s](FrameContext& c) { pass_shade(*st, s, c); }, [st, s](FrameContext& c) { pass_shade(*st, s, c, true); })});
     g.add({"to_image", {render::kGBuffer, kShading}, {}, {render::kDirect}, "per-vertex radiance through the G-buffer",
            cpu([](FrameContext& c) { pass_to_image(c); })});
     render::add_compose_pass(g);

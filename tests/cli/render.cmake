@@ -112,7 +112,7 @@ expect_failure("unknown parameter 'nosuch'" ${R} --technique shexp --param nosuc
 expect_failure("parameter 'order'.*99" ${R} --technique shexp --param order=99)
 expect_failure("name=value" ${R} --technique shexp --param order)
 expect_failure("unknown scene 'no-such-scene'" render --scene no-such-scene --technique shexp --out ${WORK_DIR}/bad)
-expect_failure("backend 'vulkan'" ${R} --technique shexp --backend vulkan)
+expect_failure("unknown backend 'metal'.*cpu, vulkan" ${R} --technique shexp --backend metal)
 expect_failure("--width" render --scene spheres --technique shexp --width 0 --out ${WORK_DIR}/bad)
 expect_failure("--out" render --scene spheres --technique shexp)
 expect_failure("--frame" ${R} --technique shexp --frame nan)

@@ -601,19 +601,10 @@ class Renderer {
     }
     h.ng = ng;
     h.ns = ns;
-    // Albedo = material albedo * texture(uv) * vertex colour.
     static const scene::Material kDefault{};
     const scene::Material& m =
         obj.material >= 0 && obj.material < static_cast<int>(scene_.materials.size()) ? scene_.materials[obj.material] : kDefault;
-    vec3 albedo = m.albedo;
-    if (m.albedo_texture >= 0 && m.albedo_texture < static_cast<int>(scene_.textures.size()) &&
-        mesh.uvs.size() == mesh.positions.size()) {
-      glm::vec2 uv = w * mesh.uvs[tri.x] + u * mesh.uvs[tri.y] + v * mesh.uvs[tri.z];
-      albedo *= scene_.textures[m.albedo_texture].sample(uv);
-    }
-    if (mesh.colors.size() == mesh.positions.size())
-      albedo *= w * mesh.colors[tri.x] + u * mesh.colors[tri.y] + v * mesh.colors[tri.z];
-    h.brdf.albedo = albedo;
+    h.brdf.albedo = scene::surface_albedo(scene_, obj, rh.hit.primID, u, v);
     h.brdf.glossy = m.phong_ns > 0.0f ? std::clamp(m.glossy, 0.0f, 1.0f) : 0.0f;
     h.brdf.ns = m.phong_ns;
     const vec3 wo = -d;

@@ -1,6 +1,9 @@
 #include "softgi/render/common_passes.hpp"
 
+#include <algorithm>
+#include <limits>
 #include <map>
+#include <stdexcept>
 #include <mutex>
 #include <set>
 
@@ -13,6 +16,23 @@ namespace softgi::render {
 std::size_t GBuffer::bytes() const {
   return position.size() * sizeof(glm::vec3) * 4 + depth.size() * sizeof(float) + object.size() * 8 +
          barycentric.size() * sizeof(glm::vec2);
+}
+
+GBuffer GBuffer::background(int w, int h, int scale) {
+  GBuffer gb;
+  gb.width = w;
+  gb.height = h;
+  gb.scale = scale;
+  const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
+  gb.position.assign(n, glm::vec3(0.0f));
+  gb.normal.assign(n, glm::vec3(0.0f));
+  gb.depth.assign(n, std::numeric_limits<float>::infinity());
+  gb.albedo.assign(n, glm::vec3(0.0f));
+  gb.object.assign(n, -1);
+  gb.primitive.assign(n, -1);
+  gb.barycentric.assign(n, glm::vec2(0.0f));
+  gb.view_dir.assign(n, glm::vec3(0.0f));
+  return gb;
 }
 
 namespace {
@@ -42,6 +62,56 @@ void add_gbuffer_pass(PassGraph& g) {
   g.add({"gbuffer", {kScene}, {}, {kGBuffer}, "primary visibility: position, normal, depth, albedo, ids, barycentrics", {}});
 }
 
+void add_receiver_gbuffer_pass(PassGraph& g) {
+  g.add_input(kScene);
+  // gbuffer is an optional read: at scale 1 the receiver buffer is a copy of it (no second trace),
+  // and reading it orders this pass after the display G-buffer.
+  g.add({"receiver_gbuffer", {kScene}, {kGBuffer}, {kReceiverGBuffer},
+         "receiver setup (paper 000 section 4): position, normal, eye-space depth at 1/receiver_scale resolution", {}});
+}
+
+void run_receiver_gbuffer_pass(FrameContext& ctx, const std::function<GBuffer(int scale)>& produce) {
+  if (!ctx.params.has("receiver_scale"))
+    throw std::invalid_argument("receiver_gbuffer: the technique declares no parameter 'receiver_scale'");
+  const int s = ctx.params.get_int("receiver_scale");
+  if (s < 1 || s > std::max(ctx.width, ctx.height))
+    throw std::invalid_argument("receiver_gbuffer: parameter 'receiver_scale' = " + std::to_string(s) + " is outside 1.." +
+                                std::to_string(std::max(ctx.width, ctx.height)) + " for a " + std::to_string(ctx.width) +
+                                "x" + std::to_string(ctx.height) + " frame");
+  PassRecord& rec = ctx.record();
+  rec.counters["scale"] = s;
+  GBuffer gb;
+  if (s == 1 && ctx.has(kGBuffer)) {  // the display G-buffer itself: no second trace
+    gb = ctx.get<GBuffer>(kGBuffer);
+    gb.scale = 1;
+    std::size_t hits = 0;
+    for (std::size_t i = 0; i < gb.object.size(); ++i) hits += gb.hit(i);
+    rec.counters["copied"] = 1.0;
+    rec.counters["rays"] = 0.0;
+    rec.counters["hits"] = static_cast<double>(hits);
+  } else {
+    gb = produce(s);
+    rec.counters["copied"] = 0.0;
+  }
+  rec.bytes = gb.bytes();
+  ctx.put<GBuffer>(kReceiverGBuffer, std::move(gb));
+}
+
+void register_gbuffer_pass_impls(const std::string& backend, const GBufferProducer& produce) {
+  register_shared_pass_impl("gbuffer", backend, [produce](FrameContext& ctx) {
+    std::size_t held = 0;
+    GBuffer gb = produce(ctx, 1, "gbuffer", held);
+    ctx.record().bytes = gb.bytes() + held;
+    ctx.put<GBuffer>(kGBuffer, std::move(gb));
+  });
+  register_shared_pass_impl("receiver_gbuffer", backend, [produce](FrameContext& ctx) {
+    run_receiver_gbuffer_pass(ctx, [&](int s) {
+      std::size_t held = 0;
+      return produce(ctx, s, "receiver_gbuffer", held);
+    });
+  });
+}
+
 void add_compose_pass(PassGraph& g) {
   PassDesc p{"compose", {kDirect}, {kIndirect}, {kFinal}, "final = direct + indirect", {}};
   // Composition is the same on every backend that produces CPU-side images.
@@ -56,6 +126,7 @@ void add_compose_pass(PassGraph& g) {
     ctx.put<Image>(kFinal, std::move(out));
   };
   p.impl["cpu"] = fn;
+  p.impl["vulkan"] = fn;  // the Vulkan backend's images are host images too (read back by their passes)
   g.add(std::move(p));
 }
 

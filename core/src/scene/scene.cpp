@@ -793,4 +793,20 @@ void validate(const Scene& scene) {
   }
 }
 
+glm::vec3 surface_albedo(const Scene& sc, const PosedObject& obj, std::size_t prim, float b1, float b2) {
+  static const Material kDefault{};
+  const Material& m =
+      obj.material >= 0 && obj.material < static_cast<int>(sc.materials.size()) ? sc.materials[obj.material] : kDefault;
+  glm::vec3 albedo = m.albedo;
+  if (!obj.source || prim >= obj.source->triangles.size()) return albedo;
+  const Mesh& mesh = *obj.source;
+  const glm::uvec3 tri = mesh.triangles[prim];
+  const float b0 = 1.0f - b1 - b2;
+  if (m.albedo_texture >= 0 && m.albedo_texture < static_cast<int>(sc.textures.size()) && mesh.uvs.size() == mesh.positions.size())
+    albedo *= sc.textures[m.albedo_texture].sample(b0 * mesh.uvs[tri.x] + b1 * mesh.uvs[tri.y] + b2 * mesh.uvs[tri.z]);
+  if (mesh.colors.size() == mesh.positions.size())
+    albedo *= b0 * mesh.colors[tri.x] + b1 * mesh.colors[tri.y] + b2 * mesh.colors[tri.z];
+  return albedo;
+}
+
 }  // namespace softgi::scene

@@ -3,6 +3,8 @@
 // Vulkan.
 #pragma once
 
+#include <cstddef>
+#include <functional>
 #include <string>
 
 #include "softgi/render/pass_graph.hpp"
@@ -15,6 +17,7 @@ namespace softgi::render {
 // Resource names used by the shared passes.
 inline constexpr const char* kScene = "scene";                  // input: the posed scene
 inline constexpr const char* kGBuffer = "gbuffer";              // GBuffer
+inline constexpr const char* kReceiverGBuffer = "receiver_gbuffer";  // GBuffer at 1/scale resolution
 inline constexpr const char* kDirect = "direct";                // Image: shadowed direct radiance
 inline constexpr const char* kIndirect = "indirect";            // Image: indirect radiance
 inline constexpr const char* kFinal = "final";                  // Image: direct + indirect
@@ -23,6 +26,25 @@ inline constexpr const char* kReradiatingProxies = "reradiating_proxies";  // in
 
 // "gbuffer": reads scene, writes gbuffer.
 void add_gbuffer_pass(PassGraph& g);
+// "receiver_gbuffer" (paper 000 section 4, receiver setup): reads scene (and gbuffer optionally,
+// which it copies when the scale is 1), writes receiver_gbuffer: a GBuffer of ceil(W/s) x ceil(H/s)
+// pixels with scale s from the integer parameter "receiver_scale" of the frame's ParamSet (a
+// technique that adds this pass declares that parameter).
+void add_receiver_gbuffer_pass(PassGraph& g);
+// The body every backend's "receiver_gbuffer" implementation shares: reads and checks the scale
+// (errors name the parameter and the frame size), copies the display G-buffer at scale 1 when the
+// frame has one, else calls produce(scale) (the backend's tracer or rasteriser, which records its
+// own counters); records scale, copied and bytes, and puts the result.
+class FrameContext;
+struct GBuffer;
+void run_receiver_gbuffer_pass(FrameContext& ctx, const std::function<GBuffer(int scale)>& produce);
+// A backend's G-buffer renderer: the G-buffer at 1/scale of the display resolution for the pass
+// named `pass`, the backend's counters recorded; held_bytes: what the backend keeps for the next
+// frame (device buffers, BVHs), counted in the "gbuffer" pass's bytes.
+using GBufferProducer = std::function<GBuffer(FrameContext& ctx, int scale, const char* pass, std::size_t& held_bytes)>;
+// Registers `backend`'s "gbuffer" (scale 1; bytes: the G-buffer plus held_bytes) and
+// "receiver_gbuffer" (run_receiver_gbuffer_pass) implementations around one renderer.
+void register_gbuffer_pass_impls(const std::string& backend, const GBufferProducer& produce);
 // "compose": reads direct (required) and indirect (optional), writes final.
 void add_compose_pass(PassGraph& g);
 

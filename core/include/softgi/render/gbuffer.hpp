@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -12,6 +13,9 @@ namespace softgi::render {
 
 struct GBuffer {
   int width = 0, height = 0;
+  // Receiver buffers (paper 000 section 4) sample every `scale`-th display point: pixel (x, y) holds
+  // the primary hit through display image point ((x + 0.5) scale, (y + 0.5) scale). 1 = display.
+  int scale = 1;
   std::vector<glm::vec3> position;   // world space
   std::vector<glm::vec3> normal;     // world space shading normal (interpolated, unit)
   std::vector<float> depth;          // eye-space depth (p - e) . E (paper 000 section 4); +inf where no hit
@@ -21,6 +25,8 @@ struct GBuffer {
   std::vector<glm::vec2> barycentric;  // (b1, b2); b0 = 1 - b1 - b2
   std::vector<glm::vec3> view_dir;   // unit, from the surface towards the eye (or the ray direction for background)
   bool hit(std::size_t i) const { return object[i] >= 0; }
+  // width x height pixels that hit nothing: depth +inf, object and primitive -1, zero vectors.
+  static GBuffer background(int width, int height, int scale = 1);
   std::size_t bytes() const;
 };
 

@@ -162,6 +162,11 @@ struct PosedScene {
   bool animated = false;  // the active clip changes something over time, or the pose differs from the nodes' rest TRS
 };
 
+// Albedo of a posed object's surface at barycentrics (b1, b2) of triangle `prim`: material albedo x
+// albedo texture at the interpolated uv x interpolated vertex colour. The one rule of the reference
+// renderer and of every backend's G-buffer.
+glm::vec3 surface_albedo(const Scene& scene, const PosedObject& obj, std::size_t prim, float b1, float b2);
+
 // Poses the scene at time t (seconds) with its active clip: node hierarchy, linear-blend skinning
 // of meshes, proxies moved with their node or bones. Throws std::invalid_argument for a
 // non-finite t.

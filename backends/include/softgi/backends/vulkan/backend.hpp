@@ -1,0 +1,54 @@
+// The Vulkan backend: the same pass graphs as the CPU backend, each pass running its "vulkan"
+// implementation. Host passes (tables, hierarchy, cuts, image composition) run the same CPU function
+// under both names; GPU passes record into the backend's vulkan::Context and report the GPU time
+// of their submissions (timestamps) in PassRecord::gpu_seconds, next to the wall time.
+// Deliberately free of <vulkan/vulkan.h> (the application includes this header).
+#pragma once
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "softgi/render/backend.hpp"
+
+namespace softgi::backends {
+
+namespace vulkan {
+class Context;
+}
+
+struct VulkanBackendOptions {
+  std::string device;                  // vulkan::ContextOptions::device ("" = $SOFTGI_VULKAN_DEVICE, else the best)
+  int validation = -1;                 // vulkan::ContextOptions::validation
+  double fence_timeout_seconds = 120.0;
+};
+
+class VulkanBackend : public render::Backend {
+ public:
+  // Creates the instance and device (errors name the device request and list the devices).
+  explicit VulkanBackend(const VulkanBackendOptions& options = {});
+  explicit VulkanBackend(std::shared_ptr<vulkan::Context> context);
+  ~VulkanBackend() override;
+  std::string name() const override { return "vulkan"; }
+  vulkan::Context& context() { return *ctx_; }
+  const std::shared_ptr<vulkan::Context>& shared_context() const { return ctx_; }
+  // For run records: name, type, driver, driver_info, api_version, vendor_id, device_id, index.
+  std::map<std::string, std::string> device_record() const;
+  std::string device_name() const;
+
+ protected:
+  void execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) override;
+
+ private:
+  std::shared_ptr<vulkan::Context> ctx_;
+};
+
+// Registers the Vulkan implementations of the shared passes (once per process). The "gbuffer"
+// pass on Vulkan is the rasterisation pipeline (backends/vulkan/gbuffer_raster.cpp) when present.
+void register_vulkan_shared_passes();
+
+// "cpu" and "vulkan" mapped to the same host function: the passes that are host work on both.
+std::map<std::string, std::function<void(render::FrameContext&)>> host_pass(std::function<void(render::FrameContext&)> fn);
+
+}  // namespace softgi::backends

@@ -1,0 +1,557 @@
+// The Vulkan implementation of the shared "gbuffer" and "receiver_gbuffer" passes: a graphics
+// pipeline (shaders/gbuffer/gbuffer_raster.{vert,frag}) rasterises every posed object's triangles
+// (world-space positions and normals uploaded per frame; objects are skinned on the CPU by
+// scene::evaluate) into colour attachments, read back into a render::GBuffer with the meaning of
+// every plane of the CPU G-buffer (backends/cpu/gbuffer_embree.cpp):
+//
+//   position, depth  fragment shader: w p0 + b1 p1 + b2 p2 of the triangle's posed corners (fetched
+//                    from the same vertex arrays), depth (p - e) . E (paper 000 section 4)
+//   normal           fragment shader: the CPU's rule (interpolated vertex normal, normalised, turned
+//                    to the side of the geometric normal that faces the viewer)
+//   object, primitive, barycentric
+//                    rasterised: per-corner weights (1,0,0), (0,1,0), (0,0,1), perspective-correct
+//   albedo           host, after readback, from (object, primitive, b1, b2) with the reference's rule
+//                    (material x texture x vertex colour). Why host: Texture::sample is a bilinear
+//                    filter on float texels with repeat wrap; a GPU sampler quantises its bilinear
+//                    weights (Vulkan guarantees 4 bits of sub-texel precision, lavapipe has 8) and
+//                    would need every texture uploaded. Evaluating the one CPU function at the
+//                    rasterised barycentrics makes albedo differ from the CPU only through them.
+//   view_dir         host: -PinholeCamera::direction of the pixel (hits), the direction itself for
+//                    background; a function of the pixel alone, so the same float operations as the CPU.
+//
+// Projection. Pixel (x, y) of a buffer of scale s (ceil(W/s) x ceil(H/s) pixels) must see the display
+// camera's ray through display point ((x + 0.5) s, (y + 0.5) s). In camera coordinates u = R.(p - e),
+// v = U.(p - e), z = E.(p - e), that ray has u/z = (2 (x + 0.5) s / W - 1) t a and
+// v/z = (1 - 2 (y + 0.5) s / H) t (t = tan(fov_y / 2), a = W / H: PinholeCamera::direction). The
+// rasteriser's pixel centre x + 0.5 is NDC x_n = 2 (x + 0.5) / W' - 1 (W' = ceil(W/s), Vulkan's y
+// axis points down), so with k_x = W' s / W and k_y = H' s / H (both 1 at s = 1):
+//   x_c = u / (k_x t a) - (k_x - 1) / k_x z,   y_c = -v / (k_y t) - (k_y - 1) / k_y z,   w_c = z.
+// Depth: reverse-Z with an infinite far plane, z_c = n (depth n / z in (0, 1], compare GREATER,
+// cleared to 0): float depth keeps the same relative resolution (2^-24) at every distance, so the
+// near plane n can be tiny (kNearRelative of the farthest vertex) and clips nothing the ray caster
+// (tnear = 0) would see in practice.
+#include "gbuffer_raster.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "gbuffer_shared.h"
+#include "softgi/backends/vulkan/context.hpp"
+#include "softgi/render/camera.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/render/frame.hpp"
+#include "softgi/render/gbuffer.hpp"
+#include "softgi/shaders/gbuffer_raster_frag.h"
+#include "softgi/shaders/gbuffer_raster_vert.h"
+
+namespace softgi::backends {
+
+namespace {
+
+namespace vk = softgi::backends::vulkan;
+using glm::vec3;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+// Near plane as a fraction of the farthest vertex's eye depth: with reverse float depth the ratio
+// of near to far costs no precision, and 1e-6 clips only geometry closer to the eye than a
+// millionth of the scene's depth range.
+constexpr float kNearRelative = 1e-6f;
+// Target sets (attachments, framebuffer, readback) kept per buffer size: the display G-buffer and
+// one receiver buffer per frame, plus slack for a changed resolution.
+constexpr std::size_t kMaxTargetSizes = 4;
+
+// std140 mirror of GbFrame (shaders/gbuffer/gbuffer_common.glsl).
+struct GbFrame {
+  glm::mat4 clip_from_world;
+  glm::vec4 eye, forward, right, up;
+  glm::vec4 image;   // display width, display height, scale, tan_half_fov_y
+  glm::vec4 image2;  // aspect
+};
+static_assert(sizeof(GbFrame) == 160, "GbFrame must match the std140 block of gbuffer_common.glsl");
+// std430 push-constant block GbDraw (gbuffer_raster.frag).
+struct GbDraw {
+  std::int32_t object = -1;
+  std::uint32_t first_triangle = 0;
+  std::uint32_t has_normals = 0;
+};
+static_assert(sizeof(GbDraw) == 12);
+
+constexpr std::array<VkFormat, gpu::kGbColorAttachments> kColorFormats = {
+    VK_FORMAT_R32G32B32A32_SFLOAT,  // kGbOutPositionDepth
+    VK_FORMAT_R32G32B32A32_SFLOAT,  // kGbOutNormal
+    VK_FORMAT_R32G32_SINT,          // kGbOutIds
+    VK_FORMAT_R32G32_SFLOAT,        // kGbOutBarycentric
+};
+constexpr std::array<std::uint32_t, gpu::kGbColorAttachments> kTexelBytes = {16, 16, 8, 8};
+constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
+
+// Size-independent objects: layout (from SPIR-V reflection), render pass, pipeline (viewport and
+// scissor are dynamic, so one pipeline serves every buffer size).
+struct RasterPipeline {
+  std::unique_ptr<vk::PipelineLayout> layout;
+  vk::Owned<VkRenderPass> render_pass;
+  vk::Owned<VkPipeline> pipeline;
+};
+
+// Per buffer size: attachments, framebuffer and host-visible readback buffers.
+struct Targets {
+  std::uint32_t width = 0, height = 0;
+  std::array<vk::Image, gpu::kGbColorAttachments> color;
+  vk::Image depth;
+  vk::Owned<VkFramebuffer> framebuffer;
+  std::array<vk::Buffer, gpu::kGbColorAttachments> readback;
+  std::size_t bytes() const {
+    std::size_t b = static_cast<std::size_t>(width) * height * 4;  // depth
+    for (std::size_t a = 0; a < kTexelBytes.size(); ++a) b += 2 * static_cast<std::size_t>(width) * height * kTexelBytes[a];
+    return b;
+  }
+};
+
+// What the pass keeps in the Context's cache from frame to frame.
+struct RasterState {
+  std::mutex m;
+  std::unique_ptr<RasterPipeline> pipe;
+  std::vector<std::unique_ptr<Targets>> targets;  // most recently used last
+  vk::Buffer positions, normals, indices, frame;
+};
+
+std::span<const std::uint32_t> words(const std::uint32_t* w, std::size_t bytes) { return {w, bytes / sizeof(std::uint32_t)}; }
+
+std::unique_ptr<RasterPipeline> make_pipeline(vk::Context& ctx) {
+  const auto vs_words = words(gbuffer_raster_vert, sizeof(gbuffer_raster_vert));
+  const auto fs_words = words(gbuffer_raster_frag, sizeof(gbuffer_raster_frag));
+  const vk::ShaderReflection rv = vk::reflect_spirv(vs_words), rf = vk::reflect_spirv(fs_words);
+  auto p = std::make_unique<RasterPipeline>();
+  p->layout = std::make_unique<vk::PipelineLayout>(ctx, std::vector<vk::ShaderReflection>{rv, rf}, "gbuffer_raster");
+  VkDevice dev = ctx.device();
+
+  std::array<VkAttachmentDescription, gpu::kGbColorAttachments + 1> att{};
+  std::array<VkAttachmentReference, gpu::kGbColorAttachments> color_refs{};
+  for (std::uint32_t a = 0; a < gpu::kGbColorAttachments; ++a) {
+    att[a].format = kColorFormats[a];
+    att[a].samples = VK_SAMPLE_COUNT_1_BIT;
+    att[a].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+    att[a].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    att[a].stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+    att[a].stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+    att[a].initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    att[a].finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;  // copied to the readback buffers
+    color_refs[a] = {a, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+  }
+  VkAttachmentDescription& d = att[gpu::kGbColorAttachments];
+  d.format = kDepthFormat;
+  d.samples = VK_SAMPLE_COUNT_1_BIT;
+  d.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  d.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  d.stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+  d.stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  d.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  d.finalLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
+  const VkAttachmentReference depth_ref{gpu::kGbColorAttachments, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
+  VkSubpassDescription sub{};
+  sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+  sub.colorAttachmentCount = gpu::kGbColorAttachments;
+  sub.pColorAttachments = color_refs.data();
+  sub.pDepthStencilAttachment = &depth_ref;
+  // Before: the previous frame's copies out of the same attachments (write-after-read) and its depth
+  // writes. After: the copies to the readback buffers read what the subpass wrote.
+  std::array<VkSubpassDependency, 2> deps{};
+  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
+  deps[0].dstSubpass = 0;
+  deps[0].srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+  deps[0].dstStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT | VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT |
+                         VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+  deps[0].srcAccessMask = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  deps[0].dstAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
+                          VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  deps[1].srcSubpass = 0;
+  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
+  deps[1].srcStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+  deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  deps[1].srcAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+  deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  VkRenderPassCreateInfo rp{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
+  rp.attachmentCount = static_cast<std::uint32_t>(att.size());
+  rp.pAttachments = att.data();
+  rp.subpassCount = 1;
+  rp.pSubpasses = &sub;
+  rp.dependencyCount = static_cast<std::uint32_t>(deps.size());
+  rp.pDependencies = deps.data();
+  VkRenderPass render_pass = VK_NULL_HANDLE;
+  vk::check(vkCreateRenderPass(dev, &rp, nullptr, &render_pass), "vkCreateRenderPass (gbuffer_raster)");
+  p->render_pass = vk::Owned<VkRenderPass>(render_pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); });
+  ctx.set_name(VK_OBJECT_TYPE_RENDER_PASS, reinterpret_cast<std::uint64_t>(render_pass), "gbuffer_raster");
+
+  vk::Owned<VkShaderModule> vs = ctx.create_shader_module(vs_words, "gbuffer_raster.vert");
+  vk::Owned<VkShaderModule> fs = ctx.create_shader_module(fs_words, "gbuffer_raster.frag");
+  std::array<VkPipelineShaderStageCreateInfo, 2> stages{};
+  stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
+  stages[0].module = vs.get();
+  stages[0].pName = rv.entry_point.c_str();
+  stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
+  stages[1].module = fs.get();
+  stages[1].pName = rf.entry_point.c_str();
+  VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};  // vertices from storage buffers
+  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  vp.viewportCount = 1;
+  vp.scissorCount = 1;
+  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  rs.polygonMode = VK_POLYGON_MODE_FILL;
+  rs.cullMode = VK_CULL_MODE_NONE;  // two-sided surfaces: the ray caster hits both sides
+  rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+  rs.lineWidth = 1.0f;
+  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;  // one sample at the pixel centre, like one ray
+  VkPipelineDepthStencilStateCreateInfo ds{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
+  ds.depthTestEnable = VK_TRUE;
+  ds.depthWriteEnable = VK_TRUE;
+  ds.depthCompareOp = VK_COMPARE_OP_GREATER;  // reverse Z: nearer is larger
+  std::array<VkPipelineColorBlendAttachmentState, gpu::kGbColorAttachments> blend{};
+  for (auto& b : blend)
+    b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  cb.attachmentCount = static_cast<std::uint32_t>(blend.size());
+  cb.pAttachments = blend.data();
+  const std::array<VkDynamicState, 2> dyn = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  VkPipelineDynamicStateCreateInfo dy{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+  dy.dynamicStateCount = static_cast<std::uint32_t>(dyn.size());
+  dy.pDynamicStates = dyn.data();
+  VkGraphicsPipelineCreateInfo gi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  gi.stageCount = static_cast<std::uint32_t>(stages.size());
+  gi.pStages = stages.data();
+  gi.pVertexInputState = &vi;
+  gi.pInputAssemblyState = &ia;
+  gi.pViewportState = &vp;
+  gi.pRasterizationState = &rs;
+  gi.pMultisampleState = &ms;
+  gi.pDepthStencilState = &ds;
+  gi.pColorBlendState = &cb;
+  gi.pDynamicState = &dy;
+  gi.layout = p->layout->handle();
+  gi.renderPass = render_pass;
+  gi.subpass = 0;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  vk::check(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &gi, nullptr, &pipeline), "vkCreateGraphicsPipelines (gbuffer_raster)");
+  p->pipeline = vk::Owned<VkPipeline>(pipeline, [dev](VkPipeline x) { vkDestroyPipeline(dev, x, nullptr); });
+  ctx.set_name(VK_OBJECT_TYPE_PIPELINE, reinterpret_cast<std::uint64_t>(pipeline), "gbuffer_raster");
+  return p;
+}
+
+std::unique_ptr<Targets> make_targets(vk::Context& ctx, const RasterPipeline& pipe, std::uint32_t w, std::uint32_t h) {
+  auto t = std::make_unique<Targets>();
+  t->width = w;
+  t->height = h;
+  const std::string size = std::to_string(w) + "x" + std::to_string(h);
+  std::array<VkImageView, gpu::kGbColorAttachments + 1> views{};
+  for (std::uint32_t a = 0; a < gpu::kGbColorAttachments; ++a) {
+    t->color[a] = ctx.create_image(w, h, kColorFormats[a], VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                                   VK_IMAGE_ASPECT_COLOR_BIT, "gbuffer_raster attachment " + std::to_string(a) + " " + size);
+    t->readback[a] = ctx.create_buffer(static_cast<VkDeviceSize>(w) * h * kTexelBytes[a], VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                       vk::MemoryKind::Host, "gbuffer_raster readback " + std::to_string(a) + " " + size);
+    views[a] = t->color[a].view();
+  }
+  t->depth = ctx.create_image(w, h, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, VK_IMAGE_ASPECT_DEPTH_BIT,
+                              "gbuffer_raster depth " + size);
+  views[gpu::kGbColorAttachments] = t->depth.view();
+  VkFramebufferCreateInfo fi{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+  fi.renderPass = pipe.render_pass.get();
+  fi.attachmentCount = static_cast<std::uint32_t>(views.size());
+  fi.pAttachments = views.data();
+  fi.width = w;
+  fi.height = h;
+  fi.layers = 1;
+  VkDevice dev = ctx.device();
+  VkFramebuffer fb = VK_NULL_HANDLE;
+  vk::check(vkCreateFramebuffer(dev, &fi, nullptr, &fb), "vkCreateFramebuffer (gbuffer_raster)");
+  t->framebuffer = vk::Owned<VkFramebuffer>(fb, [dev](VkFramebuffer x) { vkDestroyFramebuffer(dev, x, nullptr); });
+  return t;
+}
+
+Targets& targets_for(vk::Context& ctx, RasterState& st, std::uint32_t w, std::uint32_t h) {
+  auto it = std::find_if(st.targets.begin(), st.targets.end(), [&](const auto& t) { return t->width == w && t->height == h; });
+  if (it != st.targets.end()) {
+    std::rotate(it, it + 1, st.targets.end());  // most recently used last
+    return *st.targets.back();
+  }
+  if (st.targets.size() >= kMaxTargetSizes) st.targets.erase(st.targets.begin());  // the submissions using it completed
+  st.targets.push_back(make_targets(ctx, *st.pipe, w, h));
+  return *st.targets.back();
+}
+
+// clip_from_world for a buffer of bw x bh pixels sampling display points ((x + 0.5) s, (y + 0.5) s)
+// of camera `cam` (derivation at the top of this file). glm matrices are column-major: m[col][row].
+glm::mat4 clip_from_world(const render::PinholeCamera& cam, int bw, int bh, int scale, float near_plane) {
+  const double kx = static_cast<double>(bw) * scale / cam.width, ky = static_cast<double>(bh) * scale / cam.height;
+  const double t = cam.tan_half_fov_y, a = cam.aspect;
+  glm::dmat4 view(1.0);  // rows: right, up, forward; translation -R.e, -U.e, -E.e
+  const glm::dvec3 R(cam.right), U(cam.up), E(cam.forward), e(cam.position);
+  for (int c = 0; c < 3; ++c) {
+    view[c][0] = R[c];
+    view[c][1] = U[c];
+    view[c][2] = E[c];
+    view[c][3] = 0.0;
+  }
+  view[3] = glm::dvec4(-glm::dot(R, e), -glm::dot(U, e), -glm::dot(E, e), 1.0);
+  glm::dmat4 proj(0.0);
+  proj[0][0] = 1.0 / (kx * t * a);
+  proj[2][0] = -(kx - 1.0) / kx;
+  proj[1][1] = -1.0 / (ky * t);
+  proj[2][1] = -(ky - 1.0) / ky;
+  proj[3][2] = near_plane;  // z_c = n: reverse Z, infinite far plane
+  proj[2][3] = 1.0;         // w_c = z
+  return glm::mat4(proj * view);
+}
+
+
+struct Draw {
+  GbDraw push;
+  std::uint32_t triangles = 0;
+};
+
+struct RasterStats {
+  long long pixels = 0, hits = 0, triangles = 0, draws = 0;
+  double upload_bytes = 0.0, near_plane = 0.0, gather_seconds = 0.0, raster_gpu_seconds = -1.0, readback_seconds = 0.0;
+  std::size_t held_bytes = 0;
+};
+
+bool drawn(const scene::PosedObject& o) { return o.source && !o.source->triangles.empty() && !o.positions.empty(); }
+
+// The one rasterisation of the Vulkan backend: a buffer of ceil(W/s) x ceil(H/s) pixels whose pixel
+// (x, y) holds what the display camera sees through display point ((x + 0.5) s, (y + 0.5) s).
+render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, RasterStats& stats) {
+  using clock = std::chrono::steady_clock;
+  const render::PinholeCamera cam = render::make_pinhole_camera(fc.scene, fc.width, fc.height, who);
+  const int bw = (fc.width + scale - 1) / scale, bh = (fc.height + scale - 1) / scale;
+  const std::size_t n = static_cast<std::size_t>(bw) * bh;
+  const auto t0 = clock::now();
+
+  // Every drawn object's posed vertices and triangles, concatenated (indices made global).
+  std::vector<float> positions, normals;
+  std::vector<std::uint32_t> indices;
+  std::vector<Draw> draws;
+  float max_depth = 0.0f;
+  std::size_t vertex_total = 0, triangle_total = 0;
+  for (const scene::PosedObject& o : fc.posed.objects)
+    if (drawn(o)) {
+      vertex_total += o.positions.size();
+      triangle_total += o.source->triangles.size();
+    }
+  // Vertex numbers (3 per triangle) and global indices are 32-bit in the draw and the shaders.
+  if (3 * triangle_total > std::numeric_limits<std::uint32_t>::max() || vertex_total > std::numeric_limits<std::uint32_t>::max())
+    throw std::invalid_argument(std::string(who) + ": " + std::to_string(triangle_total) + " triangles and " +
+                                std::to_string(vertex_total) + " vertices exceed the 32-bit vertex numbering of the Vulkan G-buffer");
+  positions.reserve(3 * vertex_total);
+  normals.reserve(3 * vertex_total);
+  indices.reserve(3 * triangle_total);
+  for (std::size_t oi = 0; oi < fc.posed.objects.size(); ++oi) {
+    const scene::PosedObject& o = fc.posed.objects[oi];
+    if (!drawn(o)) continue;
+    const auto base = static_cast<std::uint32_t>(positions.size() / 3);
+    for (std::size_t v = 0; v < o.positions.size(); ++v) {
+      const vec3& p = o.positions[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw std::invalid_argument(std::string(who) + ": mesh '" + o.source->name + "': posed vertex " + std::to_string(v) +
+                                    " is not finite");
+      positions.insert(positions.end(), {p.x, p.y, p.z});
+      max_depth = std::max(max_depth, cam.depth(p));
+    }
+    const bool has_normals = o.normals.size() == o.positions.size();
+    for (std::size_t v = 0; v < o.positions.size(); ++v) {
+      const vec3 nv = has_normals ? o.normals[v] : vec3(0.0f);
+      normals.insert(normals.end(), {nv.x, nv.y, nv.z});
+    }
+    Draw d;
+    d.push.object = static_cast<std::int32_t>(oi);
+    d.push.first_triangle = static_cast<std::uint32_t>(indices.size() / 3);
+    d.push.has_normals = has_normals ? 1u : 0u;
+    d.triangles = static_cast<std::uint32_t>(o.source->triangles.size());
+    const auto& tris = o.source->triangles;
+    for (std::size_t t = 0; t < tris.size(); ++t)
+      for (int k = 0; k < 3; ++k) {
+        if (tris[t][k] >= o.positions.size())
+          throw std::invalid_argument(std::string(who) + ": mesh '" + o.source->name + "': triangle " + std::to_string(t) +
+                                      " has vertex index " + std::to_string(tris[t][k]) + " >= " +
+                                      std::to_string(o.positions.size()));
+        indices.push_back(base + tris[t][k]);
+      }
+    draws.push_back(d);
+  }
+  stats.gather_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  stats.pixels = static_cast<long long>(n);
+  stats.triangles = static_cast<long long>(triangle_total);
+  stats.draws = static_cast<long long>(draws.size());
+
+  render::GBuffer gb = render::GBuffer::background(bw, bh, scale);
+  const float fs = static_cast<float>(scale);
+  auto ray = [&](int x, int y) {
+    // (x + 0.5) * 1 is exact in float: at s = 1 this is pixel_center_direction(x, y), as on the CPU.
+    return cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs);
+  };
+
+  // Nothing in front of the camera: every pixel is background (no GPU work).
+  if (draws.empty() || !(max_depth > 0.0f)) {
+    for (int y = 0; y < bh; ++y)
+      for (int x = 0; x < bw; ++x) gb.view_dir[static_cast<std::size_t>(y) * bw + x] = ray(x, y);
+    return gb;
+  }
+  const float near_plane = kNearRelative * max_depth;
+  stats.near_plane = near_plane;
+
+  vk::Context& ctx = vk::context_of(fc);
+  auto state = ctx.cached<RasterState>("gbuffer_raster.state", [] { return std::make_shared<RasterState>(); });
+  std::lock_guard<std::mutex> lock(state->m);
+  if (!state->pipe) state->pipe = make_pipeline(ctx);
+  const RasterPipeline& pipe = *state->pipe;
+  Targets& tg = targets_for(ctx, *state, static_cast<std::uint32_t>(bw), static_cast<std::uint32_t>(bh));
+
+  const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  const std::size_t pos_bytes = positions.size() * sizeof(float), idx_bytes = indices.size() * sizeof(std::uint32_t);
+  ctx.ensure_buffer(state->positions, pos_bytes, storage, vk::MemoryKind::Device, "gbuffer_raster positions");
+  ctx.ensure_buffer(state->normals, pos_bytes, storage, vk::MemoryKind::Device, "gbuffer_raster normals");
+  ctx.ensure_buffer(state->indices, idx_bytes, storage, vk::MemoryKind::Device, "gbuffer_raster indices");
+  ctx.ensure_buffer(state->frame, sizeof(GbFrame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryKind::Host, "gbuffer_raster frame");
+  ctx.upload(state->positions, positions.data(), pos_bytes);
+  ctx.upload(state->normals, normals.data(), pos_bytes);
+  ctx.upload(state->indices, indices.data(), idx_bytes);
+  GbFrame frame{};
+  frame.clip_from_world = clip_from_world(cam, bw, bh, scale, near_plane);
+  frame.eye = glm::vec4(cam.position, 0.0f);
+  frame.forward = glm::vec4(cam.forward, 0.0f);
+  frame.right = glm::vec4(cam.right, 0.0f);
+  frame.up = glm::vec4(cam.up, 0.0f);
+  frame.image = glm::vec4(static_cast<float>(cam.width), static_cast<float>(cam.height), fs, cam.tan_half_fov_y);
+  frame.image2 = glm::vec4(cam.aspect, 0.0f, 0.0f, 0.0f);
+  std::memcpy(state->frame.mapped(), &frame, sizeof frame);
+  stats.upload_bytes = static_cast<double>(2 * pos_bytes + idx_bytes + sizeof frame);
+
+  const vk::SubmitResult sr = ctx.submit(
+      [&](vk::Recorder& r) {
+        r.barrier();  // the uploads (a staging copy on devices without host-visible device memory)
+        r.begin_timer("rasterise");
+        std::array<VkClearValue, gpu::kGbColorAttachments + 1> clear{};
+        clear[gpu::kGbOutIds].color.int32[0] = -1;  // background: object -1, primitive -1
+        clear[gpu::kGbOutIds].color.int32[1] = -1;
+        clear[gpu::kGbColorAttachments].depthStencil = {0.0f, 0};  // reverse Z: 0 is infinitely far
+        VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+        bi.renderPass = pipe.render_pass.get();
+        bi.framebuffer = tg.framebuffer.get();
+        bi.renderArea = {{0, 0}, {tg.width, tg.height}};
+        bi.clearValueCount = static_cast<std::uint32_t>(clear.size());
+        bi.pClearValues = clear.data();
+        const VkDescriptorSet set = r.descriptor_set(*pipe.layout, 0,
+                                                     {vk::Bind::buffer_at(gpu::kGbBindFrame, state->frame),
+                                                      vk::Bind::buffer_at(gpu::kGbBindPositions, state->positions),
+                                                      vk::Bind::buffer_at(gpu::kGbBindNormals, state->normals),
+                                                      vk::Bind::buffer_at(gpu::kGbBindIndices, state->indices)});
+        VkCommandBuffer cmd = r.cmd();
+        vkCmdBeginRenderPass(cmd, &bi, VK_SUBPASS_CONTENTS_INLINE);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipe.pipeline.get());
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipe.layout->handle(), 0, 1, &set, 0, nullptr);
+        const VkViewport viewport{0.0f, 0.0f, static_cast<float>(tg.width), static_cast<float>(tg.height), 0.0f, 1.0f};
+        const VkRect2D scissor{{0, 0}, {tg.width, tg.height}};
+        vkCmdSetViewport(cmd, 0, 1, &viewport);
+        vkCmdSetScissor(cmd, 0, 1, &scissor);
+        if (pipe.layout->push_constant_size() != sizeof(GbDraw))
+          throw std::logic_error("gbuffer_raster: the shaders' push constant block has " +
+                                 std::to_string(pipe.layout->push_constant_size()) + " bytes, GbDraw " +
+                                 std::to_string(sizeof(GbDraw)));
+        for (const Draw& d : draws) {
+          vkCmdPushConstants(cmd, pipe.layout->handle(), pipe.layout->push_constant_stages(), 0, sizeof(GbDraw), &d.push);
+          vkCmdDraw(cmd, 3 * d.triangles, 1, 3 * d.push.first_triangle, 0);
+        }
+        vkCmdEndRenderPass(cmd);
+        for (std::uint32_t a = 0; a < gpu::kGbColorAttachments; ++a) {
+          VkBufferImageCopy c{};
+          c.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+          c.imageExtent = {tg.width, tg.height, 1};
+          vkCmdCopyImageToBuffer(cmd, tg.color[a].handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, tg.readback[a].handle(), 1, &c);
+        }
+        r.end_timer();
+        r.barrier();  // copies -> host reads
+      },
+      who);
+  for (const auto& [label, seconds] : sr.timers)
+    if (label == "rasterise") stats.raster_gpu_seconds = seconds;
+
+  const auto t1 = clock::now();
+  const auto* pd = static_cast<const glm::vec4*>(tg.readback[gpu::kGbOutPositionDepth].mapped());
+  const auto* nm = static_cast<const glm::vec4*>(tg.readback[gpu::kGbOutNormal].mapped());
+  const auto* ids = static_cast<const glm::ivec2*>(tg.readback[gpu::kGbOutIds].mapped());
+  const auto* bc = static_cast<const glm::vec2*>(tg.readback[gpu::kGbOutBarycentric].mapped());
+  long long hits = 0;
+  for (int y = 0; y < bh; ++y)
+    for (int x = 0; x < bw; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * bw + x;
+      const vec3 dir = ray(x, y);
+      const int oi = ids[i].x;
+      if (oi < 0) {
+        gb.view_dir[i] = dir;
+        continue;
+      }
+      const int prim = ids[i].y;
+      if (oi >= static_cast<int>(fc.posed.objects.size()) || !drawn(fc.posed.objects[oi]) || prim < 0 ||
+          prim >= static_cast<int>(fc.posed.objects[oi].source->triangles.size()))
+        throw std::logic_error(std::string(who) + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                               ") read back object " + std::to_string(oi) + " primitive " + std::to_string(prim) +
+                               ", which the frame did not draw");
+      gb.position[i] = vec3(pd[i]);
+      gb.depth[i] = pd[i].w;
+      gb.normal[i] = vec3(nm[i]);
+      gb.object[i] = oi;
+      gb.primitive[i] = prim;
+      gb.barycentric[i] = bc[i];
+      gb.albedo[i] = scene::surface_albedo(fc.scene, fc.posed.objects[oi], static_cast<std::size_t>(prim), bc[i].x, bc[i].y);
+      gb.view_dir[i] = -dir;
+      ++hits;
+    }
+  stats.readback_seconds = std::chrono::duration<double>(clock::now() - t1).count();
+  stats.hits = hits;
+  std::size_t held = state->positions.size() + state->normals.size() + state->indices.size() + state->frame.size();
+  for (const auto& t : state->targets) held += t->bytes();
+  stats.held_bytes = held;
+  return gb;
+}
+
+void raster_counters(render::PassRecord& rec, const RasterStats& st) {
+  rec.counters["rays"] = static_cast<double>(st.pixels);  // one sample per pixel centre, as the CPU's one ray
+  rec.counters["hits"] = static_cast<double>(st.hits);
+  rec.counters["triangles"] = static_cast<double>(st.triangles);
+  rec.counters["draws"] = static_cast<double>(st.draws);
+  rec.counters["upload_bytes"] = st.upload_bytes;
+  rec.counters["near_plane"] = st.near_plane;
+  rec.counters["gather_seconds"] = st.gather_seconds;
+  rec.counters["readback_seconds"] = st.readback_seconds;
+  if (st.raster_gpu_seconds >= 0.0) rec.counters["raster_gpu_seconds"] = st.raster_gpu_seconds;
+}
+
+// The "gbuffer" and "receiver_gbuffer" renderer. Paper 000 section 4, receiver setup: the receiver
+// buffer at 1/s of the display resolution per axis (the CPU pass's contract:
+// backends/cpu/gbuffer_embree.cpp). Held: the device buffers and attachments kept for the next frame.
+render::GBuffer produce_gbuffer(render::FrameContext& fc, int s, const char* pass, std::size_t& held) {
+  RasterStats st;
+  render::GBuffer gb = rasterise(fc, s, pass, st);
+  raster_counters(fc.record(), st);
+  held = st.held_bytes;
+  return gb;
+}
+
+}  // namespace
+
+void register_gbuffer_raster_passes() { render::register_gbuffer_pass_impls("vulkan", produce_gbuffer); }
+
+}  // namespace softgi::backends

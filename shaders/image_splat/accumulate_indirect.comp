@@ -1,0 +1,146 @@
+#version 450
+// image_splat's indirect accumulation (paper 000 section 5): per receiver p, the sum over its tile's
+// re-radiating proxies of albedo_i / pi (I_i . H(N_p)) (eq. 10's second term before the eq. 12
+// normalisation) and of omega_i (eq. 2), for the point-sampled (eq. 13) and averaged (eq. 15)
+// operators. One invocation per receiver. The arithmetic follows IndirectEvaluator::accumulate and
+// Impl::pair (techniques/image_splat/indirect_evaluator.cpp) step by step, on the evaluator's own
+// table floats (IndirectEvaluator::tables(), uploaded); the basis is the SHEXP kernel's recurrence.
+// The exact operator (eqs. 16-17) stays on the host.
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
+#include "softgi_shared.h"
+#include "image_splat_indirect_shared.h"
+#define SHEXP_BASIS_BINDING kIndBindBasis
+#include "shexp_basis.glsl"
+#include "replacement_rule.glsl"
+
+layout(constant_id = 0) const uint N = 3;  // indirect order
+layout(constant_id = 1) const uint RULE = kRuleContinuous;
+layout(constant_id = 2) const uint OP = kIndOpAveraged;
+layout(local_size_x = kIndGroup) in;
+
+layout(std430, set = 0, binding = kIndBindReceivers) readonly buffer Receivers { float rec[]; };
+layout(std430, set = 0, binding = kIndBindReceiverList) readonly buffer ReceiverList { uint rlist[]; };
+layout(std430, set = 0, binding = kIndBindListRange) readonly buffer ListRange { uvec2 ranges[]; };
+layout(std430, set = 0, binding = kIndBindProxies) readonly buffer Proxies { vec4 proxies[]; };
+layout(std430, set = 0, binding = kIndBindAlbedo) readonly buffer Albedo { vec4 albedo[]; };
+layout(std430, set = 0, binding = kIndBindVis) readonly buffer Vis { float vis[]; };
+layout(std430, set = 0, binding = kIndBindDfac) readonly buffer Dfac { float dfac[]; };
+layout(std430, set = 0, binding = kIndBindConsts) readonly buffer Consts { float consts[]; };
+layout(std430, set = 0, binding = kIndBindOut) writeonly buffer Out { vec4 outv[]; };
+layout(std430, set = 0, binding = kIndBindPairs) buffer Pairs { uint pairs_inside; };
+layout(push_constant) uniform Push {
+  uint count;   // receivers in all (the planes of rec are this long)
+  uint first;   // first receiver of this dispatch
+  uint end;     // one past the last receiver of this dispatch
+  uint rows;    // table rows
+  float scale;  // theta -> row coordinate
+  float eta;    // sphere of influence: pairs with |c - p| >= eta r are cut (<= 0: none)
+} pc;
+
+const float kHalfPi = 1.57079632679489662;
+
+// asin(x) on [0, 1]: Abramowitz & Stegun 4.4.46 (|error| <= 2e-8), as the SHEXP kernel's asin01
+// (kernel_body.hpp); closer to the CPU's std::asin than the driver's asin, whose Vulkan precision
+// bound is loose.
+float asin01(float x) {
+  const float x2 = x * x, x4 = x2 * x2;
+  const float p01 = basis_c[kBasisAsin + 1] * x + basis_c[kBasisAsin + 0];
+  const float p23 = basis_c[kBasisAsin + 3] * x + basis_c[kBasisAsin + 2];
+  const float p45 = basis_c[kBasisAsin + 5] * x + basis_c[kBasisAsin + 4];
+  const float p67 = basis_c[kBasisAsin + 7] * x + basis_c[kBasisAsin + 6];
+  const float p = (p67 * x2 + p45) * x4 + (p23 * x2 + p01);
+  const float omx = max(1.0 - x, 0.0);
+  const float s = omx * inversesqrt(max(omx, 1e-30));
+  return max(kHalfPi - s * p, 0.0);
+}
+
+float lt(uint k, uint c) { return consts[3 * k + c]; }
+float vh(uint l) { return consts[3 * N * N + l]; }
+
+void main() {
+  const uint i = pc.first + gl_GlobalInvocationID.x;
+  if (i >= pc.end) return;
+  const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
+  const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
+  const bool cut = pc.eta > 0.0;
+  vec3 acc = vec3(0.0);
+  float om = 0.0;
+  uint inside = 0;
+  const uvec2 range = ranges[rlist[i]];
+  for (uint j = range.x; j < range.x + range.y; ++j) {
+    const vec4 sph = proxies[j];
+    // Self-shadowing replacement rules (paper 004 section 6.2), as in the shadow pass.
+    const vec4 s = apply_replacement_rule(RULE, P, Nrm, sph.xyz, sph.w);
+    if (!(s.w > 0.0)) continue;
+    const vec3 dv = s.xyz - P;
+    const float dist = sqrt(dot(dv, dv));
+    if (!(dist > 0.0)) continue;
+    if (cut && dist >= pc.eta * s.w) continue;  // outside the sphere of influence (section 4.1)
+    ++inside;
+    const float alpha = min(1.0, s.w / dist);  // eq. 1
+    const float u = asin01(alpha) * pc.scale;
+    const vec3 d = dv / dist;
+    int k = min(int(min(u, float(pc.rows - 1))), int(pc.rows) - 2);
+    k = max(k, 0);
+    const float fr = u - float(k);
+    const uint row = uint(k) * 2u * N;
+    // omega_i = sqrt(4pi) V_i,0 = F_0 (eq. 2 through the DC term).
+    om += vis[row] + fr * vis[row + 1];
+    // V . H(N) = sum_l F_l vh_l P_l(d . N) (addition theorem).
+    float F[kShexpMaxOrder];
+    [[unroll]] for (uint l = 0; l < N; ++l) F[l] = vis[row + 2 * l] + fr * vis[row + 2 * l + 1];
+    const float t = clamp(dot(d, Nrm), -1.0, 1.0);
+    float p0 = 1.0, p1 = t;
+    float vdoth = F[0] * vh(0) + (N > 1 ? F[1] * vh(1) * t : 0.0);
+    [[unroll]] for (uint l = 2; l < N; ++l) {
+      const float p2 = ((2.0 * float(l) - 1.0) * t * p1 - (float(l) - 1.0) * p0) / float(l);
+      vdoth += F[l] * vh(l) * p2;
+      p0 = p1;
+      p1 = p2;
+    }
+    // Per-band factors: eq. 13 (-1)^l (L~ at -d), or eq. 15's interpolated D factors.
+    float fac[kShexpMaxOrder];
+    if (OP == kIndOpPoint) {
+      [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = (l & 1u) != 0u ? -1.0 : 1.0;
+    } else {
+      const uint d0 = uint(k) * N;
+      [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = dfac[d0 + l] + fr * (dfac[d0 + N + l] - dfac[d0 + l]);
+    }
+    // B_l = sum_m y_lm(d) L~_lm per channel; kappa = sum_l fac_l B_l. Basis by the SHEXP recurrence.
+    float C[kShexpMaxOrder], S[kShexpMaxOrder];
+    C[0] = 1.0;
+    S[0] = 0.0;
+    [[unroll]] for (uint m = 1; m < N; ++m) {
+      C[m] = C[m - 1] * d.x - S[m - 1] * d.y;
+      S[m] = S[m - 1] * d.x + C[m - 1] * d.y;
+    }
+    vec3 B[kShexpMaxOrder];
+    [[unroll]] for (uint l = 0; l < N; ++l) B[l] = vec3(0.0);
+    [[unroll]] for (uint m = 0; m < N; ++m) {
+      float q_prev = 0.0, qv = basis_qmm(m);
+      [[unroll]] for (uint l = m; l < N; ++l) {
+        if (l == m + 1) {
+          q_prev = qv;
+          qv = basis_a1(m) * (d.z * qv);
+        } else if (l > m + 1) {
+          const float next = basis_A(l, m) * (d.z * qv) - basis_B(l, m) * q_prev;
+          q_prev = qv;
+          qv = next;
+        }
+        const uint i0 = l * l + l;
+        if (m == 0) {
+          B[l] += qv * vec3(lt(i0, 0), lt(i0, 1), lt(i0, 2));
+        } else {
+          const float yc = qv * C[m], ys = qv * S[m];
+          B[l] += yc * vec3(lt(i0 + m, 0), lt(i0 + m, 1), lt(i0 + m, 2)) + ys * vec3(lt(i0 - m, 0), lt(i0 - m, 1), lt(i0 - m, 2));
+        }
+      }
+    }
+    vec3 kap = vec3(0.0);
+    [[unroll]] for (uint l = 0; l < N; ++l) kap += fac[l] * B[l];
+    acc += albedo[j].xyz * (kap * vdoth);  // diffuse proxy: radiance albedo / pi L~
+  }
+  outv[i] = vec4(acc, om);
+  if (inside > 0u) atomicAdd(pairs_inside, inside);
+}

@@ -1,0 +1,30 @@
+#version 450
+// out[p] = sum_k weight[p][k] in[index[p][k]] per channel (upsample.cpp upsample_apply): the eq. 11
+// interpolation of a coarse field to display resolution, one invocation per display pixel. Pixels
+// without a tap are left untouched.
+#extension GL_GOOGLE_include_directive : require
+#include "image_splat_shared.h"
+
+layout(constant_id = 0) const uint CHANNELS = 3;
+layout(local_size_x = kUpsampleGroupX * kUpsampleGroupY) in;
+
+layout(std430, set = 0, binding = kApBindIndex) readonly buffer Index { ivec4 index[]; };
+layout(std430, set = 0, binding = kApBindWeight) readonly buffer Weight { vec4 weight[]; };
+layout(std430, set = 0, binding = kApBindIn) readonly buffer In { float inv[]; };
+layout(std430, set = 0, binding = kApBindOut) buffer Out { float outv[]; };
+layout(push_constant) uniform Push {
+  uint first, end;  // display pixels of this dispatch
+} pc;
+
+void main() {
+  const uint p = pc.first + gl_GlobalInvocationID.x;
+  if (p >= pc.end) return;
+  const ivec4 idx = index[p];
+  if (idx.x < 0) return;
+  const vec4 w = weight[p];
+  for (uint c = 0; c < CHANNELS; ++c) {
+    float acc = 0.0;
+    for (int k = 0; k < 4 && idx[k] >= 0; ++k) acc += w[k] * inv[uint(idx[k]) * CHANNELS + c];
+    outv[p * CHANNELS + c] = acc;
+  }
+}

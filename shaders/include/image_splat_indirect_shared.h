@@ -1,0 +1,37 @@
+// Constants of image_splat's accumulate_indirect shader (shaders/image_splat/accumulate_indirect.comp),
+// shared by the C++ side (techniques/image_splat/image_splat_vulkan_shading.cpp) and GLSL.
+#ifndef SOFTGI_IMAGE_SPLAT_INDIRECT_SHARED_H
+#define SOFTGI_IMAGE_SPLAT_INDIRECT_SHARED_H
+
+#ifdef __cplusplus
+#include <cstdint>
+namespace softgi::gpu {
+#define SOFTGI_II_CONST_UINT(name, value) inline constexpr std::uint32_t name = value;
+#else
+#define SOFTGI_II_CONST_UINT(name, value) const uint name = value;
+#endif
+
+SOFTGI_II_CONST_UINT(kIndGroup, 64u)  // receivers per workgroup
+// Operators (image_splat::IndirectOperator; exact stays on the host).
+SOFTGI_II_CONST_UINT(kIndOpPoint, 0u)
+SOFTGI_II_CONST_UINT(kIndOpAveraged, 1u)  // averaged and averaged_poly: the D table differs, not the shader
+
+// accumulate_indirect bindings (set 0)
+SOFTGI_II_CONST_UINT(kIndBindReceivers, 0u)     // float[6 * count]: px, py, pz, nx, ny, nz planes
+SOFTGI_II_CONST_UINT(kIndBindReceiverList, 1u)  // uint per receiver: index of its tile's proxy list
+SOFTGI_II_CONST_UINT(kIndBindListRange, 2u)     // uvec2 per tile: (first proxy, count)
+SOFTGI_II_CONST_UINT(kIndBindProxies, 3u)       // vec4 per proxy: centre, radius
+SOFTGI_II_CONST_UINT(kIndBindAlbedo, 4u)        // vec4 per proxy: albedo / pi, 0
+SOFTGI_II_CONST_UINT(kIndBindVis, 5u)           // IndirectEvaluator visibility ZhTable::data
+SOFTGI_II_CONST_UINT(kIndBindDfac, 6u)          // rows * n D factors (averaged), 1 float otherwise
+SOFTGI_II_CONST_UINT(kIndBindConsts, 7u)        // L~ (3 n^2, coefficient-major), then vh (n)
+SOFTGI_II_CONST_UINT(kIndBindBasis, 8u)         // shexp basis recurrence constants (asin included)
+SOFTGI_II_CONST_UINT(kIndBindOut, 9u)           // float[4 * count]: rgb, omega
+SOFTGI_II_CONST_UINT(kIndBindPairs, 10u)        // uint: receiver-proxy pairs inside the sphere of influence
+
+#undef SOFTGI_II_CONST_UINT
+#ifdef __cplusplus
+}  // namespace softgi::gpu
+#endif
+
+#endif

@@ -1,0 +1,82 @@
+// Constants shared by the C++ side and the GLSL shaders: one declaration, included by both.
+// C++: inline constexpr values in softgi::gpu; GLSL: const values (usable in layout qualifiers).
+#ifndef SOFTGI_SHARED_H
+#define SOFTGI_SHARED_H
+
+#ifdef __cplusplus
+#include <cstdint>
+namespace softgi::gpu {
+#define SOFTGI_CONST_UINT(name, value) inline constexpr std::uint32_t name = value;
+#else
+#define SOFTGI_CONST_UINT(name, value) const uint name = value;
+#endif
+
+// SHEXP (paper 004): the largest accumulation order a shader handles (shexp::kMaxAccOrder), and the
+// largest coefficient count n^2 (per-invocation arrays are sized by it).
+SOFTGI_CONST_UINT(kShexpMaxOrder, 8u)
+SOFTGI_CONST_UINT(kShexpMaxCoeffs, 64u)
+// Workgroup sizes (one invocation per receiver).
+SOFTGI_CONST_UINT(kShexpAccumulateGroup, 64u)
+SOFTGI_CONST_UINT(kShexpExpGroup, 64u)
+SOFTGI_CONST_UINT(kShexpShadeGroup, 64u)
+
+// Layout of the SH basis-recurrence constant buffer (floats; the constants of the CPU kernel,
+// shexp::basis_recurrence_constants): Q_m^m, a1, A[l][m], B[l][m] (row-major, kShexpMaxOrder wide),
+// then the 8 coefficients of the asin polynomial (Abramowitz & Stegun 4.4.46).
+SOFTGI_CONST_UINT(kBasisQmm, 0u)
+SOFTGI_CONST_UINT(kBasisA1, 8u)
+SOFTGI_CONST_UINT(kBasisA, 16u)
+SOFTGI_CONST_UINT(kBasisB, 80u)
+SOFTGI_CONST_UINT(kBasisAsin, 144u)
+SOFTGI_CONST_UINT(kBasisFloats, 152u)
+
+// Replacement rules (shexp::ReplacementRule), as a specialization constant.
+SOFTGI_CONST_UINT(kRuleOff, 0u)
+SOFTGI_CONST_UINT(kRuleContinuous, 1u)
+SOFTGI_CONST_UINT(kRuleClamped, 2u)
+SOFTGI_CONST_UINT(kRulePrinted, 3u)
+// Exponential methods of the Vulkan exponentiate pass.
+SOFTGI_CONST_UINT(kExpHyb, 0u)
+SOFTGI_CONST_UINT(kExpOl, 1u)
+// Status words of the exponentiate pass.
+SOFTGI_CONST_UINT(kExpStatusSquarings, 0u)
+SOFTGI_CONST_UINT(kExpStatusBadInput, 1u)    // first receiver with a non-finite log coefficient + 1 (atomicMin of i + 1; 0xffffffff none)
+SOFTGI_CONST_UINT(kExpStatusOverflow, 2u)    // first receiver whose result overflowed + 1 (same convention)
+SOFTGI_CONST_UINT(kExpStatusDcOverflow, 3u)  // first receiver whose DC factor overflowed + 1
+SOFTGI_CONST_UINT(kExpStatusWords, 4u)
+
+// accumulate_log bindings (set 0)
+SOFTGI_CONST_UINT(kAccBindReceivers, 0u)     // float[6 * count]: px, py, pz, nx, ny, nz planes
+SOFTGI_CONST_UINT(kAccBindReceiverList, 1u)  // uint per receiver: index of its blocker list
+SOFTGI_CONST_UINT(kAccBindListRange, 2u)     // uvec2 per list: (first blocker, count)
+SOFTGI_CONST_UINT(kAccBindBlockers, 3u)      // vec4 per blocker: centre, radius
+SOFTGI_CONST_UINT(kAccBindWeights, 4u)       // float[order] per blocker: eq. 37 band weights
+SOFTGI_CONST_UINT(kAccBindTable, 5u)         // ZhTable::data: rows * 2 * order floats
+SOFTGI_CONST_UINT(kAccBindBasis, 6u)         // basis recurrence constants (see shexp_vulkan.cpp)
+SOFTGI_CONST_UINT(kAccBindOut, 7u)           // float[count * order^2]
+
+// exponentiate bindings (set 0)
+SOFTGI_CONST_UINT(kExpBindIn, 0u)        // log vectors, float[count * n^2]
+SOFTGI_CONST_UINT(kExpBindOut, 1u)       // visibility, float[count * n_out^2]
+SOFTGI_CONST_UINT(kExpBindOl, 2u)        // OL tables: norm grid, a, b (floats)
+SOFTGI_CONST_UINT(kExpBindSqIndex, 3u)   // ProductPlan squares: begin offsets
+SOFTGI_CONST_UINT(kExpBindSqTerms, 4u)   // ProductPlan squares: (j | k << 16, v) pairs
+SOFTGI_CONST_UINT(kExpBindPrIndex, 5u)   // ProductPlan products: begin, offdiag_end
+SOFTGI_CONST_UINT(kExpBindPrTerms, 6u)   // ProductPlan products: (j | k << 16, v) pairs
+SOFTGI_CONST_UINT(kExpBindStatus, 7u)    // uint[4]: squarings, products, non-finite receivers, overflow
+
+// shade bindings (set 0)
+SOFTGI_CONST_UINT(kShadeBindReceivers, 0u)
+SOFTGI_CONST_UINT(kShadeBindVis, 1u)
+SOFTGI_CONST_UINT(kShadeBindConsts, 2u)   // L (3 n^2), hcoef (n^2), gwin (n^2)
+SOFTGI_CONST_UINT(kShadeBindPrIndex, 3u)
+SOFTGI_CONST_UINT(kShadeBindPrTerms, 4u)
+SOFTGI_CONST_UINT(kShadeBindBasis, 5u)
+SOFTGI_CONST_UINT(kShadeBindOut, 6u)      // vec4 per receiver (rgb, unused)
+
+#undef SOFTGI_CONST_UINT
+#ifdef __cplusplus
+}  // namespace softgi::gpu
+#endif
+
+#endif

@@ -1,0 +1,103 @@
+#include "pass_support.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "softgi/sh/sh.hpp"
+
+namespace softgi::techniques::common {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+namespace {
+bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+}  // namespace
+
+void check_proxy_spheres(const std::string& technique, const render::FrameContext& ctx, bool check_albedo) {
+  for (std::size_t s = 0; s < ctx.posed.proxies.size(); ++s)
+    for (std::size_t i = 0; i < ctx.posed.proxies[s].size(); ++i) {
+      const scene::Sphere& sp = ctx.posed.proxies[s][i];
+      if (!(sp.radius >= 0.0f) || !std::isfinite(sp.radius) || !finite(sp.center)) {
+        const std::string name = s < ctx.scene.proxies.size() ? ctx.scene.proxies[s].name : std::to_string(s);
+        std::ostringstream os;
+        os << technique << ": proxy set '" << name << "' of scene '" << ctx.scene.name << "': sphere " << i << " at time "
+           << ctx.posed.time << " has centre (" << sp.center.x << ", " << sp.center.y << ", " << sp.center.z << ") and radius "
+           << sp.radius << " (expected finite values, radius >= 0)";
+        throw std::invalid_argument(os.str());
+      }
+    }
+  if (!check_albedo) return;
+  for (const scene::ProxySet& set : ctx.scene.proxies) {
+    const glm::vec3 a = set.albedo;
+    if (!finite(a) || a.x < 0.0f || a.y < 0.0f || a.z < 0.0f) {
+      std::ostringstream os;
+      os << technique << ": proxy set '" << set.name << "' of scene '" << ctx.scene.name << "' has albedo (" << a.x << ", " << a.y
+         << ", " << a.z << ") (expected finite values >= 0)";
+      throw std::invalid_argument(os.str());
+    }
+  }
+}
+
+std::string environment_signature(const scene::Environment& env) {
+  std::ostringstream key;
+  const auto v3 = [&key](const glm::vec3& v) { key << v.x << ',' << v.y << ',' << v.z << '|'; };
+  key.precision(9);
+  key << &env << '|' << static_cast<int>(env.kind) << '|' << env.map_path << '|' << env.intensity << '|' << env.rotation_y << '|'
+      << env.sun_radius << '|' << env.map_rgb.size() << '|';
+  for (const glm::vec3& v : {env.zenith, env.horizon, env.ground, env.sun_direction, env.sun_radiance}) v3(v);
+  return key.str();
+}
+
+std::vector<glm::vec3> windowed_environment_sh(const std::string& technique, const scene::Scene& scene, int order,
+                                               double window_h) {
+  std::vector<glm::vec3> L = scene::environment_sh(scene.environment, order);
+  if (window_h > 0.0)  // paper 004 section 7: window the lighting
+    for (int l = 0; l < order; ++l)
+      for (int m = -l; m <= l; ++m) L[sh::index(l, m)] *= static_cast<float>(sh::window_factor(l, window_h));
+  for (const auto& v : L)
+    if (!finite(v))
+      throw std::invalid_argument(technique + ": the environment of scene '" + scene.name + "' has a non-finite SH projection");
+  return L;
+}
+
+std::shared_ptr<const sh::ShTables> accumulation_tables(int order, int resolution, double log_threshold) {
+  sh::TableOptions opt;
+  opt.order = order;
+  opt.resolution = resolution;
+  opt.log_threshold = log_threshold;
+  opt.measure_error = false;
+  return std::make_shared<const sh::ShTables>(opt);
+}
+
+std::shared_ptr<const shexp::LightLobeTable> LightTableCache::get(int order, double window_h, bool& cached) {
+  const auto key = std::make_pair(order, window_h);
+  {
+    std::lock_guard<std::mutex> lock(m_);
+    auto it = tables_.find(key);
+    if (it != tables_.end()) {
+      cached = true;
+      return it->second;
+    }
+  }
+  cached = false;
+  auto t = std::make_shared<const shexp::LightLobeTable>(shexp::make_light_lobe_table(order, kRowsTheta, kRowsF, window_h));
+  std::lock_guard<std::mutex> lock(m_);
+  tables_[key] = t;
+  return t;
+}
+
+void LightTableCache::run_pass(int order, double window_h, render::FrameContext& ctx, const std::string& resource) {
+  bool cached = false;
+  auto t = get(order, window_h, cached);
+  auto& rec = ctx.record();
+  rec.counters["cached"] = cached;
+  rec.counters["lights"] = static_cast<double>(ctx.posed.lights.size());
+  rec.counters["max_fit_error"] = t->max_fit_error;
+  rec.bytes = t->bytes();
+  ctx.put<std::shared_ptr<const shexp::LightLobeTable>>(resource, std::move(t));
+}
+
+}  // namespace softgi::techniques::common

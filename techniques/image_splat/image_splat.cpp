@@ -1,0 +1,817 @@
+// Image-space proxy accumulation (paper 000, Sloan et al. 2007) as a render::Technique: parameters,
+// pass graph and the CPU implementation of every pass. docs/techniques/image_splat.md describes the
+// graph and what differs from the paper.
+#include "softgi/techniques/image_splat.hpp"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
+#include <tuple>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "../common/pass_support.hpp"
+#include "image_splat_internal.hpp"
+#include "image_splat_vulkan.hpp"
+#include "image_splat_vulkan_shading.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/render/gbuffer.hpp"
+
+namespace softgi::techniques::image_splat {
+
+using render::FrameContext;
+using render::ParamDesc;
+using shexp::KernelIsa;
+
+// --- parameters ----------------------------------------------------------------------------------
+
+std::vector<ParamDesc> param_descs() {
+  std::vector<ParamDesc> d;
+  d.push_back(ParamDesc::integer("order", 4, shexp::kMinOrder, shexp::kMaxOrder, "SH order n of shadows (log occlusion, O_p, L)"));
+  d.push_back(ParamDesc::boolean("indirect", true, "accumulate indirect light re-radiated by the proxies (section 5)"));
+  d.push_back(ParamDesc::integer("indirect_order", 3, shexp::kMinOrder, shexp::kMaxOrder, "SH order of indirect accumulation (paper: 3)"));
+  d.push_back(ParamDesc::choice("indirect_operator", "averaged_poly", {"averaged_poly", "averaged", "point", "exact"},
+                                "indirect operator: averaged eq. 15 with the polynomial D (paper, order 3) or with D by "
+                                "quadrature, point-sampled eq. 13, exact eqs. 16-17"));
+  d.push_back(ParamDesc::boolean("normalize_indirect", true, "normalise the indirect sum by xi_p (eq. 12); off: the plain sum"));
+  d.push_back(ParamDesc::integer("receiver_scale", 2, 1, 8, "receiver buffer at 1/s of display resolution, s in {1, 2, 4, 8} (section 4)"));
+  d.push_back(ParamDesc::choice("coverage", "derived", {"derived", "environment", "paper", "off"},
+                                "sphere of influence (section 4.1): eta derived for the worst-case delta light, for the "
+                                "scene's environment, the paper's 15 / 10, or none"));
+  d.push_back(ParamDesc::choice("eta_light", "unit_shading", {"unit_shading", "unit_peak"},
+                                "light normalisation of the eta derivation: unshadowed shading 1 (the paper's text) or "
+                                "peak radiance 1 (reproduces the paper's 15 / 10)"));
+  d.push_back(ParamDesc::real("eta_threshold", 1.0 / 256.0, 1e-5, 0.5, "shading difference allowed outside the sphere of influence"));
+  d.push_back(ParamDesc::real("eta_shadow", 0.0, 0.0, 1000.0, "shadow expansion factor override (0 = from coverage, else > 1)"));
+  d.push_back(ParamDesc::real("eta_indirect", 0.0, 0.0, 1000.0, "indirect expansion factor override (0 = from coverage, else > 1)"));
+  d.push_back(ParamDesc::boolean("smooth_clamp", true, "re-weight the tables smoothly to 0 around 1/eta (off: hard cut at eta r)"));
+  d.push_back(ParamDesc::choice("exp", "hyb", {"hyb", "ol", "ps*", "exact"},
+                                "SH exponential of the accumulated log occlusion (paper 004 section 4; ps* = PS*-2)"));
+  d.push_back(ParamDesc::boolean("self_shadow_rules", true, "replacement rules for proxies near the receiver (paper 004 section 6.2)"));
+  d.push_back(ParamDesc::choice("replacement_rule", "continuous", {"continuous", "clamped", "printed"},
+                                "reading of the scale factor a (docs/techniques/shexp.md)"));
+  d.push_back(ParamDesc::real("window_h", -1.0, -1.0, 64.0, "cosine window size h (paper 004 section 7): -1 = 2n, 0 = no window"));
+  d.push_back(ParamDesc::integer("table_resolution", 256, 16, 4096, "samples in theta of the ZH tables"));
+  d.push_back(ParamDesc::real("log_threshold", 0.02, 0.001, 0.5, "eigenvalue clip of the SH log, times the largest (paper 004 eq. 32)"));
+  d.push_back(ParamDesc::choice("upsample", "bilateral", {"bilateral", "bilinear"}, "upsampling to display resolution (section 4.2, eq. 11)"));
+  d.push_back(ParamDesc::choice("fallback", "robust", {"robust", "shaded", "none"},
+                                "display pixels no coarse sample matches: shade from the full proxy list, interpolate "
+                                "shaded coarse results, or keep eq. 11's value"));
+  d.push_back(ParamDesc::real("bilateral_epsilon", 0.01, 1e-6, 10.0, "epsilon of the depth weight, relative to the target's depth"));
+  d.push_back(ParamDesc::integer("normal_power", 32, 0, 256, "exponent of the normal weight (paper: 32)"));
+  d.push_back(ParamDesc::real("miss_threshold", 0.05, 0.0, 1.0, "unnormalised eq. 11 weight below which a display pixel is a miss"));
+  d.push_back(ParamDesc::integer("tile_size", 16, 4, 64, "receiver tile edge in coarse pixels for binning the proxies"));
+  d.push_back(ParamDesc::boolean("analytic_lights", true, "shade the scene's spherical lights (paper 004 section 7)"));
+  d.push_back(ParamDesc::choice("kernel", "auto", {"auto", "avx512", "avx2", "scalar"}, "accumulation kernel instruction set"));
+  return d;
+}
+
+Settings read_settings(const render::ParamSet& p) {
+  Settings s;
+  s.order = p.get_int("order");
+  s.indirect = p.get_bool("indirect");
+  s.indirect_order = p.get_int("indirect_order");
+  s.op = parse_indirect_operator(p.get_enum("indirect_operator"));
+  if (s.indirect && s.op == IndirectOperator::AveragedPolynomial && s.indirect_order != 3)
+    throw std::invalid_argument("parameter 'indirect_operator': averaged_poly (the paper's polynomial D) exists at order 3 only, "
+                                "but parameter 'indirect_order' is " + std::to_string(s.indirect_order) +
+                                " (use indirect_order=3 or indirect_operator=averaged)");
+  s.normalize_indirect = p.get_bool("normalize_indirect");
+  s.receiver_scale = p.get_int("receiver_scale");
+  if (s.receiver_scale != 1 && s.receiver_scale != 2 && s.receiver_scale != 4 && s.receiver_scale != 8)
+    throw std::invalid_argument("parameter 'receiver_scale': " + std::to_string(s.receiver_scale) + " (expected 1, 2, 4 or 8)");
+  const std::string& cov = p.get_enum("coverage");
+  s.coverage = cov == "derived" ? Coverage::Derived : cov == "environment" ? Coverage::Environment : cov == "paper" ? Coverage::Paper : Coverage::Off;
+  s.eta_light = p.get_enum("eta_light") == "unit_peak" ? LightNormalisation::UnitPeakRadiance : LightNormalisation::UnitShading;
+  s.eta_threshold = p.get_float("eta_threshold");
+  s.eta_shadow = p.get_float("eta_shadow");
+  s.eta_indirect = p.get_float("eta_indirect");
+  for (const char* name : {"eta_shadow", "eta_indirect"}) {
+    const double v = p.get_float(name);
+    if (v != 0.0 && !(v > 1.0))
+      throw std::invalid_argument(std::string("parameter '") + name + "': " + p.get_text(name) +
+                                  " (expected 0 = from coverage, or > 1: the sphere of influence is eta times the proxy radius)");
+  }
+  s.smooth_clamp = p.get_bool("smooth_clamp");
+  const std::string& e = p.get_enum("exp");
+  s.exp = e == "hyb" ? ExpMode::HYB : e == "ol" ? ExpMode::OL : e == "ps*" ? ExpMode::PSStar : ExpMode::Exact;
+  s.rule = p.get_bool("self_shadow_rules") ? shexp::parse_replacement_rule(p.get_enum("replacement_rule")) : shexp::ReplacementRule::Off;
+  const double h = p.get_float("window_h");
+  s.window_h = h < 0.0 ? 2.0 * s.order : h;  // paper 004 section 7: h = 2n works well
+  if (h > 0.0 && h < 1.0)
+    throw std::invalid_argument("parameter 'window_h': " + p.get_text("window_h") + " would zero every band above 0 (expected -1, 0 or >= 1)");
+  s.table_resolution = p.get_int("table_resolution");
+  s.log_threshold = p.get_float("log_threshold");
+  s.upsample.mode = parse_upsample_mode(p.get_enum("upsample"));
+  s.fallback = parse_upsample_fallback(p.get_enum("fallback"));
+  s.upsample.epsilon_rel = p.get_float("bilateral_epsilon");
+  s.upsample.normal_power = p.get_int("normal_power");
+  s.upsample.miss_threshold = p.get_float("miss_threshold");
+  s.tile_size = p.get_int("tile_size");
+  s.lights = p.get_bool("analytic_lights");
+  const std::string& k = p.get_enum("kernel");
+  s.isa = k == "auto" ? shexp::best_kernel_isa() : k == "avx512" ? KernelIsa::Avx512 : k == "avx2" ? KernelIsa::Avx2 : KernelIsa::Scalar;
+  if (!shexp::kernel_isa_supported(s.isa))
+    throw std::invalid_argument("parameter 'kernel': this CPU cannot run '" + k + "' (it supports up to " +
+                                std::string(shexp::to_string(shexp::best_kernel_isa())) + ")");
+  return s;
+}
+
+namespace {
+
+// Inputs of the graph besides the shared ones (empty: the passes needing them are left out).
+constexpr const char* kBlockerSpheres = "blocker_spheres";
+constexpr const char* kSphericalLights = "spherical_lights";
+constexpr const char* kIndirectEnabled = "image_splat.indirect_enabled";
+// Resources written by the technique's passes.
+constexpr const char* kTables = "image_splat.tables";
+constexpr const char* kIndirectTables = "image_splat.indirect_tables";
+constexpr const char* kLightTables = "image_splat.light_tables";
+constexpr const char* kReceivers = "image_splat.receivers";
+constexpr const char* kBins = "image_splat.bins";
+constexpr const char* kLogOcclusion = "image_splat.log_occlusion";
+constexpr const char* kOcclusion = "image_splat.occlusion";
+constexpr const char* kIndirectSums = "image_splat.indirect_sums";
+constexpr const char* kIndirectNorm = "image_splat.indirect_normalized";
+constexpr const char* kUpsampled = "image_splat.upsampled";
+constexpr const char* kRobust = "image_splat.robust_misses";
+
+constexpr std::size_t kBlock = 256;  // receivers per task in per-receiver passes (a multiple of every lane count)
+
+
+
+// --- state kept across frames --------------------------------------------------------------------
+
+struct State {
+  std::mutex m;
+  std::map<std::tuple<std::string, int, double>, std::vector<glm::vec3>> env_sh;  // (env, order, window_h)
+  std::map<std::tuple<int, double, std::string, int>, EtaDerivation> etas;        // (order, threshold, env or "", 0 shadow / 1 indirect)
+  common::SharedCache<std::tuple<int, int, double, double, bool>, ShadowTables> tables;
+  std::map<std::string, std::shared_ptr<const IndirectEvaluator>> evaluators;
+  common::LightTableCache light_tables;
+};
+
+// The windowed environment SH at `order` (cached per environment).
+std::vector<glm::vec3> env_light(State& st, const scene::Scene& scene, int order, double window_h) {
+  const auto key = std::make_tuple(common::environment_signature(scene.environment), order, window_h);
+  std::lock_guard<std::mutex> lock(st.m);
+  auto it = st.env_sh.find(key);
+  if (it != st.env_sh.end()) return it->second;
+  std::vector<glm::vec3> L = common::windowed_environment_sh("image_splat", scene, order, window_h);
+  st.env_sh[key] = L;
+  return L;
+}
+
+EtaDerivation derive_eta(State& st, const scene::Scene& scene, const Settings& s, bool shadow) {
+  const int order = shadow ? s.order : s.indirect_order;
+  const bool env = s.coverage == Coverage::Environment;
+  std::vector<glm::vec3> L;
+  if (env) L = env_light(st, scene, order, 0.0);
+  const auto key = std::make_tuple(order, s.eta_threshold, env ? common::environment_signature(scene.environment) : std::string(),
+                                   (shadow ? 0 : 1) + 2 * static_cast<int>(s.eta_light));
+  {
+    std::lock_guard<std::mutex> lock(st.m);
+    auto it = st.etas.find(key);
+    if (it != st.etas.end()) return it->second;
+  }
+  EtaDerivation d = shadow ? derive_eta_shadow(order, s.eta_threshold, env ? &L : nullptr, s.eta_light)
+                           : derive_eta_indirect(order, s.eta_threshold, env ? &L : nullptr, s.eta_light);
+  std::lock_guard<std::mutex> lock(st.m);
+  st.etas[key] = d;
+  return d;
+}
+
+void check_proxies(const FrameContext& ctx) { common::check_proxy_spheres("image_splat", ctx, true); }
+
+// --- passes --------------------------------------------------------------------------------------
+
+void pass_tables(State& st, const Settings& s, FrameContext& ctx) {
+  // Section 4.1: eta for shadows and indirect light, from the coverage setting or the overrides.
+  double eta_s = 0.0, eta_i = 0.0;
+  auto& rec = ctx.record();
+  if (s.coverage == Coverage::Paper) {
+    eta_s = kPaperEtaShadow;
+    eta_i = kPaperEtaIndirect;
+  } else if (s.coverage != Coverage::Off) {
+    const EtaDerivation ds = derive_eta(st, ctx.scene, s, true);
+    eta_s = ds.eta;
+    rec.counters["theta_shadow_deg"] = ds.theta_deg;
+    rec.counters["max_difference_shadow"] = ds.max_difference;
+    if (s.indirect) {
+      const EtaDerivation di = derive_eta(st, ctx.scene, s, false);
+      eta_i = di.eta;
+      rec.counters["theta_indirect_deg"] = di.theta_deg;
+      rec.counters["max_difference_indirect"] = di.max_difference;
+    }
+  }
+  if (s.eta_shadow > 0.0) eta_s = s.eta_shadow;
+  if (s.eta_indirect > 0.0) eta_i = s.eta_indirect;
+
+  bool cached = false;
+  const std::shared_ptr<const ShadowTables> t = st.tables.get(
+      std::make_tuple(s.order, s.table_resolution, s.log_threshold, eta_s, s.smooth_clamp),
+      [&s, eta_s] {
+        auto tab = std::make_shared<ShadowTables>();
+        tab->order = s.order;
+        tab->sh = common::accumulation_tables(s.order, s.table_resolution, s.log_threshold);
+        const shexp::ZhTable log = shexp::make_zh_table(tab->sh->cap_log(), s.order, true);
+        tab->eta_shadow = eta_s;
+        if (eta_s > 0.0 && s.smooth_clamp) {
+          // Section 4.1, smooth clamping: rows near 1/eta weighted to 0, smaller angles forced to 0.
+          tab->log = clamp_zh_table(log, eta_s, kClampRampRows);
+          tab->support_alpha_shadow = clamped_support_alpha(s.table_resolution, eta_s, kClampRampRows);
+        } else {
+          tab->log = log;
+          tab->hard_cut = eta_s > 0.0;
+          tab->support_alpha_shadow = eta_s > 0.0 ? 1.0 / eta_s : 0.0;
+        }
+        return std::shared_ptr<const ShadowTables>(tab);
+      },
+      cached);
+  // eta_indirect is not part of the shadow table: a copy carries it with the indirect support.
+  auto out = std::make_shared<ShadowTables>(*t);
+  out->eta_indirect = eta_i;
+  out->support_alpha_indirect = eta_i > 0.0 ? (s.smooth_clamp ? clamped_support_alpha(s.table_resolution, eta_i, kClampRampRows) : 1.0 / eta_i) : 0.0;
+  rec.counters["order"] = s.order;
+  rec.counters["rows"] = s.table_resolution;
+  rec.counters["cached"] = cached;
+  rec.counters["eta_shadow"] = eta_s;
+  rec.counters["eta_indirect"] = eta_i;
+  rec.counters["eta_paper_shadow"] = kPaperEtaShadow;
+  rec.counters["eta_paper_indirect"] = kPaperEtaIndirect;
+  rec.counters["influence_shadow"] = out->support_alpha_shadow > 0.0 ? 1.0 / out->support_alpha_shadow : 0.0;
+  rec.counters["influence_indirect"] = out->support_alpha_indirect > 0.0 ? 1.0 / out->support_alpha_indirect : 0.0;
+  rec.bytes = out->bytes();
+  ctx.put<std::shared_ptr<const ShadowTables>>(kTables, out);
+}
+
+void pass_indirect_tables(State& st, const Settings& s, FrameContext& ctx) {
+  const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
+  IndirectSetup setup;
+  setup.order = s.indirect_order;
+  setup.op = s.op;
+  setup.eta = t.eta_indirect;
+  setup.smooth_clamp = s.smooth_clamp;
+  setup.table_resolution = s.table_resolution;
+  setup.rule = s.rule;
+  std::ostringstream key;
+  key << common::environment_signature(ctx.scene.environment) << '|' << s.indirect_order << '|' << static_cast<int>(s.op) << '|' << t.eta_indirect << '|'
+      << s.smooth_clamp << '|' << s.table_resolution << '|' << static_cast<int>(s.rule) << '|' << s.window_h << '|' << s.order;
+  std::shared_ptr<const IndirectEvaluator> ev;
+  bool cached = true;
+  {
+    std::lock_guard<std::mutex> lock(st.m);
+    auto it = st.evaluators.find(key.str());
+    if (it != st.evaluators.end()) ev = it->second;
+  }
+  if (!ev) {
+    cached = false;
+    // The proxies re-radiate the light the receivers are shaded with (windowed at the shadow order,
+    // truncated to the indirect order): L~ = L convolved with the clamped cosine (section 3).
+    const std::vector<glm::vec3> L = env_light(st, ctx.scene, std::max(s.order, s.indirect_order), s.window_h);
+    ev = std::make_shared<const IndirectEvaluator>(setup, irradiance_sh(L, s.indirect_order));
+    std::lock_guard<std::mutex> lock(st.m);
+    st.evaluators[key.str()] = ev;
+  }
+  auto& rec = ctx.record();
+  rec.counters["order"] = s.indirect_order;
+  rec.counters["cached"] = cached;
+  rec.counters["eta_indirect"] = t.eta_indirect;
+  rec.bytes = ev->bytes();
+  ctx.put<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables, ev);
+}
+
+void pass_light_tables(State& st, const Settings& s, FrameContext& ctx) { st.light_tables.run_pass(s.order, s.window_h, ctx, kLightTables); }
+
+void pass_receivers(const Settings& s, FrameContext& ctx) {
+  const auto& coarse = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
+  auto r = std::make_shared<ReceiverBuffer>(make_receivers(coarse, s.tile_size));
+  std::size_t mx = 0;
+  for (const auto& t : r->tiles) mx = std::max(mx, t.end - t.begin);
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(r->soa.size());
+  rec.counters["coarse_pixels"] = static_cast<double>(r->receiver.size());
+  rec.counters["tiles"] = static_cast<double>(r->tiles.size());
+  rec.counters["receivers_per_tile_max"] = static_cast<double>(mx);
+  rec.bytes = r->bytes();
+  ctx.put<std::shared_ptr<const ReceiverBuffer>>(kReceivers, r);
+}
+
+void pass_bin(const Settings& s, FrameContext& ctx) {
+  check_proxies(ctx);
+  const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
+  const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
+  shexp::BlockerList all;
+  ProxyList all_ind;
+  const bool ind = ctx.has(kIndirectTables);
+  flat_proxies(ctx.scene, ctx.posed, s.order, &all, ind ? &all_ind : nullptr);
+  auto bins = std::make_shared<ProxyBins>(bin_proxies(r, all, t.support_alpha_shadow, ind ? &all_ind : nullptr, t.support_alpha_indirect));
+  std::size_t mxs = 0, mxi = 0;
+  double rs = 0.0, ri = 0.0;
+  for (std::size_t k = 0; k < r.tiles.size(); ++k) {
+    const double nrec = static_cast<double>(r.tiles[k].end - r.tiles[k].begin);
+    mxs = std::max(mxs, bins->shadow[k].size());
+    rs += nrec * static_cast<double>(bins->shadow[k].size());
+    if (ind) {
+      mxi = std::max(mxi, bins->indirect[k].size());
+      ri += nrec * static_cast<double>(bins->indirect[k].size());
+    }
+  }
+  const double nt = std::max<double>(1.0, static_cast<double>(r.tiles.size()));
+  auto& rec = ctx.record();
+  rec.counters["proxies"] = static_cast<double>(all.size());
+  rec.counters["tiles"] = static_cast<double>(r.tiles.size());
+  rec.counters["pairs_tested"] = bins->pairs_tested;
+  rec.counters["shadow_tile_pairs"] = bins->shadow_tile_pairs;
+  rec.counters["shadow_proxies_per_tile_mean"] = bins->shadow_tile_pairs / nt;
+  rec.counters["shadow_proxies_per_tile_max"] = static_cast<double>(mxs);
+  rec.counters["shadow_receiver_pairs"] = rs;
+  rec.counters["indirect_tile_pairs"] = bins->indirect_tile_pairs;
+  rec.counters["indirect_proxies_per_tile_mean"] = bins->indirect_tile_pairs / nt;
+  rec.counters["indirect_proxies_per_tile_max"] = static_cast<double>(mxi);
+  rec.counters["indirect_receiver_pairs"] = ri;
+  // Receiver-proxy pairs without binning, for the saving binning (splatting) buys.
+  rec.counters["all_receiver_pairs"] = static_cast<double>(r.soa.size()) * static_cast<double>(all.size());
+  rec.bytes = bins->bytes();
+  ctx.put<std::shared_ptr<const ProxyBins>>(kBins, bins);
+}
+
+void pass_accumulate_log(const Settings& s, FrameContext& ctx) {
+  const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
+  const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
+  const auto& bins = *ctx.get<std::shared_ptr<const ProxyBins>>(kBins);
+  auto f = std::make_shared<Field>();
+  f->channels = s.order * s.order;
+  f->v.assign(r.soa.size() * f->channels, 0.0f);
+  const auto t0 = std::chrono::steady_clock::now();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.tiles.size(), 1), [&](const tbb::blocked_range<std::size_t>& tr) {
+    for (std::size_t k = tr.begin(); k != tr.end(); ++k)
+      accumulate_log_range(t, s.rule, s.isa, r.soa, r.tiles[k].begin, r.tiles[k].end, bins.shadow[k], f->v.data());
+  });
+  const double secs = common::seconds_since(t0);
+  double pairs = 0.0;
+  for (std::size_t k = 0; k < r.tiles.size(); ++k)
+    pairs += static_cast<double>(r.tiles[k].end - r.tiles[k].begin) * static_cast<double>(bins.shadow[k].size());
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(r.soa.size());
+  rec.counters["pairs"] = pairs;
+  rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
+  rec.counters["kernel_lanes"] = shexp::kernel_lanes(s.isa);
+  rec.counters["hard_cut"] = t.hard_cut;
+  rec.bytes = f->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(kLogOcclusion, f);
+}
+
+void pass_exponentiate(const Settings& s, FrameContext& ctx) {
+  const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
+  const auto& f = *ctx.get<std::shared_ptr<const Field>>(kLogOcclusion);
+  auto g = std::make_shared<Field>();
+  g->channels = f.channels;
+  g->v.assign(f.v.size(), 0.0f);
+  const std::size_t n2 = static_cast<std::size_t>(f.channels), count = n2 ? f.v.size() / n2 : 0;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+    try {
+      exponentiate(t, s.exp, 2, s.isa, f.v.data() + br.begin() * n2, g->v.data() + br.begin() * n2, br.size(), br.begin());
+    } catch (const std::exception& e) {
+      throw std::runtime_error(std::string("image_splat exponentiate (receivers ") + std::to_string(br.begin()) + ".." +
+                               std::to_string(br.end() - 1) + "): " + e.what());
+    }
+  });
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(count);
+  rec.bytes = g->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(kOcclusion, g);
+}
+
+void pass_accumulate_indirect(FrameContext& ctx) {
+  const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
+  const auto& bins = *ctx.get<std::shared_ptr<const ProxyBins>>(kBins);
+  const auto& ev = *ctx.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
+  auto sums = std::make_shared<IndirectSums>();
+  sums->rgb.assign(r.soa.size() * 3, 0.0f);
+  sums->omega.assign(r.soa.size(), 0.0f);
+  std::atomic<long long> inside{0};
+  const auto t0 = std::chrono::steady_clock::now();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.tiles.size(), 1), [&](const tbb::blocked_range<std::size_t>& tr) {
+    long long n = 0;
+    for (std::size_t k = tr.begin(); k != tr.end(); ++k)
+      n += ev.accumulate(r.soa, r.tiles[k].begin, r.tiles[k].end, bins.indirect[k], sums->rgb.data(), sums->omega.data());
+    inside += n;
+  });
+  const double secs = common::seconds_since(t0);
+  double pairs = 0.0;
+  for (std::size_t k = 0; k < r.tiles.size(); ++k)
+    pairs += static_cast<double>(r.tiles[k].end - r.tiles[k].begin) * static_cast<double>(bins.indirect[k].size());
+  sums->pairs = pairs;
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(r.soa.size());
+  rec.counters["pairs"] = pairs;
+  rec.counters["pairs_inside_influence"] = static_cast<double>(inside.load());
+  rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
+  rec.bytes = (sums->rgb.size() + sums->omega.size()) * sizeof(float);
+  ctx.put<std::shared_ptr<const IndirectSums>>(kIndirectSums, sums);
+}
+
+// Eq. 12 over n receivers: out = xi rgb, with O_p from `occ` (n^2 per receiver) when present.
+struct XiStats {
+  double sum = 0.0, raw_min = std::numeric_limits<double>::infinity(), raw_max = -std::numeric_limits<double>::infinity();
+  long long outside = 0;  // raw xi outside [0, 1] by more than kXiReportTolerance
+};
+// Raw xi beyond [0, 1] by less than this is float noise of O_p,0 (a single proxy gives union = sum
+// exactly); beyond it, the SH exponential's error or the different shadow and indirect clamps.
+constexpr double kXiReportTolerance = 1e-2;
+
+void normalise(const Settings& s, const float* rgb, const float* omega, const float* occ, int n2, std::size_t count, float* out,
+               XiStats* stats) {
+  for (std::size_t i = 0; i < count; ++i) {
+    float xi = 1.0f;
+    if (s.normalize_indirect && occ) {
+      xi = indirect_normalisation(occ[i * n2], omega[i]);
+      if (stats && omega[i] > 1e-7f) {
+        const double s4pi = sh::kSqrt4Pi, raw = (s4pi - occ[i * n2]) / (omega[i] / s4pi);
+        stats->raw_min = std::min(stats->raw_min, raw);
+        stats->raw_max = std::max(stats->raw_max, raw);
+        stats->outside += raw < -kXiReportTolerance || raw > 1.0 + kXiReportTolerance;
+      }
+    }
+    if (stats) stats->sum += xi;
+    for (int c = 0; c < 3; ++c) out[3 * i + c] = xi * rgb[3 * i + c];
+  }
+}
+
+void pass_normalize_indirect(const Settings& s, FrameContext& ctx) {
+  const auto& sums = *ctx.get<std::shared_ptr<const IndirectSums>>(kIndirectSums);
+  std::shared_ptr<const Field> occ;
+  if (ctx.has(kOcclusion)) occ = ctx.get<std::shared_ptr<const Field>>(kOcclusion);
+  auto out = std::make_shared<Field>();
+  out->channels = 3;
+  out->v.assign(sums.rgb.size(), 0.0f);
+  XiStats xs;
+  normalise(s, sums.rgb.data(), sums.omega.data(), occ ? occ->v.data() : nullptr, occ ? occ->channels : 0, sums.omega.size(),
+            out->v.data(), &xs);
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(sums.omega.size());
+  rec.counters["normalized"] = s.normalize_indirect && occ;
+  rec.counters["xi_mean"] = sums.omega.empty() ? 1.0 : xs.sum / static_cast<double>(sums.omega.size());
+  rec.counters["xi_raw_min"] = std::isfinite(xs.raw_min) ? xs.raw_min : 1.0;
+  rec.counters["xi_raw_max"] = std::isfinite(xs.raw_max) ? xs.raw_max : 1.0;
+  rec.counters["xi_clamped"] = static_cast<double>(xs.outside);
+  rec.bytes = out->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(kIndirectNorm, out);
+}
+
+PlaneView plane(const render::GBuffer& gb) {
+  PlaneView v;
+  v.width = gb.width;
+  v.height = gb.height;
+  v.scale = gb.scale;
+  v.depth = gb.depth.data();
+  v.normal = gb.normal.data();
+  return v;
+}
+
+// A receiver-order field scattered to coarse-pixel order (background pixels 0), for upsampling.
+std::vector<float> to_pixels(const ReceiverBuffer& r, const float* v, int channels) {
+  std::vector<float> out(r.receiver.size() * channels, 0.0f);
+  for (std::size_t i = 0; i < r.pixel.size(); ++i)
+    std::copy(v + i * channels, v + (i + 1) * channels, out.begin() + static_cast<std::size_t>(r.pixel[i]) * channels);
+  return out;
+}
+
+// The kernels (k): upsample.cpp's on the CPU, compute shaders on Vulkan (image_splat_vulkan.cpp).
+void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& k) {
+  const auto& fine = ctx.get<render::GBuffer>(render::kGBuffer);
+  const auto& coarse = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
+  const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
+  auto up = std::make_shared<Upsampled>();
+  up->order = s.order;
+  // Section 4.2: one set of eq. 11 weights serves O_p (n^2 channels) and the indirect shading (3).
+  up->w = k.weights(plane(coarse), plane(fine), s.upsample);
+  const std::size_t np = fine.object.size();
+  for (std::size_t i = 0; i < np; ++i)
+    if (fine.hit(i)) up->surface.push_back(static_cast<std::int32_t>(i));
+  if (ctx.has(kOcclusion)) {
+    // Interpolated per block in shade_direct (see Upsampled).
+    const auto& occ = *ctx.get<std::shared_ptr<const Field>>(kOcclusion);
+    up->coarse_visibility = to_pixels(r, occ.v.data(), occ.channels);
+  }
+  if (ctx.has(kIndirectNorm)) {
+    const auto& ind = *ctx.get<std::shared_ptr<const Field>>(kIndirectNorm);
+    const std::vector<float> in = to_pixels(r, ind.v.data(), 3);
+    up->indirect.assign(np * 3, 0.0f);
+    k.apply(up->w, in.data(), 3, up->indirect.data());
+  }
+  auto& rec = ctx.record();
+  std::size_t hits = 0;
+  for (std::size_t i = 0; i < np; ++i) hits += fine.hit(i);
+  rec.counters["pixels"] = static_cast<double>(np);
+  rec.counters["surface_pixels"] = static_cast<double>(hits);
+  rec.counters["misses"] = static_cast<double>(up->w.misses);
+  rec.counters["miss_fraction"] = hits ? static_cast<double>(up->w.misses) / static_cast<double>(hits) : 0.0;
+  rec.bytes = up->bytes();
+  ctx.put<std::shared_ptr<const Upsampled>>(kUpsampled, up);
+}
+
+// Section 4.2's robust fallback: the misses accumulated from the entire proxy list, with the same
+// clamped tables and kernels as the receiver buffer.
+void pass_robust(const Settings& s, FrameContext& ctx) {
+  check_proxies(ctx);
+  const auto& fine = ctx.get<render::GBuffer>(render::kGBuffer);
+  const auto& up = *ctx.get<std::shared_ptr<const Upsampled>>(kUpsampled);
+  const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
+  std::shared_ptr<const IndirectEvaluator> ev;
+  if (ctx.has(kIndirectTables)) ev = ctx.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
+  auto rm = std::make_shared<RobustMisses>();
+  for (std::size_t i = 0; i < up.w.miss.size(); ++i)
+    if (up.w.miss[i] && fine.hit(i)) rm->pixel.push_back(static_cast<std::int32_t>(i));
+  const std::size_t nm = rm->pixel.size();
+  rm->soa.resize(nm);
+  for (std::size_t k = 0; k < nm; ++k) rm->soa.set(k, fine.position[rm->pixel[k]], fine.normal[rm->pixel[k]]);
+  shexp::BlockerList all;
+  ProxyList all_ind;
+  flat_proxies(ctx.scene, ctx.posed, s.order, &all, ev ? &all_ind : nullptr);
+  const int n2 = s.order * s.order;
+  std::vector<float> log(nm * n2, 0.0f), rgb(ev ? nm * 3 : 0, 0.0f), omega(ev ? nm : 0, 0.0f);
+  rm->visibility.assign(nm * n2, 0.0f);
+  if (ev) rm->indirect.assign(nm * 3, 0.0f);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nm, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+    accumulate_log_range(t, s.rule, s.isa, rm->soa, br.begin(), br.end(), all, log.data());
+    exponentiate(t, s.exp, 2, s.isa, log.data() + br.begin() * n2, rm->visibility.data() + br.begin() * n2, br.size(), br.begin());
+    if (ev) {
+      ev->accumulate(rm->soa, br.begin(), br.end(), all_ind, rgb.data(), omega.data());
+      normalise(s, rgb.data() + br.begin() * 3, omega.data() + br.begin(), rm->visibility.data() + br.begin() * n2, n2, br.size(),
+                rm->indirect.data() + br.begin() * 3, nullptr);
+    }
+  });
+  auto& rec = ctx.record();
+  rec.counters["misses"] = static_cast<double>(nm);
+  rec.counters["proxies"] = static_cast<double>(all.size());
+  rec.counters["pairs"] = static_cast<double>(nm) * static_cast<double>(all.size());
+  rec.bytes = (rm->visibility.size() + rm->indirect.size()) * sizeof(float) + nm * 7 * sizeof(float);
+  ctx.put<std::shared_ptr<const RobustMisses>>(kRobust, rm);
+}
+
+// The background of the direct image: the SH light the technique shades with, seen along the ray
+// (the vertex_image.hpp convention); the indirect image's background is black.
+glm::vec3 background(const DirectShader& d, const glm::vec3& dir) {
+  std::array<float, sh::kMaxCoeffs> y{};
+  sh::eval_basis(d.order, sh::Vec3<float>{dir.x, dir.y, dir.z}, y.data());
+  const int n2 = d.order * d.order;
+  glm::vec3 v(0.0f);
+  for (int i = 0; i < n2; ++i) v += y[i] * glm::vec3(d.L[i], d.L[static_cast<std::size_t>(n2) + i], d.L[2 * static_cast<std::size_t>(n2) + i]);
+  return glm::max(v, glm::vec3(0.0f));
+}
+
+void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx) {
+  const auto& fine = ctx.get<render::GBuffer>(render::kGBuffer);
+  const auto& up = *ctx.get<std::shared_ptr<const Upsampled>>(kUpsampled);
+  std::shared_ptr<const shexp::LightLobeTable> lt;
+  if (ctx.has(kLightTables)) lt = ctx.get<std::shared_ptr<const shexp::LightLobeTable>>(kLightTables);
+  std::shared_ptr<const RobustMisses> rm;
+  if (ctx.has(kRobust)) rm = ctx.get<std::shared_ptr<const RobustMisses>>(kRobust);
+  const bool shadowed = !up.coarse_visibility.empty();
+  const int n = s.order;
+  const std::size_t n2 = static_cast<std::size_t>(n) * n;
+  const DirectShader shader = make_direct_shader(env_light(st, ctx.scene, n, s.window_h), n, s.window_h, lt, ctx.posed.lights, s.isa);
+
+  // Surface pixels in blocks: O_p interpolated with the eq. 11 weights into a block-local buffer
+  // (section 4.2), then shaded; the robust misses are shaded apart below.
+  const std::size_t np = fine.object.size();
+  const std::size_t surface = up.surface.size();
+  std::vector<glm::vec3> e(np);
+  std::atomic<long long> clamped{0};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+    shexp::ReceiverSoA soa;
+    soa.resize(br.size());
+    std::vector<float> g(shadowed ? br.size() * n2 : 0, 0.0f);
+    std::vector<glm::vec3> out(br.size());
+    for (std::size_t k = br.begin(); k != br.end(); ++k) {
+      const std::size_t p = static_cast<std::size_t>(up.surface[k]), j = k - br.begin();
+      soa.set(j, fine.position[p], fine.normal[p]);
+      if (!shadowed) continue;
+      float* gj = g.data() + j * n2;
+      const auto& idx = up.w.index[p];
+      const auto& wt = up.w.weight[p];
+      if (idx[0] < 0) {  // no coarse sample at all: unshadowed unless a fallback shades the pixel
+        gj[0] = static_cast<float>(sh::kSqrt4Pi);
+        continue;
+      }
+      for (int t = 0; t < 4 && idx[t] >= 0; ++t) {
+        const float* src = up.coarse_visibility.data() + static_cast<std::size_t>(idx[t]) * n2;
+        for (std::size_t c = 0; c < n2; ++c) gj[c] += wt[t] * src[c];
+      }
+    }
+    clamped += shader.shade(soa, 0, br.size(), shadowed ? g.data() : nullptr, out.data());
+    for (std::size_t k = br.begin(); k != br.end(); ++k) e[static_cast<std::size_t>(up.surface[k])] = out[k - br.begin()];
+  });
+  if (rm && !rm->pixel.empty()) {
+    std::vector<glm::vec3> em(rm->pixel.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rm->pixel.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+      clamped += shader.shade(rm->soa, br.begin(), br.end(), shadowed ? rm->visibility.data() : nullptr, em.data() + br.begin());
+    });
+    for (std::size_t k = 0; k < rm->pixel.size(); ++k) e[rm->pixel[k]] = em[k];
+  }
+  Image img(fine.width, fine.height);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
+    for (std::size_t i = br.begin(); i != br.end(); ++i) img.rgb[i] = fine.hit(i) ? e[i] : background(shader, fine.view_dir[i]);
+  });
+
+  // Section 4.2's cheap fallback: misses take the bilinear interpolation of the shaded coarse receivers.
+  std::size_t interpolated = 0;
+  if (s.fallback == UpsampleFallback::Shaded && shadowed && ctx.has(kOcclusion) && up.w.misses > 0) {
+    const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
+    const auto& occ = *ctx.get<std::shared_ptr<const Field>>(kOcclusion);
+    const auto& coarse = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
+    std::vector<glm::vec3> ce(r.soa.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+      shader.shade(r.soa, br.begin(), br.end(), occ.v.data(), ce.data() + br.begin());
+    });
+    const std::vector<float> in = to_pixels(r, reinterpret_cast<const float*>(ce.data()), 3);
+    std::vector<float> outv(fine.object.size() * 3);
+    for (std::size_t i = 0; i < fine.object.size(); ++i)
+      for (int c = 0; c < 3; ++c) outv[3 * i + c] = img.rgb[i][c];
+    upsample_apply_bilinear(up.w, plane(coarse), plane(fine), in.data(), 3, outv.data(), &up.w.miss);
+    for (std::size_t i = 0; i < fine.object.size(); ++i)
+      if (up.w.miss[i] && fine.hit(i)) {
+        img.rgb[i] = glm::max(glm::vec3(outv[3 * i], outv[3 * i + 1], outv[3 * i + 2]), glm::vec3(0.0f));
+        ++interpolated;
+      }
+  }
+  // Eq. 10 times the receiver's albedo: outgoing radiance.
+  for (std::size_t i = 0; i < fine.object.size(); ++i)
+    if (fine.hit(i)) img.rgb[i] *= fine.albedo[i];
+  auto& rec = ctx.record();
+  rec.counters["pixels"] = static_cast<double>(img.rgb.size());
+  rec.counters["surface_pixels"] = static_cast<double>(surface);
+  rec.counters["shadowed"] = shadowed;
+  rec.counters["lights"] = lt ? static_cast<double>(ctx.posed.lights.size()) : 0.0;
+  rec.counters["robust_pixels"] = rm ? static_cast<double>(rm->pixel.size()) : 0.0;
+  rec.counters["interpolated_pixels"] = static_cast<double>(interpolated);
+  rec.counters["pixels_clamped"] = static_cast<double>(clamped.load());
+  rec.bytes = img.rgb.size() * sizeof(glm::vec3) + np * 6 * sizeof(float);
+  ctx.put<Image>(render::kDirect, std::move(img));
+}
+
+void pass_shade_indirect(const Settings& s, FrameContext& ctx) {
+  const auto& fine = ctx.get<render::GBuffer>(render::kGBuffer);
+  const auto& up = *ctx.get<std::shared_ptr<const Upsampled>>(kUpsampled);
+  std::shared_ptr<const RobustMisses> rm;
+  if (ctx.has(kRobust)) rm = ctx.get<std::shared_ptr<const RobustMisses>>(kRobust);
+  const std::size_t np = fine.object.size();
+  std::vector<float> v = up.indirect;
+  if (v.size() != np * 3) v.assign(np * 3, 0.0f);
+  std::size_t robust = 0, interpolated = 0;
+  if (rm && !rm->indirect.empty()) {
+    for (std::size_t k = 0; k < rm->pixel.size(); ++k)
+      for (int c = 0; c < 3; ++c) v[static_cast<std::size_t>(rm->pixel[k]) * 3 + c] = rm->indirect[3 * k + c];
+    robust = rm->pixel.size();
+  } else if (s.fallback == UpsampleFallback::Shaded && up.w.misses > 0) {
+    // The indirect field is shaded already (I_p . H(N_p) per receiver): bilinear over the coarse receivers.
+    const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
+    const auto& ind = *ctx.get<std::shared_ptr<const Field>>(kIndirectNorm);
+    const auto& coarse = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
+    const std::vector<float> in = to_pixels(r, ind.v.data(), 3);
+    upsample_apply_bilinear(up.w, plane(coarse), plane(fine), in.data(), 3, v.data(), &up.w.miss);
+    for (std::size_t i = 0; i < np; ++i) interpolated += up.w.miss[i] && fine.hit(i);
+  }
+  Image img(fine.width, fine.height);
+  long long negative = 0;
+  for (std::size_t i = 0; i < np; ++i) {
+    if (!fine.hit(i)) continue;
+    const glm::vec3 e(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+    negative += e.x < 0.0f || e.y < 0.0f || e.z < 0.0f;
+    // Eq. 10's second term, I_p . H(N_p), times the receiver's albedo; SH ringing clamped at 0.
+    img.rgb[i] = glm::max(e, glm::vec3(0.0f)) * fine.albedo[i];
+  }
+  auto& rec = ctx.record();
+  rec.counters["pixels"] = static_cast<double>(np);
+  rec.counters["robust_pixels"] = static_cast<double>(robust);
+  rec.counters["interpolated_pixels"] = static_cast<double>(interpolated);
+  rec.counters["pixels_clamped"] = static_cast<double>(negative);
+  rec.bytes = img.rgb.size() * sizeof(glm::vec3);
+  ctx.put<Image>(render::kIndirect, std::move(img));
+}
+
+// --- the technique -------------------------------------------------------------------------------
+
+class ImageSplat final : public render::Technique {
+ public:
+  std::string name() const override { return "image_splat"; }
+  std::string description() const override {
+    return "image-space proxy accumulation (paper 000, Sloan et al. 2007): sphere proxies splatted to a low-resolution "
+           "receiver buffer for SH soft shadows (log accumulation + exponential) and normalised indirect light, "
+           "bilateral upsampling to display resolution";
+  }
+  std::vector<ParamDesc> params() const override { return param_descs(); }
+
+  render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
+    const Settings s = read_settings(params);
+    render::add_scene_facts(scene, empty);
+    bool spheres = false;
+    for (const auto& p : scene.proxies) spheres = spheres || !p.spheres.empty();
+    if (!spheres) empty.insert(kBlockerSpheres);
+    if (scene.lights.empty() || !s.lights) empty.insert(kSphericalLights);
+    if (!s.indirect) empty.insert(kIndirectEnabled);
+
+    auto st = state_;
+    // Host passes: the same CPU function on both backends.
+    auto cpu = [](render::PassFn fn) { return std::map<std::string, render::PassFn>{{"cpu", fn}, {"vulkan", fn}}; };
+    // GPU passes: the CPU implementation and the Vulkan one (image_splat_vulkan.cpp).
+    auto both = [](render::PassFn on_cpu, render::PassFn on_vulkan) {
+      return std::map<std::string, render::PassFn>{{"cpu", std::move(on_cpu)}, {"vulkan", std::move(on_vulkan)}};
+    };
+    // accumulate_log: the per-pair cut cases (hard cut, printed rule; see accumulate_log_range) are
+    // not in SHEXP's shader and run the CPU pass on Vulkan too.
+    auto vk_accumulate = [s](FrameContext& c) {
+      const auto& t = *c.get<std::shared_ptr<const ShadowTables>>(kTables);
+      if (!vulkan_accumulate_supported(t, s.rule)) return pass_accumulate_log(s, c);
+      c.put<std::shared_ptr<const Field>>(kLogOcclusion, vulkan_accumulate_log(c, s, t, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
+                                                                              *c.get<std::shared_ptr<const ProxyBins>>(kBins)));
+    };
+    // exponentiate: HYB and OL on the GPU, PS* and exact on the host.
+    auto vk_exponentiate = [s](FrameContext& c) {
+      if (!vulkan_exp_supports(s.exp)) return pass_exponentiate(s, c);
+      c.put<std::shared_ptr<const Field>>(kOcclusion, vulkan_exponentiate(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables),
+                                                                          *c.get<std::shared_ptr<const Field>>(kLogOcclusion)));
+    };
+    // accumulate_indirect: point, averaged_poly and averaged on the GPU; exact on the host.
+    auto vk_accumulate_indirect = [](FrameContext& c) {
+      const auto& ev = *c.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
+      if (!vulkan_indirect_supported(ev.setup().op)) return pass_accumulate_indirect(c);
+      c.put<std::shared_ptr<const IndirectSums>>(kIndirectSums,
+                                                 vulkan_accumulate_indirect(c, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
+                                                                            *c.get<std::shared_ptr<const ProxyBins>>(kBins), ev));
+    };
+    render::PassGraph g;
+    g.add_input(render::kScene);
+    g.add_input(render::kMovingObjects);
+    g.add_input(render::kReradiatingProxies);
+    g.add_input(kBlockerSpheres);
+    g.add_input(kSphericalLights);
+    g.add_input(kIndirectEnabled);
+    render::add_gbuffer_pass(g);
+    render::add_receiver_gbuffer_pass(g);
+    g.add({"tables", {render::kScene, kBlockerSpheres}, {}, {kTables},
+           "eta (section 4.1) and the log occlusion ZH table at the shadow order, smoothly clamped at 1/eta",
+           cpu([st, s](FrameContext& c) { pass_tables(*st, s, c); })});
+    g.add({"indirect_tables", {kTables, render::kReradiatingProxies, kIndirectEnabled}, {}, {kIndirectTables},
+           "indirect operator tables (V, D or M, clamped at 1/eta_indirect) and L~ (section 5)",
+           cpu([st, s](FrameContext& c) { pass_indirect_tables(*st, s, c); })});
+    g.add({"light_tables", {kSphericalLights}, {}, {kLightTables}, "L_H(theta, f) single-lobe ZH table (paper 004 section 7)",
+           cpu([st, s](FrameContext& c) { pass_light_tables(*st, s, c); })});
+    g.add({"receivers", {render::kReceiverGBuffer}, {}, {kReceivers}, "receiver-buffer hits ordered by screen tile, per-tile AABB",
+           cpu([s](FrameContext& c) { pass_receivers(s, c); })});
+    g.add({"bin_proxies", {kReceivers, kTables, kBlockerSpheres}, {kIndirectTables}, {kBins},
+           "per tile, the proxies whose sphere of influence reaches it (coverage oracle, section 4.1)",
+           cpu([s](FrameContext& c) { pass_bin(s, c); })});
+    g.add({"accumulate_log", {kReceivers, kTables, kBins}, {}, {kLogOcclusion},
+           "sum of proxy log occlusion vectors per receiver (eq. 4; SHEXP kernel and replacement rules)",
+           both([s](FrameContext& c) { pass_accumulate_log(s, c); }, vk_accumulate)});
+    g.add({"exponentiate", {kTables, kLogOcclusion}, {}, {kOcclusion}, "O_p = exp of the accumulated log occlusion (eq. 4, HYB)",
+           both([s](FrameContext& c) { pass_exponentiate(s, c); }, vk_exponentiate)});
+    g.add({"accumulate_indirect", {kReceivers, kBins, kIndirectTables}, {}, {kIndirectSums},
+           "sum of I_i . H(N_p) and omega_i per receiver (section 5, eqs. 13-17)",
+           both([](FrameContext& c) { pass_accumulate_indirect(c); }, vk_accumulate_indirect)});
+    g.add({"normalize_indirect", {kIndirectSums}, {kOcclusion}, {kIndirectNorm}, "xi_p = (1 - O_p)_0 / (omega_p / sqrt(4 pi)) (eq. 12)",
+           cpu([s](FrameContext& c) { pass_normalize_indirect(s, c); })});
+    g.add({"upsample", {render::kGBuffer, render::kReceiverGBuffer, kReceivers}, {kOcclusion, kIndirectNorm}, {kUpsampled},
+           s.upsample.mode == UpsampleMode::Bilateral ? "bilateral upsampling of O_p and the indirect shading (section 4.2, eq. 11)"
+                                                      : "bilinear upsampling of O_p and the indirect shading (Figure 7)",
+           both([s](FrameContext& c) { pass_upsample(s, c, cpu_upsample_kernels()); },
+                [s](FrameContext& c) { pass_upsample(s, c, vulkan_upsample_kernels(c)); })});
+    if (s.fallback == UpsampleFallback::Robust)
+      g.add({"robust_misses", {render::kGBuffer, kUpsampled, kTables}, {kIndirectTables}, {kRobust},
+             "display pixels no coarse sample matches, accumulated from the full proxy list (section 4.2)",
+             cpu([s](FrameContext& c) { pass_robust(s, c); })});
+    std::vector<std::string> opt_direct = {kLightTables, kReceivers, kOcclusion};
+    std::vector<std::string> opt_indirect = {kReceivers};
+    if (s.fallback == UpsampleFallback::Robust) {
+      opt_direct.push_back(kRobust);
+      opt_indirect.push_back(kRobust);
+    }
+    g.add({"shade_direct", {render::kGBuffer, render::kReceiverGBuffer, kUpsampled}, opt_direct, {render::kDirect},
+           "psi_p's first term O_p . L~(N_p) (eq. 10) and spherical lights, times the albedo",
+           cpu([st, s](FrameContext& c) { pass_shade_direct(*st, s, c); })});
+    g.add({"shade_indirect", {render::kGBuffer, render::kReceiverGBuffer, kUpsampled, kIndirectNorm}, opt_indirect, {render::kIndirect},
+           "psi_p's second term I_p . H(N_p) (eq. 10), times the albedo", cpu([s](FrameContext& c) { pass_shade_indirect(s, c); })});
+    render::add_compose_pass(g);
+    return g;
+  }
+
+ private:
+  std::shared_ptr<State> state_ = std::make_shared<State>();
+};
+
+}  // namespace
+
+std::unique_ptr<render::Technique> create() { return std::make_unique<ImageSplat>(); }
+
+}  // namespace softgi::techniques::image_splat

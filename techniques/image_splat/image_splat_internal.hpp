@@ -1,0 +1,190 @@
+// Image-space proxy accumulation (paper 000, Sloan et al. 2007): the frame resources of the
+// technique's passes and the CPU pieces they are made of, exposed to tests/image_splat and to later
+// backends (a Vulkan implementation of these passes fills the same structures). Not installed;
+// include by path.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "../shexp/shexp_internal.hpp"
+#include "softgi/render/gbuffer.hpp"
+#include "softgi/render/params.hpp"
+#include "softgi/scene/scene.hpp"
+#include "softgi/sh/tables.hpp"
+#include "splat_math.hpp"
+#include "upsample.hpp"
+
+namespace softgi::techniques::image_splat {
+
+// The paper's expansion factors (section 4.1): eta = 15 for order-4 shadows, 10 for order-3 indirect.
+inline constexpr double kPaperEtaShadow = 15.0;
+inline constexpr double kPaperEtaIndirect = 10.0;
+// Rows of the smooth clamp ramp (section 4.1: "the 4 table entries around 1/eta").
+inline constexpr int kClampRampRows = 4;
+
+enum class Coverage { Derived, Environment, Paper, Off };
+const char* to_string(Coverage c);
+enum class ExpMode { HYB, OL, PSStar, PS, Exact };
+
+// The technique's parameters, read and cross-checked once per frame (read_settings throws
+// std::invalid_argument naming the parameters).
+struct Settings {
+  int order = 4;                // shadow SH order n
+  bool indirect = true;
+  int indirect_order = 3;
+  IndirectOperator op = IndirectOperator::AveragedPolynomial;
+  bool normalize_indirect = true;  // eq. 12 (off: the plain sum, for the overlap test)
+  int receiver_scale = 2;
+  Coverage coverage = Coverage::Derived;
+  LightNormalisation eta_light = LightNormalisation::UnitShading;  // of the eta derivation
+  double eta_threshold = 1.0 / 256.0;
+  double eta_shadow = 0.0, eta_indirect = 0.0;  // overrides (0 = from coverage)
+  bool smooth_clamp = true;
+  ExpMode exp = ExpMode::HYB;
+  int ps_degree = 2;
+  shexp::ReplacementRule rule = shexp::ReplacementRule::Continuous;
+  double window_h = 0.0;        // resolved (-1 -> 2n); 0 = off
+  int table_resolution = 256;
+  double log_threshold = 0.02;
+  UpsampleOptions upsample;
+  UpsampleFallback fallback = UpsampleFallback::Robust;
+  int tile_size = 16;
+  bool lights = true;
+  shexp::KernelIsa isa = shexp::KernelIsa::Scalar;
+};
+std::vector<render::ParamDesc> param_descs();
+Settings read_settings(const render::ParamSet& p);
+
+// --- tables (section 4.1) ------------------------------------------------------------------------
+struct ShadowTables {
+  int order = 0;
+  std::shared_ptr<const sh::ShTables> sh;  // cap log / visibility and OL tables at the shadow order
+  shexp::ZhTable log;                      // log occlusion ZH, smoothly clamped at eta_shadow (or hard: see below)
+  bool hard_cut = false;                   // smooth_clamp = false: log unclamped, pairs cut at eta r exactly
+  double eta_shadow = 0.0;                 // 0 = no sphere of influence
+  double eta_indirect = 0.0;
+  // Where the tables are exactly zero: a pair with r / d <= support_alpha_* contributes exactly 0
+  // (the clamped rows and the linear interpolation between them). 0 = no support bound.
+  double support_alpha_shadow = 0.0, support_alpha_indirect = 0.0;
+  std::size_t bytes() const;
+};
+// The sine of the largest theta below which a theta-sampled table with these rows, clamped by
+// clamp_zh_table(eta, ramp_rows), reads exactly 0 under linear interpolation (0 when eta <= 1).
+double clamped_support_alpha(int rows, double eta, int ramp_rows);
+
+// --- receivers (section 4) -----------------------------------------------------------------------
+// The receiver buffer's hit pixels as shexp receivers, ordered by screen tile (tile_size x tile_size
+// coarse pixels), with each tile's world-space bounding box for the binning of proxies.
+struct ReceiverTile {
+  std::size_t begin = 0, end = 0;  // range in the tile-ordered receiver arrays
+  glm::vec3 lo{0.0f}, hi{0.0f};    // AABB of the tile's receiver positions
+};
+struct ReceiverBuffer {
+  int width = 0, height = 0, scale = 1, tile_size = 16, tiles_x = 0, tiles_y = 0;
+  shexp::ReceiverSoA soa;                // tile order
+  std::vector<std::int32_t> pixel;       // receiver -> coarse pixel index
+  std::vector<std::int32_t> receiver;    // coarse pixel -> receiver, -1 = background
+  std::vector<ReceiverTile> tiles;       // only tiles with receivers
+  std::size_t bytes() const;
+};
+ReceiverBuffer make_receivers(const render::GBuffer& coarse, int tile_size);
+
+// --- binning (section 4.1, CPU form of splatting the spheres of influence) ------------------------
+// Per receiver tile, the proxies whose sphere of influence reaches the tile's box: a sphere of
+// radius r with support alpha (see ShadowTables) reaches receivers within r / alpha of its centre.
+// Splatting the sphere of influence and testing each receiver's depth (Figure 3) selects exactly the
+// receivers for which the table is non-zero; binning to tiles selects a superset, and the extra
+// pairs read exactly 0 from the clamped table, so both give the same sums.
+struct ProxyBins {
+  std::vector<shexp::BlockerList> shadow;  // per tile (index as ReceiverBuffer::tiles)
+  std::vector<ProxyList> indirect;         // per tile; empty when indirect light is off
+  double pairs_tested = 0.0;               // tile-proxy tests
+  double shadow_tile_pairs = 0.0, indirect_tile_pairs = 0.0;
+  std::size_t bytes() const;
+};
+// influence_radius(r) = r / alpha, or infinity for alpha <= 0 (no sphere of influence).
+float influence_radius(float r, double support_alpha);
+bool sphere_meets_box(const glm::vec3& c, float radius, const glm::vec3& lo, const glm::vec3& hi);
+// All proxy spheres of the posed scene, flat, with the albedo of their set (scene.proxies[s].albedo).
+void flat_proxies(const scene::Scene& scene, const scene::PosedScene& posed, int order, shexp::BlockerList* shadow,
+                  ProxyList* indirect);
+ProxyBins bin_proxies(const ReceiverBuffer& rec, const shexp::BlockerList& all_shadow, double alpha_shadow,
+                      const ProxyList* all_indirect, double alpha_indirect);
+
+// --- accumulation --------------------------------------------------------------------------------
+// Sum of log occlusion vectors (eq. 4, exponent) for receivers [begin, end) over `list`. The clamped
+// table goes through shexp::accumulate_log (the SHEXP kernel, self-shadowing rules included); with
+// hard_cut, pairs with |c - p| >= eta r are skipped first (scalar path: rule, then eq. 34 per pair).
+void accumulate_log_range(const ShadowTables& t, shexp::ReplacementRule rule, shexp::KernelIsa isa,
+                          const shexp::ReceiverSoA& rec, std::size_t begin, std::size_t end,
+                          const shexp::BlockerList& list, float* out);
+// O_p = exp(log) for `count` receivers (order^2 floats each).
+void exponentiate(const ShadowTables& t, ExpMode mode, int ps_degree, shexp::KernelIsa isa, const float* f, float* g,
+                  std::size_t count, std::size_t first);
+
+// Eq. 12: xi_p = (1 - O_p)_0 / (omega_p / sqrt(4 pi)), (1 - O_p)_0 = sqrt(4 pi) - O_p,0: the solid angle
+// of the union of the proxies over the sum of their solid angles. The exact quantities satisfy
+// 0 <= union <= sum, so xi lies in [0, 1]; the SH exponential's error (O_p,0 above sqrt(4 pi) or below
+// sqrt(4 pi) - omega_p / sqrt(4 pi)) and the different clamps of the shadow and indirect tables can
+// push the computed ratio outside, hence the clamp. omega_p -> 0 (no proxy in reach): xi = 1, harmless
+// since the sum it scales is 0 too.
+float indirect_normalisation(float o0, float omega);
+
+// --- shading (eq. 10) -----------------------------------------------------------------------------
+// Direct shading of receivers: E_i = (H(N_i) * (W O_i)) . L per channel plus the spherical lights'
+// L_H . (W O_i) (the light-lobe table of SHEXP), clamped at 0; W is the visibility window.
+// Without O (no proxies) the receivers are unshadowed.
+struct DirectShader {
+  int order = 0;
+  std::vector<float> L;      // 3 x n^2, channel-major (windowed when window_h > 0)
+  std::vector<float> hcoef;  // n^2: H(N)_lm = hcoef y_lm(N)
+  std::vector<float> gwin;   // n^2: window on the visibility
+  std::shared_ptr<const shexp::LightLobeTable> lights_table;  // null: no spherical light shading
+  std::vector<scene::SphericalLight> lights;
+  shexp::KernelIsa isa = shexp::KernelIsa::Scalar;
+  // out[i - begin] for receivers [begin, end) of rec; g: visibility of receiver i at g + i n^2 (null:
+  // unshadowed). A receiver with a zero normal (no surface) gets 0. Returns the receivers clamped at 0.
+  long long shade(const shexp::ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
+                  glm::vec3* out) const;
+};
+DirectShader make_direct_shader(const std::vector<glm::vec3>& env_sh, int order, double window_h,
+                                std::shared_ptr<const shexp::LightLobeTable> lt, const std::vector<scene::SphericalLight>& lights,
+                                shexp::KernelIsa isa);
+// L~ (irradiance SH of the windowed environment, per channel) at `order` for the indirect evaluator.
+std::vector<glm::vec3> irradiance_sh(const std::vector<glm::vec3>& env_sh, int order);
+
+// --- per-frame fields ----------------------------------------------------------------------------
+struct Field {  // per receiver (tile order), `channels` floats
+  int channels = 0;
+  std::vector<float> v;
+};
+struct IndirectSums {  // per receiver: sum_i albedo_i/pi I_i . H(N) (3 floats) and omega_p
+  std::vector<float> rgb, omega;
+  double pairs = 0.0;
+};
+struct Upsampled {  // display resolution
+  UpsampleWeights w;
+  int order = 0;
+  // O_p is not stored at display resolution (n^2 floats per pixel, 64 MB at 1024^2 and order 4):
+  // shade_direct interpolates it with w per block of surface pixels from this coarse copy.
+  std::vector<float> coarse_visibility;  // n^2 per coarse pixel (empty without proxies)
+  std::vector<std::int32_t> surface;     // display pixels that hit a surface, in scan order
+  std::vector<float> indirect;           // 3 per display pixel (empty without indirect)
+  std::size_t bytes() const;
+};
+// For fallback = robust: the misses shaded from the full proxy list.
+struct RobustMisses {
+  std::vector<std::int32_t> pixel;  // display pixel of each miss
+  shexp::ReceiverSoA soa;
+  std::vector<float> visibility;    // n^2 per miss (empty without proxies)
+  std::vector<float> indirect;      // 3 per miss (empty without indirect)
+};
+
+}  // namespace softgi::techniques::image_splat

@@ -1,0 +1,52 @@
+// Image-space proxy accumulation (paper 000) on the Vulkan backend: the GPU passes of image_splat,
+// reading the same host-side frame resources as the CPU passes (image_splat_internal.hpp) and
+// producing the same structures, so that the backends can be compared pass by pass. The per-tile
+// blocker lists are SHEXP's (shexp::BlockerList) and the log table a (clamped) shexp::ZhTable, so the
+// accumulation and the exponential reuse SHEXP's shaders (shaders/shexp/*.comp); only the host
+// dispatch for image_splat's resources lives here. Tables are the CPU's own floats, uploaded once per
+// device and kept in the vulkan::Context's cache. Not installed; include by path.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "image_splat_internal.hpp"
+#include "softgi/render/frame.hpp"
+
+namespace softgi::techniques::image_splat {
+
+// accumulate_log on the GPU covers every case in which the clamped table alone confines a proxy to
+// its sphere of influence. The per-pair cut cases of accumulate_log_range (a hard cut at eta r when
+// smooth_clamp is off, and the printed replacement rule with a sphere of influence) are not in the
+// SHEXP shader: for them the "vulkan" implementation runs the CPU pass.
+bool vulkan_accumulate_supported(const ShadowTables& t, shexp::ReplacementRule rule);
+// Eq. 4's exponent summed per receiver over its tile's blocker list (paper 004 eqs. 34, 38 and the
+// replacement rules of section 6.2), one invocation per receiver. Writes the record's counters.
+std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t,
+                                             const ReceiverBuffer& r, const ProxyBins& bins);
+
+// exponentiate on the GPU: HYB and OL (paper 004 section 4.3, as shexp::exp_batch); the other
+// methods (PS*, exact) run the CPU pass under "vulkan" too.
+bool vulkan_exp_supports(ExpMode m);
+std::shared_ptr<Field> vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const Field& log);
+
+// The two kernels of the upsample pass (section 4.2): the eq. 11 weights and their application to a
+// coarse field. The pass body (image_splat.cpp pass_upsample) is one; the kernels are upsample.cpp's
+// on the CPU and compute shaders on Vulkan.
+struct UpsampleKernels {
+  std::function<UpsampleWeights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt)> weights;
+  std::function<void(const UpsampleWeights& w, const float* in, int channels, float* out)> apply;
+};
+UpsampleKernels cpu_upsample_kernels();
+UpsampleKernels vulkan_upsample_kernels(render::FrameContext& ctx);
+// upsample_weights on the GPU (shaders/image_splat/upsample_weights.comp): the same checks and
+// result as upsample.cpp, in float (the CPU works in double). `measure` (optional): per display
+// pixel the unnormalised eq. 11 weight the miss decision compared with the threshold.
+UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneView& coarse, const PlaneView& fine,
+                                        const UpsampleOptions& opt, std::vector<float>* measure = nullptr);
+// upsample_apply on the GPU (shaders/image_splat/upsample_apply.comp); the weights stay on the
+// device when they are the ones vulkan_upsample_weights computed last.
+void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, const float* in, int channels, float* out);
+
+}  // namespace softgi::techniques::image_splat

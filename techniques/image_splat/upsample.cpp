@@ -1,0 +1,329 @@
+// Upsampling of receiver-buffer results to display resolution: paper 000 ("image-space
+// accumulation"), section 4.2, eq. 11 (bilateral weights), and plain bilinear for comparison
+// (the paper's Figure 7).
+#include "upsample.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace softgi::techniques::image_splat {
+
+const char* to_string(UpsampleMode m) {
+  switch (m) {
+    case UpsampleMode::Bilateral: return "bilateral";
+    case UpsampleMode::Bilinear: return "bilinear";
+  }
+  return "unknown";
+}
+
+UpsampleMode parse_upsample_mode(const std::string& s) {
+  if (s == "bilateral") return UpsampleMode::Bilateral;
+  if (s == "bilinear") return UpsampleMode::Bilinear;
+  throw std::invalid_argument("unknown upsample mode '" + s + "' (expected bilateral or bilinear)");
+}
+
+const char* to_string(UpsampleFallback f) {
+  switch (f) {
+    case UpsampleFallback::Robust: return "robust";
+    case UpsampleFallback::Shaded: return "shaded";
+    case UpsampleFallback::None: return "none";
+  }
+  return "unknown";
+}
+
+UpsampleFallback parse_upsample_fallback(const std::string& s) {
+  if (s == "robust") return UpsampleFallback::Robust;
+  if (s == "shaded") return UpsampleFallback::Shaded;
+  if (s == "none") return UpsampleFallback::None;
+  throw std::invalid_argument("unknown upsample fallback '" + s + "' (expected robust, shaded or none)");
+}
+
+std::size_t UpsampleWeights::bytes() const {
+  return index.size() * sizeof(index[0]) + weight.size() * sizeof(weight[0]) + miss.size() * sizeof(miss[0]);
+}
+
+namespace {
+
+[[noreturn]] void fail(const std::string& what) { throw std::invalid_argument("upsample: " + what); }
+
+std::string dims(const PlaneView& v) {
+  return std::to_string(v.width) + "x" + std::to_string(v.height) + " (scale " + std::to_string(v.scale) + ")";
+}
+
+void check_plane(const PlaneView& v, const char* name) {
+  if (v.width <= 0 || v.height <= 0) fail(std::string(name) + " buffer size " + dims(v) + " must be positive");
+  if (v.scale < 1) fail(std::string(name) + " buffer scale " + std::to_string(v.scale) + " must be at least 1");
+  // Sample indices are int32 (UpsampleWeights::index).
+  if (static_cast<std::int64_t>(v.width) * v.height > std::numeric_limits<std::int32_t>::max())
+    fail(std::string(name) + " buffer " + dims(v) + " has more pixels than an int32 index can address");
+  if (v.depth == nullptr) fail(std::string(name) + " buffer depth pointer is null");
+  if (v.normal == nullptr) fail(std::string(name) + " buffer normal pointer is null");
+}
+
+// Depth must be a positive eye-space depth, or +inf for background; a hit needs a finite normal.
+void check_sample(const PlaneView& v, const char* name, int x, int y) {
+  const std::size_t i = static_cast<std::size_t>(y) * v.width + x;
+  const float z = v.depth[i];
+  const bool background = std::isinf(z) && z > 0.0f;
+  if (!background && !(std::isfinite(z) && z > 0.0f))
+    fail(std::string(name) + " depth at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " +
+         std::to_string(z) + "; expected a positive eye-space depth or +inf for background");
+  if (!background) {
+    const glm::vec3 n = v.normal[i];
+    if (!(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z)))
+      fail(std::string(name) + " normal at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is not finite");
+  }
+}
+
+void check_pair(const PlaneView& coarse, const PlaneView& fine) {
+  check_plane(coarse, "coarse");
+  check_plane(fine, "fine");
+  if (fine.scale > coarse.scale)
+    fail("fine buffer scale " + std::to_string(fine.scale) + " exceeds coarse buffer scale " + std::to_string(coarse.scale));
+  // Both buffers cover the same display rectangle up to the rounding of the coarse size (floor or
+  // ceil of display size / scale): their display extents differ by less than one coarse pixel.
+  const auto extent_ok = [&](int fn, int cn) {
+    const std::int64_t d = static_cast<std::int64_t>(fn) * fine.scale - static_cast<std::int64_t>(cn) * coarse.scale;
+    return (d < 0 ? -d : d) < coarse.scale;
+  };
+  if (!extent_ok(fine.width, coarse.width) || !extent_ok(fine.height, coarse.height))
+    fail("fine buffer " + dims(fine) + " and coarse buffer " + dims(coarse) +
+         " do not cover the same display area (extents differ by a coarse pixel or more)");
+  for (int y = 0; y < coarse.height; ++y)
+    for (int x = 0; x < coarse.width; ++x) check_sample(coarse, "coarse", x, y);
+}
+
+void check_options(const UpsampleOptions& opt) {
+  if (opt.mode != UpsampleMode::Bilateral && opt.mode != UpsampleMode::Bilinear)
+    fail("unknown mode value " + std::to_string(static_cast<int>(opt.mode)));
+  if (!std::isfinite(opt.epsilon_rel) || !(opt.epsilon_rel > 0.0))
+    fail("epsilon_rel = " + std::to_string(opt.epsilon_rel) + " must be finite and positive");
+  if (opt.normal_power < 0) fail("normal_power = " + std::to_string(opt.normal_power) + " must not be negative");
+  if (!std::isfinite(opt.miss_threshold) || opt.miss_threshold < 0.0)
+    fail("miss_threshold = " + std::to_string(opt.miss_threshold) + " must be finite and not negative");
+}
+
+bool is_hit(float z) { return z < std::numeric_limits<float>::infinity(); }
+
+// b^e for e >= 0 by squaring (std::pow per sample would dominate the pass); 0^0 = 1, so
+// normal_power 0 switches the normal weight off.
+double ipow(double b, int e) {
+  double r = 1.0;
+  while (e > 0) {
+    if (e & 1) r *= b;
+    b *= b;
+    e >>= 1;
+  }
+  return r;
+}
+
+// One axis of the bilinear footprint: coarse coordinate u (pixel centres at integers) clamped to
+// the buffer, so that the border behaves as clamp-to-edge; i1 = i0 + 1 except for a buffer one
+// pixel wide, where f = 0 makes the second tap vanish.
+struct Axis {
+  int i0, i1;
+  double f;
+};
+Axis axis(double u, int n) {
+  u = std::clamp(u, 0.0, static_cast<double>(n - 1));
+  const int i0 = std::min(static_cast<int>(std::floor(u)), std::max(n - 2, 0));
+  return {i0, std::min(i0 + 1, n - 1), u - i0};
+}
+
+struct Block {
+  int n = 0;
+  std::array<std::int32_t, 4> idx{};
+  std::array<double, 4> w{};  // bilinear weights w_b, all > 0
+};
+
+// The 2x2 coarse block of display pixel (X, Y): its centre X + 0.5 (in fine pixels of size
+// fine.scale) is the display point (X + 0.5) fine.scale, i.e. coarse coordinate
+// (X + 0.5) fine.scale / coarse.scale - 0.5. Taps with w_b = 0 are dropped, so that a pixel sitting
+// exactly on a coarse centre takes that sample alone (scale 1 is the identity).
+Block bilinear_block(const PlaneView& c, const PlaneView& f, int X, int Y) {
+  const double ratio = static_cast<double>(f.scale) / static_cast<double>(c.scale);
+  const Axis ax = axis((X + 0.5) * ratio - 0.5, c.width);
+  const Axis ay = axis((Y + 0.5) * ratio - 0.5, c.height);
+  const int xs[2] = {ax.i0, ax.i1}, ys[2] = {ay.i0, ay.i1};
+  const double wx[2] = {1.0 - ax.f, ax.f}, wy[2] = {1.0 - ay.f, ay.f};
+  Block b;
+  for (int j = 0; j < 2; ++j)
+    for (int i = 0; i < 2; ++i) {
+      const double w = wx[i] * wy[j];
+      if (w > 0.0) {
+        b.idx[b.n] = static_cast<std::int32_t>(ys[j] * c.width + xs[i]);
+        b.w[b.n] = w;
+        ++b.n;
+      }
+    }
+  return b;
+}
+
+struct Pixel {
+  std::array<std::int32_t, 4> idx{-1, -1, -1, -1};
+  std::array<float, 4> w{0.0f, 0.0f, 0.0f, 0.0f};
+  bool miss = false;
+};
+
+// Keeps the taps with positive weight, normalised; false when there is none.
+bool store_normalised(const Block& b, const std::array<double, 4>& w, Pixel& out) {
+  double sum = 0.0;
+  for (int k = 0; k < b.n; ++k) sum += w[k];
+  if (!(sum > 0.0)) return false;
+  int m = 0;
+  for (int k = 0; k < b.n; ++k)
+    if (w[k] > 0.0) {
+      out.idx[m] = b.idx[k];
+      out.w[m] = static_cast<float>(w[k] / sum);
+      ++m;
+    }
+  return true;
+}
+
+// Plain bilinear over the valid (hit) coarse taps.
+bool bilinear_valid(const PlaneView& c, const Block& b, Pixel& out) {
+  std::array<double, 4> w{};
+  for (int k = 0; k < b.n; ++k) w[k] = is_hit(c.depth[b.idx[k]]) ? b.w[k] : 0.0;
+  return store_normalised(b, w, out);
+}
+
+Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptions& opt, int X, int Y) {
+  Pixel out;
+  const std::size_t p = static_cast<std::size_t>(Y) * f.width + X;
+  const float zp = f.depth[p];
+  if (!is_hit(zp)) return out;  // background: nothing to shade, not a miss
+  const Block b = bilinear_block(c, f, X, Y);
+  if (opt.mode == UpsampleMode::Bilinear) {
+    out.miss = !bilinear_valid(c, b, out);
+    return out;
+  }
+  // Eq. 11: w~_i = w_b,i w_z,i w_N,i with w_z = 1 / (eps + |z_p - z_i|), w_N = max(0, N_p . N_i)^32.
+  // We use eps w_z = 1 / (1 + |z_p - z_i| / eps) in (0, 1] instead: the constant factor eps cancels
+  // in the normalisation, the sum is then directly the miss measure of UpsampleOptions (1 for a
+  // perfect match), and nothing overflows for tiny eps.
+  const double eps = opt.epsilon_rel * static_cast<double>(zp);
+  const glm::dvec3 np(f.normal[p]);
+  std::array<double, 4> w{};
+  double measure = 0.0;
+  for (int k = 0; k < b.n; ++k) {
+    const float zi = c.depth[b.idx[k]];
+    if (!is_hit(zi)) continue;  // background coarse sample: weight 0
+    const double dz = std::abs(static_cast<double>(zp) - static_cast<double>(zi));
+    const double wz = dz == 0.0 ? 1.0 : 1.0 / (1.0 + dz / eps);
+    const double wn = ipow(std::max(0.0, glm::dot(np, glm::dvec3(c.normal[b.idx[k]]))), opt.normal_power);
+    w[k] = b.w[k] * wz * wn;
+    measure += w[k];
+  }
+  if (measure > 0.0) {
+    store_normalised(b, w, out);
+    out.miss = measure < opt.miss_threshold;
+    return out;
+  }
+  // Every eq. 11 weight vanished (all taps background or facing away): bilinear over the valid
+  // taps still gives the pixel a value; it is a miss either way (section 4.2's fallbacks apply).
+  bilinear_valid(c, b, out);
+  out.miss = true;
+  return out;
+}
+
+void check_weights(const UpsampleWeights& w) {
+  const std::size_t n = static_cast<std::size_t>(std::max(w.width, 0)) * static_cast<std::size_t>(std::max(w.height, 0));
+  if (w.width <= 0 || w.height <= 0 || w.index.size() != n || w.weight.size() != n || w.miss.size() != n)
+    fail("weights of " + std::to_string(w.width) + "x" + std::to_string(w.height) +
+         " pixels have inconsistent array sizes (index " + std::to_string(w.index.size()) + ", weight " +
+         std::to_string(w.weight.size()) + ", miss " + std::to_string(w.miss.size()) + ")");
+}
+
+void check_io(const float* in, int channels, const float* out) {
+  if (in == nullptr) fail("input pointer is null");
+  if (out == nullptr) fail("output pointer is null");
+  if (channels < 1) fail("channels = " + std::to_string(channels) + " must be at least 1");
+}
+
+}  // namespace
+
+UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt) {
+  check_options(opt);
+  check_pair(coarse, fine);
+  UpsampleWeights r;
+  r.width = fine.width;
+  r.height = fine.height;
+  const std::size_t n = static_cast<std::size_t>(fine.width) * fine.height;
+  r.index.resize(n);
+  r.weight.resize(n);
+  r.miss.resize(n);
+  tbb::parallel_for(tbb::blocked_range<int>(0, fine.height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y != rows.end(); ++y)
+      for (int x = 0; x < fine.width; ++x) {
+        check_sample(fine, "fine", x, y);  // throws; TBB rethrows it in the calling thread
+        const Pixel px = upsample_pixel(coarse, fine, opt, x, y);
+        const std::size_t p = static_cast<std::size_t>(y) * fine.width + x;
+        r.index[p] = px.idx;
+        r.weight[p] = px.w;
+        r.miss[p] = px.miss ? 1 : 0;
+      }
+  });
+  r.misses = static_cast<std::size_t>(std::count(r.miss.begin(), r.miss.end(), std::uint8_t{1}));
+  return r;
+}
+
+void upsample_apply(const UpsampleWeights& w, const float* in, int channels, float* out) {
+  check_weights(w);
+  check_io(in, channels, out);
+  const std::size_t ch = static_cast<std::size_t>(channels);
+  tbb::parallel_for(tbb::blocked_range<int>(0, w.height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y != rows.end(); ++y)
+      for (int x = 0; x < w.width; ++x) {
+        const std::size_t p = static_cast<std::size_t>(y) * w.width + x;
+        const auto& idx = w.index[p];
+        if (idx[0] < 0) continue;  // taps are packed to the front: no tap, pixel left untouched
+        float* o = out + p * ch;
+        for (std::size_t c = 0; c < ch; ++c) o[c] = 0.0f;
+        for (int k = 0; k < 4 && idx[k] >= 0; ++k) {
+          const float wk = w.weight[p][k];
+          const float* s = in + static_cast<std::size_t>(idx[k]) * ch;
+          for (std::size_t c = 0; c < ch; ++c) o[c] += wk * s[c];
+        }
+      }
+  });
+}
+
+void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, const PlaneView& fine, const float* in,
+                             int channels, float* out, const std::vector<std::uint8_t>* only) {
+  check_weights(w);
+  check_pair(coarse, fine);
+  check_io(in, channels, out);
+  if (w.width != fine.width || w.height != fine.height)
+    fail("weights of " + std::to_string(w.width) + "x" + std::to_string(w.height) + " pixels do not match fine buffer " +
+         dims(fine));
+  if (only != nullptr && only->size() != w.miss.size())
+    fail("pixel selection has " + std::to_string(only->size()) + " entries for " + std::to_string(w.miss.size()) +
+         " pixels");
+  const std::size_t ch = static_cast<std::size_t>(channels);
+  tbb::parallel_for(tbb::blocked_range<int>(0, fine.height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y != rows.end(); ++y)
+      for (int x = 0; x < fine.width; ++x) {
+        const std::size_t p = static_cast<std::size_t>(y) * fine.width + x;
+        if (only != nullptr && (*only)[p] == 0) continue;
+        check_sample(fine, "fine", x, y);
+        if (!is_hit(fine.depth[p])) continue;
+        Pixel px;
+        if (!bilinear_valid(coarse, bilinear_block(coarse, fine, x, y), px)) continue;  // no valid tap
+        float* o = out + p * ch;
+        for (std::size_t c = 0; c < ch; ++c) o[c] = 0.0f;
+        for (int k = 0; k < 4 && px.idx[k] >= 0; ++k) {
+          const float* s = in + static_cast<std::size_t>(px.idx[k]) * ch;
+          for (std::size_t c = 0; c < ch; ++c) o[c] += px.w[k] * s[c];
+        }
+      }
+  });
+}
+
+}  // namespace softgi::techniques::image_splat

@@ -1,0 +1,78 @@
+// Upsampling of receiver-buffer results to display resolution (paper 000 section 4.2, eq. 11).
+// Not installed; include by path.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace softgi::techniques::image_splat {
+
+enum class UpsampleMode {
+  Bilateral,  // eq. 11: bilinear x depth x normal^power weights, renormalised
+  Bilinear    // plain bilinear over the valid (hit) coarse samples, for comparison (Figure 7)
+};
+const char* to_string(UpsampleMode m);  // "bilateral", "bilinear"
+UpsampleMode parse_upsample_mode(const std::string& s);
+
+// Where no coarse sample matches a display pixel (section 4.2): shade it from the full proxy list
+// (robust), interpolate shaded coarse results instead of occlusion vectors (cheap), or keep the
+// eq. 11 result as is (none, for comparison).
+enum class UpsampleFallback { Robust, Shaded, None };
+const char* to_string(UpsampleFallback f);  // "robust", "shaded", "none"
+UpsampleFallback parse_upsample_fallback(const std::string& s);
+
+// The receiver plane of one buffer (coarse receiver buffer or display G-buffer), row-major.
+struct PlaneView {
+  int width = 0, height = 0;
+  int scale = 1;                 // pixel (x, y) sits at display point ((x + 0.5) scale, (y + 0.5) scale)
+  const float* depth = nullptr;  // eye-space depth z = (p - e) . E; +inf where nothing was hit
+  const glm::vec3* normal = nullptr;
+};
+
+struct UpsampleOptions {
+  UpsampleMode mode = UpsampleMode::Bilateral;
+  // w_z = 1 / (epsilon + |z_p - z_i|) with epsilon = epsilon_rel * z_p: relative, so that the
+  // weights do not depend on the scene's units.
+  double epsilon_rel = 0.01;
+  int normal_power = 32;  // w_N = max(0, N_p . N_i)^power (paper: 32)
+  // A display pixel is a miss when sum_i w_b,i * w_N,i * epsilon / (epsilon + |z_p - z_i|) (the
+  // unnormalised eq. 11 weight relative to a perfect match) is below this.
+  double miss_threshold = 0.05;
+};
+
+// For every display pixel: the 4 coarse samples (indices into the coarse buffer, -1 = unused) and
+// their normalised weights, and whether it is a miss. Background display pixels get no samples.
+// Samples with weight 0 are left out and the used ones packed to the front (index[p][0] < 0: none),
+// so a display pixel on a coarse pixel centre takes that sample alone (scale 1 is the identity).
+struct UpsampleWeights {
+  int width = 0, height = 0;
+  std::vector<std::array<std::int32_t, 4>> index;
+  std::vector<std::array<float, 4>> weight;
+  std::vector<std::uint8_t> miss;  // 1: no coarse sample matches (see UpsampleOptions)
+  std::size_t misses = 0;
+  std::size_t bytes() const;
+};
+// Display pixel (X, Y) of `fine` sits at coarse coordinate u = (X + 0.5) fine.scale / coarse.scale - 0.5
+// (coarse pixel centres at integers); its 2x2 block is floor(u), floor(u) + 1, clamped to the buffer
+// (clamp-to-edge). Throws std::invalid_argument for inconsistent sizes (fine width * fine.scale must
+// be within less than coarse.scale of coarse width * coarse.scale, and likewise for height; ceil or
+// floor of display size / scale both pass), fine.scale > coarse.scale, null pointers, a depth that is
+// neither positive finite nor +inf, a non-finite normal on a hit, or bad options.
+UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt);
+
+// out[p * channels + c] = sum_k weight[p][k] * in[index[p][k] * channels + c] for every display
+// pixel with samples (misses included: their weights are the eq. 11 weights however small, or the
+// bilinear ones where all eq. 11 weights vanish); other pixels are left untouched.
+void upsample_apply(const UpsampleWeights& w, const float* in, int channels, float* out);
+// The same with plain bilinear weights over valid coarse samples (the "shaded" fallback uses these
+// on shaded coarse results). With `only` (e.g. &w.miss), only pixels whose entry is non-zero are
+// written; background pixels and pixels without a valid coarse sample are left untouched.
+void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, const PlaneView& fine, const float* in,
+                             int channels, float* out, const std::vector<std::uint8_t>* only = nullptr);
+
+}  // namespace softgi::techniques::image_splat

@@ -1,0 +1,172 @@
+#include "shexp_vulkan_common.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace softgi::techniques::shexp::vulkan_common {
+
+vk::ComputePipeline& pipeline(vk::Context& dev, PipelineCache& cache, const std::string& key, std::span<const std::uint32_t> spirv,
+                              const std::vector<vk::SpecConstant>& spec) {
+  auto it = cache.find(key);
+  if (it == cache.end()) it = cache.emplace(key, std::make_unique<vk::ComputePipeline>(dev, spirv, key, spec)).first;
+  return *it->second;
+}
+
+std::uint32_t bits(float v) {
+  std::uint32_t u;
+  std::memcpy(&u, &v, sizeof u);
+  return u;
+}
+
+std::string mib(std::size_t bytes) {
+  std::ostringstream os;
+  os.precision(4);
+  os << static_cast<double>(bytes) / (1024.0 * 1024.0) << " MiB";
+  return os.str();
+}
+
+double timer_seconds(const vk::SubmitResult& res) { return res.timers.empty() ? -1.0 : res.timers[0].second; }
+
+void check_fits(const vk::Context& dev, std::size_t bytes, const std::string& what, const std::string& pass, const std::string& advice) {
+  const std::size_t limit = dev.device_info().limits.maxStorageBufferRange;
+  if (bytes > limit)
+    throw std::invalid_argument(pass + " on vulkan: " + what + " need " + mib(bytes) + ", more than the maxStorageBufferRange of " + mib(limit) +
+                                " of device '" + dev.device_info().name + "' (" + advice + ")");
+}
+
+void upload_receivers(vk::Context& dev, vk::Buffer& buf, const ReceiverSoA& soa, const std::string& name) {
+  const std::size_t n = soa.size(), plane = n * sizeof(float);
+  dev.ensure_buffer(buf, std::max<std::size_t>(1, 6 * plane), kStorage, vk::MemoryKind::Device, name);
+  const std::vector<float>* planes[6] = {&soa.px, &soa.py, &soa.pz, &soa.nx, &soa.ny, &soa.nz};
+  for (int a = 0; a < 6; ++a) dev.upload(buf, planes[a]->data(), plane, a * plane);
+}
+
+OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::string& technique) {
+  const auto &xs = sht.ol_norm(), &as = sht.ol_a(), &bs = sht.ol_b();
+  std::size_t m = 0;  // sh::ShTables: "keep the prefix of the sweep where the norm increases"
+  while (m < xs.size() && (m == 0 || xs[m] > xs[m - 1])) ++m;
+  if (m == 0) throw std::logic_error(technique + " vulkan: the OL table is empty");
+  std::vector<float> ol(3 * m);
+  for (std::size_t k = 0; k < m; ++k) {
+    ol[k] = static_cast<float>(xs[k]);
+    ol[m + k] = static_cast<float>(as[k]);
+    ol[2 * m + k] = static_cast<float>(bs[k]);
+  }
+  return {dev.upload_vector(ol, kStorage, technique + " OL table"), static_cast<std::uint32_t>(m)};
+}
+
+std::vector<std::uint32_t> pack_terms(const std::vector<std::uint16_t>& j, const std::vector<std::uint16_t>& k, const std::vector<float>& v) {
+  std::vector<std::uint32_t> terms;
+  terms.reserve(2 * v.size());
+  for (std::size_t t = 0; t < v.size(); ++t) {
+    terms.push_back(static_cast<std::uint32_t>(j[t]) | (static_cast<std::uint32_t>(k[t]) << 16));
+    terms.push_back(bits(v[t]));
+  }
+  return terms;
+}
+
+SquareBuffers upload_square_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique) {
+  const std::vector<std::uint32_t> begin(p.sq_begin.begin(), p.sq_begin.end());
+  const std::string o = technique + " product plan " + std::to_string(p.order);
+  SquareBuffers b;
+  b.begin = dev.upload_vector(begin, kStorage, o + " squares index");
+  b.terms = dev.upload_vector(pack_terms(p.sq_j, p.sq_k, p.sq_v), kStorage, o + " squares");
+  return b;
+}
+
+PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int order, std::size_t min_rows, float w_fill,
+                                  const std::string& technique, const std::string& order_name) {
+  const std::size_t n = static_cast<std::size_t>(order);
+  std::size_t total = 0;
+  for (const auto& l : lists) total += l.size();
+  PackedBlockers p;
+  p.sph.assign(std::max(min_rows, total) * 4, 0.0f);
+  p.w.assign(std::max(min_rows, total) * n, w_fill);
+  p.ranges.assign(2 * std::max(min_rows, lists.size()), 0);
+  std::size_t at = 0;
+  for (std::size_t li = 0; li < lists.size(); ++li) {
+    const BlockerList& b = lists[li];
+    if (b.size() > 0 && b.order != order)
+      throw std::logic_error(technique + " vulkan: a blocker list of order " + std::to_string(b.order) + " for " + order_name + " " +
+                             std::to_string(order));
+    p.ranges[2 * li] = static_cast<std::uint32_t>(at);
+    p.ranges[2 * li + 1] = static_cast<std::uint32_t>(b.size());
+    for (std::size_t j = 0; j < b.size(); ++j, ++at) {
+      p.sph[4 * at] = b.cx[j];
+      p.sph[4 * at + 1] = b.cy[j];
+      p.sph[4 * at + 2] = b.cz[j];
+      p.sph[4 * at + 3] = b.r[j];
+      if (!b.w.empty()) std::copy(b.w.begin() + j * n, b.w.begin() + (j + 1) * n, p.w.begin() + at * n);
+    }
+  }
+  return p;
+}
+
+vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline& p, const AccumulateBuffers& b, std::size_t count,
+                                    const ZhTable& log, const std::string& submit_name) {
+  struct Push {
+    std::uint32_t count, first, end, rows;
+    float scale;
+  };
+  const std::vector<vk::Bind> binds = {
+      vk::Bind::buffer_at(gpu::kAccBindReceivers, b.receivers), vk::Bind::buffer_at(gpu::kAccBindReceiverList, b.rlist),
+      vk::Bind::buffer_at(gpu::kAccBindListRange, b.ranges),    vk::Bind::buffer_at(gpu::kAccBindBlockers, b.blockers),
+      vk::Bind::buffer_at(gpu::kAccBindWeights, b.weights),     vk::Bind::buffer_at(gpu::kAccBindTable, b.table),
+      vk::Bind::buffer_at(gpu::kAccBindBasis, b.basis),         vk::Bind::buffer_at(gpu::kAccBindOut, b.out)};
+  return dev.submit([&](vk::Recorder& rec) {
+    rec.begin_timer("accumulate_log");
+    dispatch_chunks<Push>(rec, p, binds, count, gpu::kShexpAccumulateGroup, [&](std::uint32_t first, std::uint32_t end) {
+      return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(log.rows), log.scale};
+    });
+    rec.end_timer();
+    rec.barrier();
+  }, submit_name);
+}
+
+vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
+                                  std::uint32_t ol_count, const std::string& submit_name) {
+  struct Push {
+    std::uint32_t first, end, ol_count;
+  };
+  const std::vector<vk::Bind> binds = {vk::Bind::buffer_at(gpu::kExpBindIn, b.in),          vk::Bind::buffer_at(gpu::kExpBindOut, b.out),
+                                       vk::Bind::buffer_at(gpu::kExpBindOl, b.ol),          vk::Bind::buffer_at(gpu::kExpBindSqIndex, b.sq_begin),
+                                       vk::Bind::buffer_at(gpu::kExpBindSqTerms, b.sq_terms), vk::Bind::buffer_at(gpu::kExpBindStatus, b.status)};
+  return dev.submit([&](vk::Recorder& rec) {
+    rec.begin_timer("exponentiate");
+    dispatch_chunks<Push>(rec, p, binds, count, gpu::kShexpExpGroup,
+                          [&](std::uint32_t first, std::uint32_t end) { return Push{first, end, ol_count}; });
+    rec.end_timer();
+    rec.barrier();
+  }, submit_name);
+}
+
+void reset_exp_status(vk::Context& dev, vk::Buffer& status, const std::string& name) {
+  const std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
+  const std::uint32_t status0[gpu::kExpStatusWords] = {0, none, none, none};
+  dev.ensure_buffer(status, sizeof status0, kStorage, vk::MemoryKind::Host, name);
+  dev.upload(status, status0, sizeof status0);
+}
+
+void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const float* log, int n2, const std::string& pass,
+                      const std::function<std::string(std::size_t)>& receiver_name) {
+  const std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
+  if (status[gpu::kExpStatusBadInput] != none) {
+    const std::size_t i = status[gpu::kExpStatusBadInput] - 1;
+    int k = 0;
+    while (k < n2 - 1 && std::isfinite(log[i * n2 + k])) ++k;
+    throw std::invalid_argument(pass + ": " + receiver_name(i) + " has log coefficient " + std::to_string(k) + " = " +
+                                std::to_string(log[i * n2 + k]));
+  }
+  if (status[gpu::kExpStatusDcOverflow] != none) {
+    const std::size_t i = status[gpu::kExpStatusDcOverflow] - 1;
+    throw std::overflow_error(pass + ": receiver " + std::to_string(i) + ": DC coefficient " + std::to_string(log[i * n2]) +
+                              " gives a mean log value whose exponential overflows");
+  }
+  if (status[gpu::kExpStatusOverflow] != none)
+    throw std::overflow_error(pass + ": receiver " + std::to_string(status[gpu::kExpStatusOverflow] - 1) + ": a result coefficient overflowed");
+}
+
+}  // namespace softgi::techniques::shexp::vulkan_common

@@ -1,0 +1,120 @@
+// Host-side helpers of the Vulkan passes that run SHEXP's shaders (shaders/shexp/*.comp): SHEXP's
+// own passes (shexp_vulkan.cpp) and image_splat's (image_splat/image_splat_vulkan.cpp, which feeds
+// the same accumulate_log and exponentiate shaders). Pipeline cache, uploads of the tables and
+// product plans in the shaders' layout, size checks, chunked dispatch and the exponentiate status
+// words. Includes the Vulkan headers: include only from the *_vulkan.cpp files. Not installed.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "shexp_internal.hpp"
+#include "softgi/backends/vulkan/context.hpp"
+#include "softgi/sh/tables.hpp"
+#include "softgi_shared.h"
+
+namespace softgi::techniques::shexp::vulkan_common {
+
+namespace vk = backends::vulkan;
+
+constexpr VkBufferUsageFlags kStorage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+
+// A compiled SPIR-V array (the generated softgi/shaders/*_comp.h headers) as a span.
+template <std::size_t N>
+std::span<const std::uint32_t> words(const std::uint32_t (&a)[N]) {
+  return {a, N};
+}
+
+// Compute pipelines by specialisation key, created on first use.
+using PipelineCache = std::map<std::string, std::unique_ptr<vk::ComputePipeline>>;
+vk::ComputePipeline& pipeline(vk::Context& dev, PipelineCache& cache, const std::string& key, std::span<const std::uint32_t> spirv,
+                              const std::vector<vk::SpecConstant>& spec);
+
+std::uint32_t bits(float v);          // a float's bit pattern, for mixed uint/float term buffers
+std::string mib(std::size_t bytes);  // "1.5 MiB"
+double timer_seconds(const vk::SubmitResult& res);  // the first timer's seconds, -1 without timers
+
+// Per-pass buffers larger than the device allows are reported before anything is allocated, naming
+// the scene quantity that is too large: "<pass> on vulkan: <what> need ... (<advice>)".
+void check_fits(const vk::Context& dev, std::size_t bytes, const std::string& what, const std::string& pass, const std::string& advice);
+
+// Dispatches over [0, count) in chunks the device's workgroup-count limit allows.
+template <class Push, class Fill>
+void dispatch_chunks(vk::Recorder& rec, const vk::ComputePipeline& p, const std::vector<vk::Bind>& binds, std::size_t count,
+                     std::uint32_t group, Fill fill) {
+  const std::size_t max_items = static_cast<std::size_t>(rec.context().device_info().limits.maxComputeWorkGroupCount[0]) * group;
+  for (std::size_t first = 0; first < count; first += max_items) {
+    const std::size_t end = std::min(count, first + max_items);
+    Push push = fill(static_cast<std::uint32_t>(first), static_cast<std::uint32_t>(end));
+    rec.dispatch(p, binds, push, static_cast<std::uint32_t>((end - first + group - 1) / group));
+  }
+}
+
+// A host vector into a reused device buffer (at least one element large, so empty inputs bind).
+template <class V>
+void put(vk::Context& dev, vk::Buffer& b, const V& v, const std::string& name) {
+  const std::size_t bytes = std::max<std::size_t>(1, v.size()) * sizeof(v[0]);
+  dev.ensure_buffer(b, bytes, kStorage, vk::MemoryKind::Device, name);
+  if (!v.empty()) dev.upload(b, v.data(), v.size() * sizeof(v[0]));
+}
+
+// Receivers as six planes px, py, pz, nx, ny, nz (accumulate_log.comp's and shade.comp's layout).
+void upload_receivers(vk::Context& dev, vk::Buffer& buf, const ReceiverSoA& soa, const std::string& name);
+
+// The OL table: the increasing prefix of the core's OL sweep that sh::ShTables::ol_lookup
+// interpolates, converted to float as planes x, a, b. `technique` names the buffer and the error.
+struct OlTable {
+  vk::Buffer buffer;
+  std::uint32_t count = 0;
+};
+OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::string& technique);
+
+// ProductPlan terms in the shaders' form: (j | k << 16, bits(v)) pairs.
+std::vector<std::uint32_t> pack_terms(const std::vector<std::uint16_t>& j, const std::vector<std::uint16_t>& k, const std::vector<float>& v);
+// ProductPlan squares as exponentiate.comp reads them: begin per output, packed terms.
+struct SquareBuffers {
+  vk::Buffer begin, terms;
+};
+SquareBuffers upload_square_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique);
+
+// Blocker lists concatenated as accumulate_log.comp reads them: spheres (cx, cy, cz, r), band
+// weights (`order` per sphere; `w_fill` for a list without weights) and a (first, count) range per
+// list. At least `min_rows` spheres and lists are allocated (zero-filled). A non-empty list of
+// another order is a logic error: "<technique> vulkan: a blocker list of order X for <order_name> n".
+struct PackedBlockers {
+  std::vector<float> sph, w;
+  std::vector<std::uint32_t> ranges;
+};
+PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int order, std::size_t min_rows, float w_fill,
+                                  const std::string& technique, const std::string& order_name);
+
+// The accumulate_log.comp dispatch over `count` receivers (bindings as softgi_shared.h names them),
+// timed as "accumulate_log".
+struct AccumulateBuffers {
+  const vk::Buffer &receivers, &rlist, &ranges, &blockers, &weights, &table, &basis, &out;
+};
+vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline& p, const AccumulateBuffers& b, std::size_t count,
+                                    const ZhTable& log, const std::string& submit_name);
+
+// exponentiate.comp's status words: reset before the dispatch, and the CPU pass's errors (exp_batch)
+// raised from them afterwards, naming the receiver. `log` holds the n2 input coefficients per
+// receiver; `receiver_name(i)` names receiver i in the non-finite-input message.
+// The exponentiate.comp dispatch over `count` receivers, timed as "exponentiate".
+struct ExponentiateBuffers {
+  const vk::Buffer &in, &out, &ol, &sq_begin, &sq_terms, &status;
+};
+vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
+                                  std::uint32_t ol_count, const std::string& submit_name);
+void reset_exp_status(vk::Context& dev, vk::Buffer& status, const std::string& name);
+void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const float* log, int n2, const std::string& pass,
+                      const std::function<std::string(std::size_t)>& receiver_name);
+
+}  // namespace softgi::techniques::shexp::vulkan_common

@@ -1,0 +1,488 @@
+// Receiver-buffer upsampling (paper 000 section 4.2, eq. 11): bilateral weights do not mix across
+// depth or normal discontinuities while plain bilinear does, bilinear reproduces affine data, scale 1
+// is the identity, misses are flagged exactly where the coarse buffer has no matching sample, the
+// fallbacks of the contract, and bad input.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "../../techniques/image_splat/upsample.hpp"
+
+using namespace softgi::techniques::image_splat;
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// Weights are normalised in double and stored as float: each is within half an ulp (6e-8
+// relative) of its exact value, so a sum of four is within ~2.4e-7 of 1; 1e-6 leaves room.
+constexpr double kSumTol = 1e-6;
+// Relative error of a value interpolated with such float weights (and float accumulation of at
+// most four products) against the exact weighted mean: a few float ulps; 1e-6 leaves room.
+constexpr double kFloatSlack = 1e-6;
+
+struct Surface {
+  float depth;
+  glm::vec3 normal;
+};
+using SceneFn = std::function<Surface(double, double)>;  // display point -> receiver plane (or background)
+
+// A receiver buffer sampled from a synthetic scene at its pixel centres, display point
+// ((x + 0.5) scale, (y + 0.5) scale), as the G-buffer (one ray per pixel centre) would.
+struct Buffer {
+  int width = 0, height = 0, scale = 1;
+  std::vector<float> depth;
+  std::vector<glm::vec3> normal;
+  PlaneView view() const { return PlaneView{width, height, scale, depth.data(), normal.data()}; }
+  double cx(int x) const { return (x + 0.5) * scale; }
+  double cy(int y) const { return (y + 0.5) * scale; }
+};
+
+Buffer sample(const SceneFn& scene, int width, int height, int scale) {
+  Buffer b;
+  b.width = width;
+  b.height = height;
+  b.scale = scale;
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const Surface s = scene(b.cx(x), b.cy(y));
+      b.depth.push_back(s.depth);
+      b.normal.push_back(s.normal);
+    }
+  return b;
+}
+
+// Per-pixel values of a coarse buffer from a function of the display point.
+std::vector<float> coarse_values(const Buffer& c, int channels, const std::function<float(double, double, int)>& f) {
+  std::vector<float> v;
+  for (int y = 0; y < c.height; ++y)
+    for (int x = 0; x < c.width; ++x)
+      for (int k = 0; k < channels; ++k) v.push_back(f(c.cx(x), c.cy(y), k));
+  return v;
+}
+
+// Contract of UpsampleWeights for every pixel: background pixels have no taps and are no miss;
+// other taps are packed to the front, index a coarse pixel, have weight in (0, 1] and sum to 1.
+void expect_well_formed(const UpsampleWeights& w, const Buffer& coarse, const Buffer& fine) {
+  ASSERT_EQ(w.width, fine.width);
+  ASSERT_EQ(w.height, fine.height);
+  const std::size_t n = fine.depth.size();
+  ASSERT_EQ(w.index.size(), n);
+  ASSERT_EQ(w.weight.size(), n);
+  ASSERT_EQ(w.miss.size(), n);
+  std::size_t misses = 0;
+  for (std::size_t p = 0; p < n; ++p) {
+    misses += w.miss[p];
+    if (std::isinf(fine.depth[p])) {
+      EXPECT_EQ(w.miss[p], 0) << "background pixel " << p;
+      for (int k = 0; k < 4; ++k) EXPECT_EQ(w.index[p][k], -1) << "background pixel " << p;
+      continue;
+    }
+    double sum = 0.0;
+    bool packed = true;
+    for (int k = 0; k < 4; ++k) {
+      const int i = w.index[p][k];
+      if (i < 0) {
+        EXPECT_EQ(w.weight[p][k], 0.0f);
+        packed = false;
+        continue;
+      }
+      EXPECT_TRUE(packed) << "taps not packed at pixel " << p;
+      EXPECT_LT(i, coarse.width * coarse.height);
+      EXPECT_FALSE(std::isinf(coarse.depth[i])) << "background coarse tap at pixel " << p;
+      EXPECT_GT(w.weight[p][k], 0.0f);
+      EXPECT_LE(w.weight[p][k], 1.0f);
+      sum += w.weight[p][k];
+    }
+    if (w.index[p][0] >= 0) {
+      EXPECT_NEAR(sum, 1.0, kSumTol) << "pixel " << p;
+    }
+  }
+  EXPECT_EQ(misses, w.misses);
+}
+
+std::vector<float> apply(const UpsampleWeights& w, const std::vector<float>& in, int channels) {
+  std::vector<float> out(static_cast<std::size_t>(w.width) * w.height * channels, -7.0f);
+  upsample_apply(w, in.data(), channels, out.data());
+  return out;
+}
+
+UpsampleOptions with_mode(UpsampleMode m, double epsilon_rel = UpsampleOptions{}.epsilon_rel, int power = 32) {
+  UpsampleOptions o;
+  o.mode = m;
+  o.epsilon_rel = epsilon_rel;
+  o.normal_power = power;
+  return o;
+}
+
+constexpr int kChannels = 2;
+const float kA[kChannels] = {1.0f, -2.0f};  // value on the left part
+const float kB[kChannels] = {5.0f, 3.0f};   // value on the right part
+// A bilinear tap across the edge carries weight 0.5 - 0.5/s >= 0.25 at the display pixel next to
+// the edge (the edge lies on a coarse pixel boundary, see the scenes); 0.2 is clearly visible.
+constexpr double kVisibleMix = 0.2;
+
+// Largest |value - A| / |B - A| over channels.
+double mix(const float* v) {
+  double m = 0.0;
+  for (int k = 0; k < kChannels; ++k) m = std::max(m, std::abs(double(v[k]) - kA[k]) / std::abs(double(kB[k]) - kA[k]));
+  return m;
+}
+
+constexpr int kW = 64, kH = 8;
+constexpr double kEdge = 32.0;  // display x of the discontinuity: a multiple of every scale tested
+
+std::vector<float> two_valued(const Buffer& c) {
+  return coarse_values(c, kChannels, [](double x, double, int k) { return x < kEdge ? kA[k] : kB[k]; });
+}
+
+}  // namespace
+
+// Depth discontinuity: near plane (z1) left of the edge, far plane (z2) right of it, same normal.
+// For a display pixel on plane P, a matching tap has eps w_z = 1 and w_N = 1, the other plane's tap
+// eps w_z = eps / (eps + |z1 - z2|) (eps = epsilon_rel z_p); with the edge on a coarse pixel boundary
+// the bilinear mass of the other plane's column is at most that of its own (0.5 - 0.5/s vs. 0.5 + 0.5/s
+// at worst), so the normalised weight leaking across is at most F / N <= eps / (eps + |z1 - z2|).
+TEST(Upsample, BilateralDoesNotMixAcrossDepthEdge) {
+  constexpr float kZ1 = 1.0f, kZ2 = 1000.0f;
+  const SceneFn scene = [](double x, double) { return Surface{x < kEdge ? kZ1 : kZ2, glm::vec3(0, 0, -1)}; };
+  const Buffer fine = sample(scene, kW, kH, 1);
+  for (int s : {2, 4, 8})
+    for (double eps_rel : {0.01, 1e-4}) {
+      SCOPED_TRACE("scale " + std::to_string(s) + ", epsilon_rel " + std::to_string(eps_rel));
+      const Buffer coarse = sample(scene, kW / s, kH / s, s);
+      const std::vector<float> in = two_valued(coarse);
+      const UpsampleWeights w = upsample_weights(coarse.view(), fine.view(), with_mode(UpsampleMode::Bilateral, eps_rel));
+      expect_well_formed(w, coarse, fine);
+      // Every pixel has its own plane's taps with bilinear mass >= 0.5: the miss measure is >= 0.5.
+      EXPECT_EQ(w.misses, 0u);
+      const std::vector<float> out = apply(w, in, kChannels);
+      double worst_near = 0.0;
+      for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x) {
+          const std::size_t p = std::size_t(y) * kW + x;
+          const bool near = fine.cx(x) < kEdge;
+          const double eps = eps_rel * fine.depth[p];
+          const double leak_bound = eps / (eps + (kZ2 - kZ1));  // the derivation above
+          const double m = near ? mix(&out[p * kChannels]) : 1.0 - mix(&out[p * kChannels]);
+          EXPECT_LE(m, leak_bound + kFloatSlack) << "pixel (" << x << ", " << y << ")";
+          if (near) worst_near = std::max(worst_near, m);
+        }
+      // The depths are chosen so that the near side's bound is tiny: eps / (eps + 999) < 1.1e-5.
+      EXPECT_LE(worst_near, 1.1e-5 + kFloatSlack);
+
+      // Plain bilinear mixes the planes next to the edge; so would a broken depth weight.
+      const UpsampleWeights b = upsample_weights(coarse.view(), fine.view(), with_mode(UpsampleMode::Bilinear));
+      expect_well_formed(b, coarse, fine);
+      EXPECT_EQ(b.misses, 0u);
+      const std::vector<float> outb = apply(b, in, kChannels);
+      const int x_left = static_cast<int>(kEdge) - 1;  // the display pixel just left of the edge
+      EXPECT_GE(mix(&outb[x_left * kChannels]), kVisibleMix);
+      EXPECT_GE(1.0 - mix(&outb[(x_left + 1) * kChannels]), kVisibleMix);
+    }
+}
+
+// Normal discontinuity: a 90 degree valley z = z0 + |x - edge| (display units), equal depth along
+// the crease; the depth differences between neighbouring taps (<= about 2 s) are small against
+// eps = 0.01 z0 = 10, so only the normal weight can separate the planes. Across the crease
+// N_p . N_i = 0 (up to float rounding, < 1e-7), and (1e-7)^32 underflows to 0: no leak at all beyond
+// float slack. With normal_power 0 (normal weight off) and in bilinear mode the planes do mix.
+TEST(Upsample, NormalWeightsSeparateACrease) {
+  constexpr double kZ0 = 1000.0;
+  const glm::vec3 n_left = glm::normalize(glm::vec3(-1, 0, -1)), n_right = glm::normalize(glm::vec3(1, 0, -1));
+  const SceneFn scene = [&](double x, double) {
+    return Surface{static_cast<float>(kZ0 + std::abs(x - kEdge)), x < kEdge ? n_left : n_right};
+  };
+  const Buffer fine = sample(scene, kW, kH, 1);
+  for (int s : {2, 4, 8}) {
+    SCOPED_TRACE("scale " + std::to_string(s));
+    const Buffer coarse = sample(scene, kW / s, kH / s, s);
+    const std::vector<float> in = two_valued(coarse);
+    const UpsampleWeights w = upsample_weights(coarse.view(), fine.view(), with_mode(UpsampleMode::Bilateral));
+    expect_well_formed(w, coarse, fine);
+    // Own taps: bilinear mass >= 0.5, depth difference <= s <= 8 against eps >= 10: measure >= 0.27.
+    EXPECT_EQ(w.misses, 0u);
+    const std::vector<float> out = apply(w, in, kChannels);
+    for (int y = 0; y < kH; ++y)
+      for (int x = 0; x < kW; ++x) {
+        const std::size_t p = std::size_t(y) * kW + x;
+        const double m = fine.cx(x) < kEdge ? mix(&out[p * kChannels]) : 1.0 - mix(&out[p * kChannels]);
+        EXPECT_LE(m, kFloatSlack) << "pixel (" << x << ", " << y << ")";
+      }
+    const int x_left = static_cast<int>(kEdge) - 1;
+    for (const UpsampleOptions& o : {with_mode(UpsampleMode::Bilateral, 0.01, 0), with_mode(UpsampleMode::Bilinear)}) {
+      SCOPED_TRACE(std::string(to_string(o.mode)) + ", normal_power " + std::to_string(o.normal_power));
+      const std::vector<float> outm = apply(upsample_weights(coarse.view(), fine.view(), o), in, kChannels);
+      EXPECT_GE(mix(&outm[x_left * kChannels]), kVisibleMix);
+      EXPECT_GE(1.0 - mix(&outm[(x_left + 1) * kChannels]), kVisibleMix);
+    }
+  }
+}
+
+// On one plane of constant depth and normal, bilateral weights equal the bilinear ones, and
+// bilinear interpolation of samples of an affine function is exact wherever the 2x2 block is not
+// clamped at the border. Also checks the mapping for a fine buffer that is itself subsampled.
+TEST(Upsample, BilinearReproducesAffineFunctions) {
+  const SceneFn plane = [](double, double) { return Surface{10.0f, glm::vec3(0, 0, -1)}; };
+  const auto affine = [](double x, double y, int k) { return static_cast<float>(3.0 + 0.25 * x - 0.5 * y + 2.0 * k); };
+  // Values stay below ~30; float interpolation with float weights is exact to a few ulps of that
+  // (30 * 2^-24 = 1.8e-6 each), so 2e-5 absolute.
+  constexpr double kAffineTol = 2e-5;
+  constexpr int kDisplay = 48;  // a multiple of every scale below
+  struct Case {
+    int fine_scale, coarse_scale;
+  };
+  for (const Case c : {Case{1, 2}, Case{1, 3}, Case{1, 4}, Case{1, 8}, Case{2, 6}, Case{3, 12}}) {
+    const Buffer fine = sample(plane, kDisplay / c.fine_scale, kDisplay / 2 / c.fine_scale, c.fine_scale);
+    const Buffer coarse = sample(plane, kDisplay / c.coarse_scale, kDisplay / 2 / c.coarse_scale, c.coarse_scale);
+    const std::vector<float> in = coarse_values(coarse, kChannels, affine);
+    for (UpsampleMode m : {UpsampleMode::Bilinear, UpsampleMode::Bilateral}) {
+      SCOPED_TRACE(std::string(to_string(m)) + ", fine scale " + std::to_string(c.fine_scale) + ", coarse scale " +
+                   std::to_string(c.coarse_scale));
+      const UpsampleWeights w = upsample_weights(coarse.view(), fine.view(), with_mode(m));
+      expect_well_formed(w, coarse, fine);
+      EXPECT_EQ(w.misses, 0u);
+      const std::vector<float> out = apply(w, in, kChannels);
+      int interior = 0;
+      for (int y = 0; y < fine.height; ++y)
+        for (int x = 0; x < fine.width; ++x) {
+          // Not clamped: the pixel centre lies between the first and last coarse centres.
+          const bool inside = fine.cx(x) >= coarse.cx(0) && fine.cx(x) <= coarse.cx(coarse.width - 1) &&
+                              fine.cy(y) >= coarse.cy(0) && fine.cy(y) <= coarse.cy(coarse.height - 1);
+          if (!inside) continue;
+          ++interior;
+          for (int k = 0; k < kChannels; ++k)
+            EXPECT_NEAR(out[(std::size_t(y) * fine.width + x) * kChannels + k], affine(fine.cx(x), fine.cy(y), k),
+                        kAffineTol)
+                << "pixel (" << x << ", " << y << ")";
+        }
+      EXPECT_GT(interior, fine.width * fine.height / 4);  // the check covered a real area
+    }
+  }
+}
+
+// Identical buffers at scale 1: every pixel takes exactly its own sample, in both modes, also with
+// random depths, normals and background pixels.
+TEST(Upsample, ScaleOneIsIdentity) {
+  constexpr int kWid = 23, kHei = 17;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f), z(1.0f, 50.0f), coin(0.0f, 1.0f);
+  Buffer b;
+  b.width = kWid;
+  b.height = kHei;
+  std::vector<float> in;
+  for (int i = 0; i < kWid * kHei; ++i) {
+    b.depth.push_back(coin(rng) < 0.2f ? kInf : z(rng));
+    b.normal.push_back(glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0, 0, 0.01f)));
+    in.push_back(u(rng));
+    in.push_back(z(rng));
+  }
+  for (UpsampleMode m : {UpsampleMode::Bilateral, UpsampleMode::Bilinear}) {
+    SCOPED_TRACE(to_string(m));
+    const UpsampleWeights w = upsample_weights(b.view(), b.view(), with_mode(m));
+    expect_well_formed(w, b, b);
+    EXPECT_EQ(w.misses, 0u);
+    const std::vector<float> out = apply(w, in, 2);
+    for (int p = 0; p < kWid * kHei; ++p) {
+      if (std::isinf(b.depth[p])) {
+        EXPECT_EQ(out[2 * p], -7.0f) << "background pixel " << p << " was written";
+        continue;
+      }
+      EXPECT_EQ(w.index[p][0], p);
+      EXPECT_EQ(w.weight[p][0], 1.0f);
+      EXPECT_EQ(w.index[p][1], -1);
+      EXPECT_EQ(out[2 * p], in[2 * p]);
+      EXPECT_EQ(out[2 * p + 1], in[2 * p + 1]);
+    }
+  }
+}
+
+// A background plane (z = 100) with two thin foreground bars (z = 1): bar 1 covers display x in
+// [8, 9), between the coarse centres 6 and 10 (scale 4), so the coarse buffer misses it entirely and
+// its pixels match no tap (measure = eps / (eps + 99) = 1e-4 < 0.05); bar 2 covers [17, 19), which
+// contains the coarse centre 18, so its pixels match it with bilinear mass 0.875. Misses are exactly
+// the pixels of bar 1. Bilinear mode flags none.
+TEST(Upsample, MissesWhereTheCoarseBufferMissesAnObject) {
+  constexpr int kS = 4, kWid = 40, kHei = 8;
+  const SceneFn scene = [](double x, double) {
+    const bool bar = (x >= 8.0 && x < 9.0) || (x >= 17.0 && x < 19.0);
+    return Surface{bar ? 1.0f : 100.0f, glm::vec3(0, 0, -1)};
+  };
+  const Buffer fine = sample(scene, kWid, kHei, 1), coarse = sample(scene, kWid / kS, kHei / kS, kS);
+  const UpsampleWeights w = upsample_weights(coarse.view(), fine.view(), with_mode(UpsampleMode::Bilateral));
+  expect_well_formed(w, coarse, fine);
+  for (int y = 0; y < kHei; ++y)
+    for (int x = 0; x < kWid; ++x) EXPECT_EQ(w.miss[std::size_t(y) * kWid + x], x == 8 ? 1 : 0) << "pixel (" << x << ", " << y << ")";
+  EXPECT_EQ(w.misses, std::size_t(kHei));
+
+  const UpsampleWeights b = upsample_weights(coarse.view(), fine.view(), with_mode(UpsampleMode::Bilinear));
+  expect_well_formed(b, coarse, fine);
+  EXPECT_EQ(b.misses, 0u);
+
+  // The "shaded" fallback: bilinear on the miss pixels only, the rest keeps the eq. 11 result.
+  const std::vector<float> in = coarse_values(coarse, 1, [](double x, double y, int) { return float(x + 100 * y); });
+  std::vector<float> out = apply(w, in, 1);
+  const std::vector<float> eq11 = out, bil = apply(b, in, 1);
+  upsample_apply_bilinear(w, coarse.view(), fine.view(), in.data(), 1, out.data(), &w.miss);
+  for (std::size_t p = 0; p < out.size(); ++p) EXPECT_EQ(out[p], w.miss[p] ? bil[p] : eq11[p]) << "pixel " << p;
+  // Without a selection every non-background pixel gets the bilinear result.
+  std::vector<float> all(out.size(), -7.0f);
+  upsample_apply_bilinear(w, coarse.view(), fine.view(), in.data(), 1, all.data());
+  EXPECT_EQ(all, bil);
+}
+
+// Where every eq. 11 weight is 0 the pixel falls back to bilinear over the valid taps and is a miss;
+// with no valid tap it is a miss without taps; background display pixels have neither.
+TEST(Upsample, FallbacksAndBackground) {
+  constexpr int kS = 2, kWid = 8, kHei = 4;
+  const Buffer fine = sample([](double, double) { return Surface{5.0f, glm::vec3(0, 0, -1)}; }, kWid, kHei, 1);
+  const std::vector<float> in(std::size_t(kWid / kS) * (kHei / kS), 1.0f);
+
+  // Coarse normals face away (N_p . N_i = -1): w_N = 0 for every tap.
+  const Buffer away = sample([](double, double) { return Surface{5.0f, glm::vec3(0, 0, 1)}; }, kWid / kS, kHei / kS, kS);
+  const UpsampleWeights w = upsample_weights(away.view(), fine.view(), with_mode(UpsampleMode::Bilateral));
+  const UpsampleWeights b = upsample_weights(away.view(), fine.view(), with_mode(UpsampleMode::Bilinear));
+  expect_well_formed(w, away, fine);
+  EXPECT_EQ(w.misses, std::size_t(kWid * kHei));
+  EXPECT_EQ(b.misses, 0u);
+  EXPECT_EQ(w.index, b.index);
+  EXPECT_EQ(w.weight, b.weight);
+
+  // Some coarse taps are background: bilinear renormalises over the others.
+  Buffer holes = sample([](double, double) { return Surface{5.0f, glm::vec3(0, 0, -1)}; }, kWid / kS, kHei / kS, kS);
+  holes.depth[0] = kInf;
+  holes.normal[0] = glm::vec3(NAN);  // a background pixel's normal is meaningless and must not be read
+  for (UpsampleMode m : {UpsampleMode::Bilateral, UpsampleMode::Bilinear}) {
+    const UpsampleWeights h = upsample_weights(holes.view(), fine.view(), with_mode(m));
+    expect_well_formed(h, holes, fine);  // includes: no tap on the background coarse pixel
+    EXPECT_EQ(h.misses, 1u) << to_string(m);  // display pixel (0, 0) sees only coarse pixel 0
+    EXPECT_EQ(h.miss[0], 1) << to_string(m);
+  }
+
+  // No valid tap at all.
+  const Buffer empty = sample([](double, double) { return Surface{kInf, glm::vec3(0, 0, -1)}; }, kWid / kS, kHei / kS, kS);
+  for (UpsampleMode m : {UpsampleMode::Bilateral, UpsampleMode::Bilinear}) {
+    const UpsampleWeights e = upsample_weights(empty.view(), fine.view(), with_mode(m));
+    EXPECT_EQ(e.misses, std::size_t(kWid * kHei)) << to_string(m);
+    for (const auto& idx : e.index) EXPECT_EQ(idx[0], -1);
+    for (const auto& wt : e.weight) EXPECT_EQ(wt[0], 0.0f);
+    const std::vector<float> out = apply(e, in, 1);
+    EXPECT_TRUE(std::all_of(out.begin(), out.end(), [](float v) { return v == -7.0f; })) << "pixels without taps were written";
+  }
+
+  // Background display pixels.
+  const Buffer sky = sample([](double, double) { return Surface{kInf, glm::vec3(0)}; }, kWid, kHei, 1);
+  const UpsampleWeights s = upsample_weights(away.view(), sky.view(), with_mode(UpsampleMode::Bilateral));
+  expect_well_formed(s, away, sky);
+  EXPECT_EQ(s.misses, 0u);
+  EXPECT_EQ(s.bytes(), std::size_t(kWid * kHei) * (4 * sizeof(std::int32_t) + 4 * sizeof(float) + 1));
+}
+
+namespace {
+template <class F>
+void expect_error(F&& f, const std::string& needle) {
+  try {
+    f();
+    ADD_FAILURE() << "no exception; expected one mentioning '" << needle << "'";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << "message: " << e.what();
+  }
+}
+}  // namespace
+
+TEST(Upsample, BadInputIsRejectedWithAClearMessage) {
+  const SceneFn plane = [](double, double) { return Surface{2.0f, glm::vec3(0, 0, -1)}; };
+  const Buffer fine = sample(plane, 16, 8, 1), coarse = sample(plane, 4, 2, 4);
+  const UpsampleOptions ok;
+  EXPECT_NO_THROW(upsample_weights(coarse.view(), fine.view(), ok));
+  // Coarse sizes from floor and ceil of display / scale are both fine.
+  const Buffer odd = sample(plane, 18, 9, 1);
+  EXPECT_NO_THROW(upsample_weights(sample(plane, 4, 2, 4).view(), odd.view(), ok));
+  EXPECT_NO_THROW(upsample_weights(sample(plane, 5, 3, 4).view(), odd.view(), ok));
+
+  const auto run = [&](PlaneView c, PlaneView f, UpsampleOptions o = UpsampleOptions{}) {
+    return [=] { upsample_weights(c, f, o); };
+  };
+  PlaneView c = coarse.view(), f = fine.view();
+  expect_error(run(sample(plane, 3, 2, 4).view(), f), "do not cover the same display area");
+  expect_error(run(sample(plane, 4, 3, 4).view(), f), "do not cover the same display area");
+  PlaneView bad = c;
+  bad.scale = 0;
+  expect_error(run(bad, f), "scale 0 must be at least 1");
+  bad = f;
+  bad.scale = 8;
+  expect_error(run(c, bad), "exceeds coarse buffer scale");
+  bad = c;
+  bad.depth = nullptr;
+  expect_error(run(bad, f), "coarse buffer depth pointer is null");
+  bad = f;
+  bad.normal = nullptr;
+  expect_error(run(c, bad), "fine buffer normal pointer is null");
+  bad = f;
+  bad.width = 0;
+  expect_error(run(c, bad), "must be positive");
+  bad = f;
+  bad.width = bad.height = 70000;  // rejected before any pixel is read
+  expect_error(run(sample(plane, 1, 1, 1).view(), bad), "more pixels than an int32");
+
+  UpsampleOptions o;
+  for (double e : {0.0, -0.01, double(NAN), double(INFINITY)}) {
+    o = ok;
+    o.epsilon_rel = e;
+    expect_error(run(c, f, o), "epsilon_rel");
+  }
+  o = ok;
+  o.normal_power = -1;
+  expect_error(run(c, f, o), "normal_power = -1");
+  o = ok;
+  o.miss_threshold = NAN;
+  expect_error(run(c, f, o), "miss_threshold");
+  o = ok;
+  o.mode = static_cast<UpsampleMode>(7);
+  expect_error(run(c, f, o), "unknown mode");
+
+  // Depths and normals of the buffers (the fine one is checked inside the parallel loop).
+  Buffer bf = fine;
+  bf.depth[3 * 16 + 5] = NAN;
+  expect_error(run(c, bf.view()), "fine depth at pixel (5, 3)");
+  bf = fine;
+  bf.depth[7] = -kInf;
+  expect_error(run(c, bf.view()), "fine depth at pixel (7, 0)");
+  Buffer bc = coarse;
+  bc.depth[1] = -1.0f;
+  expect_error(run(bc.view(), f), "coarse depth at pixel (1, 0)");
+  bc = coarse;
+  bc.normal[2] = glm::vec3(NAN);
+  expect_error(run(bc.view(), f), "coarse normal at pixel (2, 0) is not finite");
+
+  // Applying weights.
+  const UpsampleWeights w = upsample_weights(c, f, ok);
+  std::vector<float> in(8, 1.0f), out(16 * 8, 0.0f);
+  expect_error([&] { upsample_apply(w, nullptr, 1, out.data()); }, "input pointer is null");
+  expect_error([&] { upsample_apply(w, in.data(), 1, nullptr); }, "output pointer is null");
+  expect_error([&] { upsample_apply(w, in.data(), 0, out.data()); }, "channels = 0");
+  UpsampleWeights broken = w;
+  broken.miss.pop_back();
+  expect_error([&] { upsample_apply(broken, in.data(), 1, out.data()); }, "inconsistent array sizes");
+  const std::vector<std::uint8_t> short_sel(5, 1);
+  expect_error([&] { upsample_apply_bilinear(w, c, f, in.data(), 1, out.data(), &short_sel); }, "pixel selection has 5");
+  expect_error([&] { upsample_apply_bilinear(w, c, odd.view(), in.data(), 1, out.data()); }, "do not match fine buffer");
+
+  expect_error([] { parse_upsample_mode("bicubic"); }, "'bicubic'");
+  expect_error([] { parse_upsample_fallback("magic"); }, "'magic'");
+}
+
+TEST(Upsample, NamesRoundTrip) {
+  for (UpsampleMode m : {UpsampleMode::Bilateral, UpsampleMode::Bilinear}) EXPECT_EQ(parse_upsample_mode(to_string(m)), m);
+  for (UpsampleFallback f : {UpsampleFallback::Robust, UpsampleFallback::Shaded, UpsampleFallback::None})
+    EXPECT_EQ(parse_upsample_fallback(to_string(f)), f);
+  EXPECT_STREQ(to_string(UpsampleMode::Bilateral), "bilateral");
+  EXPECT_STREQ(to_string(UpsampleFallback::Shaded), "shaded");
+}

@@ -1,0 +1,295 @@
+// image_splat (paper 000) on the Vulkan backend against the CPU backend, pass by pass: the CPU graph
+// runs up to a pass, then the pass runs on both backends with the same inputs and the outputs are
+// compared (and the CPU output is put back, so every pass starts from identical inputs). The GPU
+// passes: accumulate_log, exponentiate (HYB, OL), upsample. Every built-in scene at SH orders 3, 4
+// and 6. Host passes must be mapped to one function under both
+// names; the host-only modes of the GPU passes (per-pair cut, PS*/exact exponential) must give the
+// CPU result bit for bit.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "../../techniques/image_splat/image_splat_internal.hpp"
+#include "../../techniques/image_splat/image_splat_vulkan.hpp"
+#include "softgi/backends/cpu_backend.hpp"
+#include "softgi/backends/vulkan/context.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/render/technique.hpp"
+#include "softgi/scene/builtin.hpp"
+#include "softgi/techniques/image_splat.hpp"
+#include "vulkan_test_util.hpp"
+
+using namespace softgi;
+namespace is = softgi::techniques::image_splat;
+
+namespace {
+
+// accumulate_log and exponentiate run SHEXP's shaders and kernels: the tolerances of SHEXP's parity
+// test (kAccumulateRelTol, kExpRelTol, kFloorFraction; vulkan_test_util.hpp).
+using softgi::testing::compare_rows;
+using softgi::testing::Compared;
+using softgi::testing::kAccumulateRelTol;
+using softgi::testing::kExpRelTol;
+// upsample (eq. 11 weights): float on the GPU, double on the CPU. A weight is w_b w_z max(0, N_p.N_i)^32
+// renormalised over <= 4 taps; the float dot product of two unit normals is off by a few ulps of 1
+// (~2e-7), which the 32nd power (parameter normal_power's default) multiplies by 32: ~6e-6, plus ~20
+// roundings of the products and the division. Absolute on weights in [0, 1].
+constexpr double kWeightAbsTol = 2e-5;
+// The miss decision compares the unnormalised sum of those weights with miss_threshold: the backends
+// may disagree only where the sum lies within its float error of the threshold (relative, as above).
+constexpr double kMissMeasureRelTol = 1e-4;
+// The indirect field interpolated with those weights (<= 4 taps of one field): per pixel relative to
+// its largest channel, floored as in compare_rows (kFloorFraction).
+constexpr double kUpsampleRelTol = 1e-4;
+// Display size of the parity frames: small, the suite also runs under ASan. receiver_scale 2 gives a
+// 20 x 15 receiver buffer (up to 300 receivers), tile_size 8 (params_for) six tiles: six blocker lists.
+constexpr int kWidth = 40, kHeight = 30;
+
+class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatParity> {
+ protected:
+  static void SetUpTestSuite() {
+    static backends::CpuBackend registers_cpu_shared_passes;  // the Embree G-buffer passes under "cpu"
+    (void)registers_cpu_shared_passes;
+    ValidatedParamSuite::SetUpTestSuite();
+    tech_ = is::create();  // one instance for all scenes: its tables are cached by order
+  }
+  static void TearDownTestSuite() {
+    tech_.reset();
+    ValidatedParamSuite::TearDownTestSuite();
+  }
+
+  struct Run {
+    std::size_t compared = 0;     // GPU passes compared
+    std::size_t identical = 0;    // host-only passes under "vulkan" that gave the CPU result exactly
+  };
+
+  // Runs the graph for `params` on the CPU, and every pass in `gpu_passes` on Vulkan too from the
+  // same inputs. Host passes: cpu and vulkan must be the same function object's copies; checked by
+  // name presence (PassDesc holds std::function, which cannot be compared).
+  static Run run(const std::string& scene_name, const scene::Scene& sc, const render::ParamSet& params, const std::string& label) {
+    const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+    std::set<std::string> empty;
+    render::PassGraph graph = tech_->plan(sc, params, empty);
+    const render::CompiledGraph cg = graph.compile({render::kFinal}, empty);
+    render::FrameResult result;
+    render::FrameContext ctx(sc, posed, params, kWidth, kHeight, result);
+    ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+    Run out;
+    for (int idx : cg.order) {
+      const render::PassDesc& pass = graph.passes()[idx];
+      result.passes.push_back(render::PassRecord{pass.name});
+      if (pass.impl.empty()) {  // shared passes (G-buffers): the CPU implementation feeds both
+        const render::PassFn* fn = render::find_shared_pass_impl(pass.name, "cpu");
+        EXPECT_NE(fn, nullptr) << pass.name;
+        if (!fn) return out;
+        (*fn)(ctx);
+        continue;
+      }
+      EXPECT_TRUE(pass.impl.count("cpu") && pass.impl.count("vulkan")) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
+      if (!pass.impl.count("cpu") || !pass.impl.count("vulkan")) return out;
+      pass.impl.at("cpu")(ctx);
+      if (pass.name == "upsample") {
+        compare_upsample(ctx, params, pass, result, scene_name, label);
+        ++out.compared;
+        continue;
+      }
+      if (pass.name != "accumulate_log" && pass.name != "exponentiate") continue;
+      const std::string res = pass.writes.at(0);
+      auto cpu_res = ctx.get<std::shared_ptr<const is::Field>>(res);
+      result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
+      pass.impl.at("vulkan")(ctx);
+      auto gpu_res = ctx.get<std::shared_ptr<const is::Field>>(res);
+      EXPECT_NE(cpu_res, gpu_res);
+      EXPECT_EQ(cpu_res->channels, gpu_res->channels);
+      const std::size_t width = static_cast<std::size_t>(cpu_res->channels);
+      EXPECT_GT(cpu_res->v.size(), 0u) << pass.name << ": the parity frame has no receivers";
+      const bool host_only = result.passes.back().counters.count("kernel_gpu_seconds") == 0;
+      if (host_only) {
+        EXPECT_EQ(cpu_res->v, gpu_res->v) << pass.name << " (" << label << "): the host-only mode must run the CPU pass";
+        out.identical += cpu_res->v == gpu_res->v;
+      } else {
+        if (ctx_->device_info().timestamp_valid_bits > 0) {
+          EXPECT_GE(result.passes.back().counters["kernel_gpu_seconds"], 0.0);
+        }
+        const double tol = pass.name == "accumulate_log" ? kAccumulateRelTol : kExpRelTol;
+        const Compared c = compare_rows(cpu_res->v, gpu_res->v, width);
+        EXPECT_LE(c.worst, tol) << pass.name << " (" << label << "): receiver " << c.worst_index << " differs by " << c.worst << " of its size";
+        std::printf("[parity] %-9s %-22s %-15s %zu receivers, worst relative difference %.3g (GPU kernel %.3f ms)\n", scene_name.c_str(),
+                    label.c_str(), pass.name.c_str(), cpu_res->v.size() / width, c.worst,
+                    result.passes.back().counters["kernel_gpu_seconds"] * 1e3);
+        ++out.compared;
+      }
+      ctx.put<std::shared_ptr<const is::Field>>(res, cpu_res);
+    }
+    return out;
+  }
+
+  static is::PlaneView plane(const render::GBuffer& gb) {
+    is::PlaneView v;
+    v.width = gb.width;
+    v.height = gb.height;
+    v.scale = gb.scale;
+    v.depth = gb.depth.data();
+    v.normal = gb.normal.data();
+    return v;
+  }
+
+  // upsample on both backends: the taps and weights of every pixel neither marks a miss, the miss
+  // decisions (equal except within kMissMeasureRelTol of the threshold), the interpolated indirect
+  // field, and the host parts (surface list, coarse O_p) exactly.
+  static void compare_upsample(render::FrameContext& ctx, const render::ParamSet& params, const render::PassDesc& pass,
+                               render::FrameResult& result, const std::string& scene_name, const std::string& label) {
+    const std::string res = pass.writes.at(0);
+    auto cpu = ctx.get<std::shared_ptr<const is::Upsampled>>(res);
+    result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
+    pass.impl.at("vulkan")(ctx);
+    auto gpu = ctx.get<std::shared_ptr<const is::Upsampled>>(res);
+    ASSERT_NE(cpu, gpu);
+    EXPECT_EQ(cpu->surface, gpu->surface);
+    EXPECT_EQ(cpu->coarse_visibility, gpu->coarse_visibility);
+    ASSERT_EQ(cpu->w.index.size(), gpu->w.index.size());
+    // The GPU's own miss measure, for the pixels where the decisions differ.
+    const is::Settings st = is::read_settings(params);
+    std::vector<float> measure;
+    is::vulkan_upsample_weights(ctx, plane(ctx.get<render::GBuffer>(render::kReceiverGBuffer)), plane(ctx.get<render::GBuffer>(render::kGBuffer)),
+                                st.upsample, &measure);
+    const double thr = st.upsample.miss_threshold;
+    double worst_w = 0.0;
+    std::size_t flips = 0, compared_pixels = 0;
+    for (std::size_t p = 0; p < cpu->w.index.size(); ++p) {
+      if (cpu->w.miss[p] != gpu->w.miss[p]) {
+        ++flips;
+        EXPECT_LE(std::abs(measure[p] - thr), kMissMeasureRelTol * thr) << "pixel " << p << ": miss decisions differ away from the threshold";
+        continue;
+      }
+      if (cpu->w.miss[p]) continue;
+      ++compared_pixels;
+      // Tap maps (index -> weight), a tap missing on one side counting as weight 0.
+      const auto weight_of = [](const is::UpsampleWeights& w, std::size_t px, std::int32_t idx) {
+        for (int k = 0; k < 4; ++k)
+          if (w.index[px][k] == idx) return static_cast<double>(w.weight[px][k]);
+        return 0.0;
+      };
+      for (const is::UpsampleWeights* w : {&cpu->w, &gpu->w})
+        for (int k = 0; k < 4 && w->index[p][k] >= 0; ++k) {
+          const std::int32_t idx = w->index[p][k];
+          worst_w = std::max(worst_w, std::abs(weight_of(cpu->w, p, idx) - weight_of(gpu->w, p, idx)));
+        }
+    }
+    EXPECT_LE(worst_w, kWeightAbsTol) << "upsample (" << label << ") weights";
+    double worst_i = 0.0;
+    if (!cpu->indirect.empty()) {
+      ASSERT_EQ(cpu->indirect.size(), gpu->indirect.size());
+      std::vector<float> a, b;  // the pixels neither backend marks a miss
+      for (std::size_t p = 0; p < cpu->w.miss.size(); ++p)
+        if (!cpu->w.miss[p] && !gpu->w.miss[p])
+          for (int c = 0; c < 3; ++c) {
+            a.push_back(cpu->indirect[3 * p + c]);
+            b.push_back(gpu->indirect[3 * p + c]);
+          }
+      worst_i = compare_rows(a, b, 3).worst;
+      EXPECT_LE(worst_i, kUpsampleRelTol) << "upsample (" << label << ") indirect field";
+    }
+    EXPECT_GT(compared_pixels, 0u);
+    std::printf("[parity] %-9s %-22s upsample        %zu pixels, worst weight difference %.3g, indirect %.3g, %zu of %zu misses flipped\n",
+                scene_name.c_str(), label.c_str(), compared_pixels, worst_w, worst_i, flips, cpu->w.misses);
+    ctx.put<std::shared_ptr<const is::Upsampled>>(res, cpu);
+  }
+
+  static render::ParamSet params_for(int order) {
+    render::ParamSet p = render::default_params(*tech_);
+    p.set("order", std::to_string(order));
+    p.set("tile_size", "8");  // several tiles (several blocker lists) even in a small frame
+    return p;
+  }
+
+  static std::unique_ptr<render::Technique> tech_;
+};
+std::unique_ptr<render::Technique> ImageSplatParity::tech_;
+
+TEST_P(ImageSplatParity, GpuPassesMatchTheCpuPasses) {
+  const std::string name = GetParam();
+  const scene::Scene sc = scene::make_builtin(name);
+  std::size_t compared = 0;
+  for (int order : {3, 4, 6}) {
+    SCOPED_TRACE(name + " at order " + std::to_string(order));
+    compared += run(name, sc, params_for(order), "order " + std::to_string(order) + " hyb").compared;
+  }
+  // OL (no squarings) at order 4, with indirect order 4 (the averaged operator allows it).
+  render::ParamSet p = params_for(4);
+  p.set("exp", "ol");
+  p.set("indirect_operator", "averaged");
+  p.set("indirect_order", "4");
+  compared += run(name, sc, p, "order 4 ol").compared;
+  EXPECT_EQ(compared, 12u) << "accumulate_log, exponentiate and upsample at orders 3, 4, 6 (HYB) and 4 (OL)";
+}
+
+INSTANTIATE_TEST_SUITE_P(BuiltinScenes, ImageSplatParity, ::testing::Values("spheres", "cornell", "character", "crowd", "bunny"));
+
+// The modes the GPU passes leave to the host run the CPU pass under "vulkan": the result is the CPU's.
+TEST_F(ImageSplatParity, HostOnlyModesGiveTheCpuResult) {
+  const scene::Scene sc = scene::make_builtin("character");
+  render::ParamSet hard = params_for(4);
+  hard.set("smooth_clamp", "false");  // hard cut at eta r: per-pair cut, not in SHEXP's shader
+  hard.set("exp", "ps*");             // PS*-2: no GPU exponential
+  hard.set("indirect", "false");
+  const Run a = run("character", sc, hard, "hard cut, ps*");
+  EXPECT_EQ(a.compared, 1u) << "upsample";
+  EXPECT_EQ(a.identical, 2u);
+  render::ParamSet printed = params_for(4);
+  printed.set("replacement_rule", "printed");  // the printed rule with a sphere of influence: per-pair cut
+  printed.set("indirect", "false");
+  const Run b = run("character", sc, printed, "printed rule");
+  EXPECT_EQ(b.identical, 1u) << "accumulate_log on the host";
+  EXPECT_EQ(b.compared, 2u) << "exponentiate and upsample on the GPU";
+}
+
+}  // namespace
+
+namespace {
+
+// Bad input to the GPU upsampling gets upsample.cpp's messages (naming the pixel or the sizes), and
+// the context stays usable (validation clean: checked by the fixture at teardown).
+TEST_F(ImageSplatParity, UpsampleOnVulkanRejectsBadInput) {
+  const scene::Scene sc = scene::make_builtin("spheres");
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  const render::ParamSet params = params_for(4);
+  render::FrameResult result;
+  render::FrameContext ctx(sc, posed, params, 4, 4, result);
+  ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+  result.passes.push_back(render::PassRecord{"upsample"});
+  // A 4x4 display buffer over a 2x2 receiver buffer, all facing the camera at depth 2.
+  std::vector<float> fdepth(16, 2.0f), cdepth(4, 2.0f);
+  std::vector<glm::vec3> fnormal(16, glm::vec3(0, 0, 1)), cnormal(4, glm::vec3(0, 0, 1));
+  is::PlaneView fine{4, 4, 1, fdepth.data(), fnormal.data()}, coarse{2, 2, 2, cdepth.data(), cnormal.data()};
+  const is::UpsampleOptions opt;
+  const is::UpsampleWeights ok = is::vulkan_upsample_weights(ctx, coarse, fine, opt);
+  EXPECT_EQ(ok.misses, 0u);
+  const auto expect_error = [&](const std::string& needle) {
+    try {
+      is::vulkan_upsample_weights(ctx, coarse, fine, opt);
+      ADD_FAILURE() << "no error; expected one mentioning '" << needle << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  fdepth[6] = std::nanf("");
+  expect_error("fine depth at pixel (2, 1)");
+  fdepth[6] = 2.0f;
+  cnormal[3] = glm::vec3(std::numeric_limits<float>::infinity(), 0, 0);
+  expect_error("coarse normal at pixel (1, 1)");
+  cnormal[3] = glm::vec3(0, 0, 1);
+  fine.width = 7;  // 7 display pixels do not fit 2 receiver pixels of scale 2
+  expect_error("do not cover the same display area");
+  fine.width = 4;
+  EXPECT_EQ(is::vulkan_upsample_weights(ctx, coarse, fine, opt).misses, 0u) << "the context is usable after the errors";
+}
+
+}  // namespace

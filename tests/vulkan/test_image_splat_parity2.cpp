@@ -1,0 +1,282 @@
+// image_splat (paper 000) on the Vulkan backend, second set of GPU passes: accumulate_indirect
+// (section 5; the point-sampled eq. 13, averaged_poly and averaged eq. 15 operators) against the CPU
+// pass. As in test_image_splat_parity.cpp, the CPU graph runs up to the pass, the pass runs on both
+// backends from the same inputs and the outputs are compared; every built-in scene, shadow orders 3,
+// 4 and 6, indirect orders 3 and 4 where the operator allows. The exact operator stays on the host
+// and must give the CPU result bit for bit. A direct test covers every replacement rule on random
+// receiver-proxy configurations (receivers inside, straddling and behind proxies).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "../../techniques/image_splat/image_splat_internal.hpp"
+#include "../../techniques/image_splat/image_splat_vulkan_shading.hpp"
+#include "softgi/backends/cpu_backend.hpp"
+#include "softgi/backends/vulkan/context.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/render/technique.hpp"
+#include "softgi/scene/builtin.hpp"
+#include "softgi/sh/sh.hpp"
+#include "softgi/techniques/image_splat.hpp"
+#include "vulkan_test_util.hpp"
+
+using namespace softgi;
+namespace is = softgi::techniques::image_splat;
+namespace shexp = softgi::techniques::shexp;
+
+namespace {
+
+// Per receiver, |gpu - cpu| over the three channels relative to the receiver's largest CPU channel
+// (floored at softgi::testing::kFloorFraction of the largest). Both backends evaluate the same float formulas on the same table
+// floats, in a different order and with different primitives: the GPU's asin is the SHEXP kernel's
+// Abramowitz-Stegun polynomial (|error| <= 2e-8) where the CPU calls std::asin, and asin(r/d) is
+// ill-conditioned where r/d -> 1, which the replacement rule makes common (the adjusted sphere is
+// tangent to the receiver's tangent plane: a receiver near the tangent point sees r/d near 1): one
+// ulp of r/d moves theta by up to sqrt(2 ulp) ~ 5e-4 rad, a fraction of a table row (pi/2/255 rad);
+// the basis is the SHEXP recurrence on the GPU, sh::eval_basis on the CPU (a few ulps); lavapipe does
+// not fuse multiply-adds. Sums of up to a few hundred proxies: the bound of the accumulate_log
+// parity test, whose error sources these are.
+constexpr double kIndirectRelTol = 2e-3;
+// omega_p = sum of F_0 from the same table row pairs: the asin conditioning above only.
+constexpr double kOmegaRelTol = 2e-3;
+// Pairs inside the sphere of influence (dist < eta r): the backends may disagree only for pairs
+// whose distance lies within a float rounding of eta r. Those read exactly 0 from the smoothly clamped
+// table, so they do not change the sums; the count may differ by a few.
+constexpr double kPairCountRelTol = 1e-3;
+// Display size of the parity frames: small, the suite also runs under ASan. receiver_scale 2: a
+// 20 x 15 receiver buffer, tile_size 8: six tiles (six proxy lists).
+constexpr int kWidth = 40, kHeight = 30;
+
+// Row-wise relative difference (softgi::testing::compare_rows, floored at its kFloorFraction).
+double compare_rows(const std::vector<float>& cpu, const std::vector<float>& gpu, std::size_t width, std::size_t* worst_index = nullptr) {
+  const softgi::testing::Compared c = softgi::testing::compare_rows(cpu, gpu, width);
+  if (worst_index) *worst_index = c.worst_index;
+  return c.worst;
+}
+
+class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
+ protected:
+  static void SetUpTestSuite() {
+    static backends::CpuBackend registers_cpu_shared_passes;  // the Embree G-buffer passes under "cpu"
+    (void)registers_cpu_shared_passes;
+    ctx_ = softgi::testing::validated_context();
+    log_ = ctx_->validation_log();
+    tech_ = is::create();
+  }
+  static void TearDownTestSuite() {
+    tech_.reset();
+    ctx_.reset();
+    EXPECT_EQ(log_->problems(), 0u) << log_->summary();
+  }
+
+  struct Run {
+    std::size_t compared = 0, identical = 0;
+    double worst_rgb = 0.0, worst_omega = 0.0;
+  };
+
+  // The CPU graph up to and including accumulate_indirect, then accumulate_indirect on Vulkan from
+  // the same inputs.
+  static Run run(const std::string& scene_name, const scene::Scene& sc, const render::ParamSet& params, const std::string& label) {
+    const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+    std::set<std::string> empty;
+    render::PassGraph graph = tech_->plan(sc, params, empty);
+    const render::CompiledGraph cg = graph.compile({render::kFinal}, empty);
+    render::FrameResult result;
+    render::FrameContext ctx(sc, posed, params, kWidth, kHeight, result);
+    ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+    Run out;
+    for (int idx : cg.order) {
+      const render::PassDesc& pass = graph.passes()[idx];
+      result.passes.push_back(render::PassRecord{pass.name});
+      if (pass.impl.empty()) {
+        const render::PassFn* fn = render::find_shared_pass_impl(pass.name, "cpu");
+        EXPECT_NE(fn, nullptr) << pass.name;
+        if (!fn) return out;
+        (*fn)(ctx);
+        continue;
+      }
+      EXPECT_TRUE(pass.impl.count("cpu") && pass.impl.count("vulkan")) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
+      if (!pass.impl.count("cpu") || !pass.impl.count("vulkan")) return out;
+      pass.impl.at("cpu")(ctx);
+      if (pass.name != "accumulate_indirect") continue;
+      const double cpu_inside = result.passes.back().counters["pairs_inside_influence"];
+      auto cpu_res = ctx.get<std::shared_ptr<const is::IndirectSums>>(pass.writes.at(0));
+      result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
+      pass.impl.at("vulkan")(ctx);
+      auto gpu_res = ctx.get<std::shared_ptr<const is::IndirectSums>>(pass.writes.at(0));
+      EXPECT_NE(cpu_res, gpu_res);
+      EXPECT_GT(cpu_res->omega.size(), 0u) << "the parity frame has no receivers";
+      auto& counters = result.passes.back().counters;
+      if (counters.count("kernel_gpu_seconds") == 0) {
+        EXPECT_EQ(cpu_res->rgb, gpu_res->rgb) << label << ": the host-only operator must run the CPU pass";
+        EXPECT_EQ(cpu_res->omega, gpu_res->omega) << label;
+        out.identical += cpu_res->rgb == gpu_res->rgb && cpu_res->omega == gpu_res->omega;
+        break;
+      }
+      EXPECT_EQ(cpu_res->pairs, gpu_res->pairs);
+      EXPECT_LE(std::abs(counters["pairs_inside_influence"] - cpu_inside), kPairCountRelTol * cpu_inside + 2.0)
+          << label << ": pairs inside the sphere of influence";
+      std::size_t wi = 0;
+      out.worst_rgb = compare_rows(cpu_res->rgb, gpu_res->rgb, 3, &wi);
+      EXPECT_LE(out.worst_rgb, kIndirectRelTol) << scene_name << " (" << label << "): receiver " << wi << " differs by " << out.worst_rgb
+                                                << " of its size";
+      out.worst_omega = compare_rows(cpu_res->omega, gpu_res->omega, 1, &wi);
+      EXPECT_LE(out.worst_omega, kOmegaRelTol) << scene_name << " (" << label << "): omega of receiver " << wi;
+      std::printf("[parity2] %-9s %-28s %4zu receivers, %8.0f pairs (%6.0f inside), worst rgb %.3g, omega %.3g (GPU kernel %.3f ms)\n",
+                  scene_name.c_str(), label.c_str(), cpu_res->omega.size(), cpu_res->pairs, cpu_inside, out.worst_rgb, out.worst_omega,
+                  counters["kernel_gpu_seconds"] * 1e3);
+      ++out.compared;
+      break;  // later passes are not ported here
+    }
+    return out;
+  }
+
+  static render::ParamSet params_for(int order, const std::string& op, int indirect_order) {
+    render::ParamSet p = render::default_params(*tech_);
+    p.set("order", std::to_string(order));
+    p.set("indirect_operator", op);
+    p.set("indirect_order", std::to_string(indirect_order));
+    p.set("tile_size", "8");
+    return p;
+  }
+
+  static std::shared_ptr<backends::vulkan::Context> ctx_;
+  static std::shared_ptr<backends::vulkan::ValidationLog> log_;
+  static std::unique_ptr<render::Technique> tech_;
+};
+std::shared_ptr<backends::vulkan::Context> ImageSplatParity2::ctx_;
+std::shared_ptr<backends::vulkan::ValidationLog> ImageSplatParity2::log_;
+std::unique_ptr<render::Technique> ImageSplatParity2::tech_;
+
+TEST_P(ImageSplatParity2, AccumulateIndirectMatchesTheCpuPass) {
+  const std::string name = GetParam();
+  const scene::Scene sc = scene::make_builtin(name);
+  std::size_t compared = 0;
+  for (int order : {3, 4, 6}) {
+    SCOPED_TRACE(name + " at order " + std::to_string(order));
+    compared += run(name, sc, params_for(order, "averaged_poly", 3), "order " + std::to_string(order) + " averaged_poly 3").compared;
+  }
+  for (const char* op : {"point", "averaged"})
+    for (int io : {3, 4}) {
+      const std::string label = std::string("order 4 ") + op + " " + std::to_string(io);
+      SCOPED_TRACE(name + " " + label);
+      compared += run(name, sc, params_for(4, op, io), label).compared;
+    }
+  EXPECT_EQ(compared, 7u) << "averaged_poly at orders 3, 4, 6; point and averaged at indirect orders 3 and 4";
+}
+
+INSTANTIATE_TEST_SUITE_P(BuiltinScenes, ImageSplatParity2, ::testing::Values("spheres", "cornell", "character", "crowd", "bunny"));
+
+TEST_F(ImageSplatParity2, ExactOperatorRunsTheCpuPass) {
+  const scene::Scene sc = scene::make_builtin("character");
+  const Run r = run("character", sc, params_for(4, "exact", 3), "exact 3");
+  EXPECT_EQ(r.identical, 1u);
+  EXPECT_EQ(r.compared, 0u);
+}
+
+// Every replacement rule (the shared GLSL port of shexp::apply_replacement_rule), both GPU operator
+// kinds and indirect orders 3 and 6, on random receivers around random proxies in one tile: receivers
+// inside proxies, proxies straddling and behind the tangent plane, with and without a sphere of
+// influence (smooth and hard cut).
+TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  is::ReceiverBuffer r;
+  constexpr int kReceivers = 96, kProxies = 24;
+  r.soa.resize(kReceivers);
+  for (int i = 0; i < kReceivers; ++i) {
+    glm::vec3 nrm(u(rng), u(rng), u(rng));
+    while (glm::length(nrm) < 0.1f) nrm = glm::vec3(u(rng), u(rng), u(rng));
+    r.soa.set(static_cast<std::size_t>(i), glm::vec3(u(rng), u(rng), u(rng)), glm::normalize(nrm));
+  }
+  r.tiles.push_back(is::ReceiverTile{0, static_cast<std::size_t>(kReceivers), glm::vec3(-1.0f), glm::vec3(1.0f)});
+  is::ProxyBins bins;
+  bins.indirect.resize(1);
+  for (int j = 0; j < kProxies; ++j)
+    bins.indirect[0].push(glm::vec3(u(rng), u(rng), u(rng)), 0.05f + 0.25f * (u(rng) + 1.0f), glm::vec3(0.2f, 0.5f, 0.8f) * (0.6f + 0.4f * u(rng)));
+  // An environment with every band present, so every coefficient of L~ matters.
+  std::vector<glm::vec3> env(static_cast<std::size_t>(sh::num_coeffs(6)));
+  for (auto& c : env) c = glm::vec3(u(rng), u(rng), u(rng));
+  env[0] = glm::vec3(3.0f);
+
+  const scene::Scene sc = scene::make_builtin("spheres");
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  const render::ParamSet params = render::default_params(*tech_);
+  render::FrameResult result;
+  render::FrameContext ctx(sc, posed, params, 4, 4, result);
+  ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+  result.passes.push_back(render::PassRecord{"accumulate_indirect"});
+  int cases = 0;
+  for (auto rule : {shexp::ReplacementRule::Off, shexp::ReplacementRule::Continuous, shexp::ReplacementRule::Clamped, shexp::ReplacementRule::Printed})
+    for (auto op : {is::IndirectOperator::PointSampled, is::IndirectOperator::AveragedExact, is::IndirectOperator::AveragedPolynomial})
+      for (int n : {3, 6}) {  // 4 is in the scene test; each order is a pipeline to compile
+        if (op == is::IndirectOperator::AveragedPolynomial && n != 3) continue;
+        for (const auto& [eta, smooth] : {std::pair<double, bool>{0.0, true}, {4.0, true}, {4.0, false}}) {
+          const std::string label = std::string(shexp::to_string(rule)) + " " + is::to_string(op) + " n" + std::to_string(n) + " eta " +
+                                    std::to_string(eta) + (smooth ? "" : " hard");
+          SCOPED_TRACE(label);
+          is::IndirectSetup setup;
+          setup.order = n;
+          setup.op = op;
+          setup.eta = eta;
+          setup.smooth_clamp = smooth;
+          setup.rule = rule;
+          const is::IndirectEvaluator ev(setup, is::irradiance_sh(env, n));
+          std::vector<float> rgb(kReceivers * 3, 0.0f), omega(kReceivers, 0.0f);
+          const long long inside = ev.accumulate(r.soa, 0, kReceivers, bins.indirect[0], rgb.data(), omega.data());
+          const auto gpu = is::vulkan_accumulate_indirect(ctx, r, bins, ev);
+          const double wr = compare_rows(rgb, gpu->rgb, 3), wo = compare_rows(omega, gpu->omega, 1);
+          EXPECT_LE(wr, kIndirectRelTol);
+          EXPECT_LE(wo, kOmegaRelTol);
+          EXPECT_LE(std::abs(result.passes.back().counters["pairs_inside_influence"] - static_cast<double>(inside)),
+                    kPairCountRelTol * static_cast<double>(inside) + 2.0);
+          if (wr > 1e-4 || wo > 1e-4) std::printf("[parity2] %-40s worst rgb %.3g omega %.3g\n", label.c_str(), wr, wo);
+          ++cases;
+        }
+      }
+  EXPECT_EQ(cases, 4 * (2 + 2 + 1) * 3);
+}
+
+// Bad proxies get the CPU evaluator's message on Vulkan too, and the exact operator is refused.
+TEST_F(ImageSplatParity2, AccumulateIndirectOnVulkanRejectsBadInput) {
+  const scene::Scene sc = scene::make_builtin("spheres");
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  const render::ParamSet params = render::default_params(*tech_);
+  render::FrameResult result;
+  render::FrameContext ctx(sc, posed, params, 4, 4, result);
+  ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+  result.passes.push_back(render::PassRecord{"accumulate_indirect"});
+  is::ReceiverBuffer r;
+  r.soa.resize(1);
+  r.soa.set(0, glm::vec3(0.0f), glm::vec3(0, 0, 1));
+  r.tiles.push_back(is::ReceiverTile{0, 1, glm::vec3(0.0f), glm::vec3(0.0f)});
+  is::ProxyBins bins;
+  bins.indirect.resize(1);
+  bins.indirect[0].push(glm::vec3(0, 0, 2), std::nanf(""), glm::vec3(0.5f));
+  std::vector<glm::vec3> env(9, glm::vec3(0.0f));
+  env[0] = glm::vec3(1.0f);
+  is::IndirectSetup setup;
+  const is::IndirectEvaluator ev(setup, is::irradiance_sh(env, 3));
+  try {
+    is::vulkan_accumulate_indirect(ctx, r, bins, ev);
+    ADD_FAILURE() << "no error for a NaN proxy radius";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("proxy 0 has a non-finite centre, radius or albedo"), std::string::npos) << e.what();
+  }
+  bins.indirect[0].r[0] = 1.0f;
+  const auto ok = is::vulkan_accumulate_indirect(ctx, r, bins, ev);
+  EXPECT_GT(ok->omega[0], 0.0f) << "the context is usable after the error";
+  setup.op = is::IndirectOperator::Exact;
+  const is::IndirectEvaluator exact(setup, is::irradiance_sh(env, 3));
+  EXPECT_THROW(is::vulkan_accumulate_indirect(ctx, r, bins, exact), std::logic_error);
+}
+
+}  // namespace
