@@ -63,8 +63,4 @@ void VulkanBackend::execute_pass(const render::PassDesc& pass, render::FrameCont
   }
 }
 
-std::map<std::string, std::function<void(render::FrameContext&)>> host_pass(std::function<void(render::FrameContext&)> fn) {
-  return {{"cpu", fn}, {"vulkan", fn}};
-}
-
 }  // namespace softgi::backends

@@ -723,11 +723,9 @@ class ImageSplat final : public render::Technique {
 
     auto st = state_;
     // Host passes: the same CPU function on both backends.
-    auto cpu = [](render::PassFn fn) { return std::map<std::string, render::PassFn>{{"cpu", fn}, {"vulkan", fn}}; };
-    // GPU passes: the CPU implementation and the Vulkan one (image_splat_vulkan.cpp).
-    auto both = [](render::PassFn on_cpu, render::PassFn on_vulkan) {
-      return std::map<std::string, render::PassFn>{{"cpu", std::move(on_cpu)}, {"vulkan", std::move(on_vulkan)}};
-    };
+    // Host passes run the same function on both backends; GPU passes have a Vulkan twin (image_splat_vulkan.cpp).
+    const auto cpu = render::host_impl;
+    const auto both = render::cpu_vulkan_impl;
     // accumulate_log: the per-pair cut cases (hard cut, printed rule; see accumulate_log_range) are
     // not in SHEXP's shader and run the CPU pass on Vulkan too.
     auto vk_accumulate = [s](FrameContext& c) {

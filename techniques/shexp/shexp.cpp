@@ -705,11 +705,9 @@ class Shexp final : public render::Technique {
     auto st = state_;
     // Host passes: the same function on the CPU and the Vulkan backend (tables, receivers,
     // hierarchy, cuts and image composition are host work on both).
-    auto cpu = [](render::PassFn fn) { return std::map<std::string, render::PassFn>{{"cpu", fn}, {"vulkan", fn}}; };
-    // GPU passes: the CPU implementation and the Vulkan one (shexp_vulkan.cpp).
-    auto both = [](render::PassFn on_cpu, render::PassFn on_vulkan) {
-      return std::map<std::string, render::PassFn>{{"cpu", std::move(on_cpu)}, {"vulkan", std::move(on_vulkan)}};
-    };
+    // Host passes run the same function on both backends; GPU passes have a Vulkan twin (shexp_vulkan.cpp).
+    const auto cpu = render::host_impl;
+    const auto both = render::cpu_vulkan_impl;
     render::PassGraph g;
     g.add_input(render::kScene);
     g.add_input(render::kMovingObjects);

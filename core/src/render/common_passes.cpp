@@ -125,8 +125,7 @@ void add_compose_pass(PassGraph& g) {
     ctx.record().bytes = out.rgb.size() * sizeof(glm::vec3);
     ctx.put<Image>(kFinal, std::move(out));
   };
-  p.impl["cpu"] = fn;
-  p.impl["vulkan"] = fn;  // the Vulkan backend's images are host images too (read back by their passes)
+  p.impl = host_impl(fn);  // the Vulkan backend's images are host images too (read back by their passes)
   g.add(std::move(p));
 }
 

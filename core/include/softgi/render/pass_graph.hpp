@@ -24,6 +24,12 @@ struct PassDesc {
   std::map<std::string, PassFn> impl;
 };
 
+// PassDesc::impl for a pass that is host work on every backend: the same function under "cpu" and
+// "vulkan".
+std::map<std::string, PassFn> host_impl(PassFn fn);
+// PassDesc::impl for a pass with a CPU and a Vulkan implementation.
+std::map<std::string, PassFn> cpu_vulkan_impl(PassFn on_cpu, PassFn on_vulkan);
+
 struct PrunedPass {
   std::string name, reason;
 };

@@ -48,7 +48,4 @@ class VulkanBackend : public render::Backend {
 // pass on Vulkan is the rasterisation pipeline (backends/vulkan/gbuffer_raster.cpp) when present.
 void register_vulkan_shared_passes();
 
-// "cpu" and "vulkan" mapped to the same host function: the passes that are host work on both.
-std::map<std::string, std::function<void(render::FrameContext&)>> host_pass(std::function<void(render::FrameContext&)> fn);
-
 }  // namespace softgi::backends
