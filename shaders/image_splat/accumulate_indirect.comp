@@ -1,11 +1,11 @@
 #version 450
 // image_splat's indirect accumulation (paper 000 section 5): per receiver p, the sum over its tile's
 // re-radiating proxies of albedo_i / pi (I_i . H(N_p)) (eq. 10's second term before the eq. 12
-// normalisation) and of omega_i (eq. 2), for the point-sampled (eq. 13) and averaged (eq. 15)
-// operators. One invocation per receiver. The arithmetic follows IndirectEvaluator::accumulate and
-// Impl::pair (techniques/image_splat/indirect_evaluator.cpp) step by step, on the evaluator's own
-// table floats (IndirectEvaluator::tables(), uploaded); the basis is the SHEXP kernel's recurrence.
-// The exact operator (eqs. 16-17) stays on the host.
+// normalisation) and of omega_i (eq. 2), for the point-sampled (eq. 13), averaged (eq. 15) and exact
+// (eqs. 16-17) operators. One invocation per receiver. The arithmetic follows
+// IndirectEvaluator::accumulate and Impl::pair (techniques/image_splat/indirect_evaluator.cpp) step
+// by step, on the evaluator's own table floats (IndirectEvaluator::tables(), uploaded: the M and Q
+// blocks are never recomputed here); the basis is the SHEXP kernel's recurrence.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #include "softgi_shared.h"
@@ -29,6 +29,8 @@ layout(std430, set = 0, binding = kIndBindDfac) readonly buffer Dfac { float dfa
 layout(std430, set = 0, binding = kIndBindConsts) readonly buffer Consts { float consts[]; };
 layout(std430, set = 0, binding = kIndBindOut) writeonly buffer Out { vec4 outv[]; };
 layout(std430, set = 0, binding = kIndBindPairs) buffer Pairs { uint pairs_inside; };
+layout(std430, set = 0, binding = kIndBindMtab) readonly buffer Mtab { float mtab[]; };
+layout(std430, set = 0, binding = kIndBindQrot) readonly buffer Qrot { float qrot[]; };
 layout(push_constant) uniform Push {
   uint count;   // receivers in all (the planes of rec are this long)
   uint first;   // first receiver of this dispatch
@@ -57,6 +59,118 @@ float asin01(float x) {
 
 float lt(uint k, uint c) { return consts[3 * k + c]; }
 float vh(uint l) { return consts[3 * N * N + l]; }
+float hc(uint l) { return consts[3 * N * N + N + l]; }
+uint sh_index(uint l, int m) { return uint(int(l * l + l) + m); }
+
+// Paper 000 eqs. 16-17, Impl::pair's exact branch: I . H(N) = (M(theta) R L~) . H(R N) with
+// R = Ry(-beta) Rz(-phi) taking d to +z and Ry(a) = Q Rz(a) Q^T. Every band of R L~ depends on that
+// band of L~ only, so the rotation runs band by band (the CPU rotates all bands per step: the same
+// operations per coefficient) and only R L~ itself is kept. M (eq. 16, per row its m-blocks) is
+// interpolated between rows k and k + 1 inside the sum, one entry at a time, as the CPU's Mi but
+// without holding an interpolated row (up to 146 floats at order 6) per invocation. The three
+// channels are the CPU's per-channel loops side by side.
+vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
+  const float rho = sqrt(d.x * d.x + d.y * d.y);
+  const float cphi = rho > 1e-12 ? d.x / rho : 1.0, sphi = rho > 1e-12 ? d.y / rho : 0.0;
+  const float cb = d.z, sb = rho;
+  // cos, sin of m (-phi) and m (-beta), the CPU's `multiples` with s = -sin.
+  const float sp = -sphi, sbn = -sb;
+  float cmp[kShexpMaxOrder], smp[kShexpMaxOrder], cmb[kShexpMaxOrder], smb[kShexpMaxOrder];
+  cmp[0] = 1.0;
+  smp[0] = 0.0;
+  cmb[0] = 1.0;
+  smb[0] = 0.0;
+  [[unroll]] for (uint m = 1; m < N; ++m) {
+    cmp[m] = cmp[m - 1] * cphi - smp[m - 1] * sp;
+    smp[m] = smp[m - 1] * cphi + cmp[m - 1] * sp;
+    cmb[m] = cmb[m - 1] * cb - smb[m - 1] * sbn;
+    smb[m] = smb[m - 1] * cb + cmb[m - 1] * sbn;
+  }
+  // N' = R N; H(N')_lm = hc_l y_lm(N') (H is zonal about N: R H(N) = H(R N)).
+  const float x1 = cphi * Nrm.x + sphi * Nrm.y, y1 = -sphi * Nrm.x + cphi * Nrm.y, z1 = Nrm.z;
+  const vec3 np = vec3(cb * x1 - sb * z1, y1, sb * x1 + cb * z1);
+  float hp[kShexpMaxOrder * kShexpMaxOrder];
+  {
+    float C[kShexpMaxOrder], S[kShexpMaxOrder];
+    C[0] = 1.0;
+    S[0] = 0.0;
+    [[unroll]] for (uint m = 1; m < N; ++m) {
+      C[m] = C[m - 1] * np.x - S[m - 1] * np.y;
+      S[m] = S[m - 1] * np.x + C[m - 1] * np.y;
+    }
+    [[unroll]] for (uint m = 0; m < N; ++m) {
+      float q_prev = 0.0, qv = basis_qmm(m);
+      [[unroll]] for (uint l = m; l < N; ++l) {
+        if (l == m + 1) {
+          q_prev = qv;
+          qv = basis_a1(m) * (np.z * qv);
+        } else if (l > m + 1) {
+          const float next = basis_A(l, m) * (np.z * qv) - basis_B(l, m) * q_prev;
+          q_prev = qv;
+          qv = next;
+        }
+        const uint i0 = l * l + l;
+        if (m == 0) {
+          hp[i0] = qv * hc(l);
+        } else {
+          hp[i0 + m] = (qv * C[m]) * hc(l);
+          hp[i0 - m] = (qv * S[m]) * hc(l);
+        }
+      }
+    }
+  }
+  // f = R L~ = Q Rz(-beta) Q^T Rz(-phi) L~, band by band; band l of Q at the running offset
+  // (TableView::qoff, checked on the host).
+  vec3 f[kShexpMaxOrder * kShexpMaxOrder];
+  uint qo = 0;
+  [[unroll]] for (uint l = 0; l < N; ++l) {
+    const uint w = 2 * l + 1, base = l * l;
+    vec3 t[2 * kShexpMaxOrder - 1], g[2 * kShexpMaxOrder - 1];
+    [[unroll]] for (uint i = 0; i < w; ++i) t[i] = vec3(lt(base + i, 0), lt(base + i, 1), lt(base + i, 2));
+    [[unroll]] for (uint m = 1; m <= l; ++m) {  // rotate_z(-phi): (A, B) = (f_lm, f_l,-m)
+      const vec3 a = t[l + m], b = t[l - m];
+      t[l + m] = a * cmp[m] - b * smp[m];
+      t[l - m] = a * smp[m] + b * cmp[m];
+    }
+    [[unroll]] for (uint i = 0; i < w; ++i) {  // Q^T
+      vec3 s = vec3(0.0);
+      [[unroll]] for (uint j = 0; j < w; ++j) s += qrot[qo + j * w + i] * t[j];
+      g[i] = s;
+    }
+    [[unroll]] for (uint m = 1; m <= l; ++m) {  // rotate_z(-beta)
+      const vec3 a = g[l + m], b = g[l - m];
+      g[l + m] = a * cmb[m] - b * smb[m];
+      g[l - m] = a * smb[m] + b * cmb[m];
+    }
+    [[unroll]] for (uint i = 0; i < w; ++i) {  // Q
+      vec3 s = vec3(0.0);
+      [[unroll]] for (uint j = 0; j < w; ++j) s += qrot[qo + i * w + j] * g[j];
+      f[base + i] = s;
+    }
+    qo += w * w;
+  }
+  // sum_m sum_a H'_(|m|+a),m sum_b M_ab f_(|m|+b),m over the m-blocks; block m at the running
+  // offset (TableView::moff), a row is mrow floats (checked on the host).
+  uint mrow = 0;
+  [[unroll]] for (int m = -(int(N) - 1); m <= int(N) - 1; ++m) mrow += (N - uint(abs(m))) * (N - uint(abs(m)));
+  const uint r0 = k * mrow, r1 = r0 + mrow;
+  vec3 acc = vec3(0.0);
+  uint mo = 0;
+  [[unroll]] for (int m = -(int(N) - 1); m <= int(N) - 1; ++m) {
+    const uint am = uint(abs(m)), w = N - am;
+    [[unroll]] for (uint a = 0; a < w; ++a) {
+      vec3 r = vec3(0.0);
+      [[unroll]] for (uint b = 0; b < w; ++b) {
+        const uint e = mo + a * w + b;
+        const float m0 = mtab[r0 + e];
+        r += (m0 + fr * (mtab[r1 + e] - m0)) * f[sh_index(am + b, m)];
+      }
+      acc += hp[sh_index(am + a, m)] * r;
+    }
+    mo += w * w;
+  }
+  return acc;
+}
 
 void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
@@ -87,6 +201,10 @@ void main() {
     const uint row = uint(k) * 2u * N;
     // omega_i = sqrt(4pi) V_i,0 = F_0 (eq. 2 through the DC term).
     om += vis[row] + fr * vis[row + 1];
+    if (OP == kIndOpExact) {
+      acc += albedo[j].xyz * exact_pair(d, Nrm, uint(k), fr);  // eqs. 16-17
+      continue;
+    }
     // V . H(N) = sum_l F_l vh_l P_l(d . N) (addition theorem).
     float F[kShexpMaxOrder];
     [[unroll]] for (uint l = 0; l < N; ++l) F[l] = vis[row + 2 * l] + fr * vis[row + 2 * l + 1];

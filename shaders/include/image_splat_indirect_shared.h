@@ -12,9 +12,10 @@ namespace softgi::gpu {
 #endif
 
 SOFTGI_II_CONST_UINT(kIndGroup, 64u)  // receivers per workgroup
-// Operators (image_splat::IndirectOperator; exact stays on the host).
+// Operators (image_splat::IndirectOperator).
 SOFTGI_II_CONST_UINT(kIndOpPoint, 0u)
 SOFTGI_II_CONST_UINT(kIndOpAveraged, 1u)  // averaged and averaged_poly: the D table differs, not the shader
+SOFTGI_II_CONST_UINT(kIndOpExact, 2u)     // eqs. 16-17: reads the M blocks, the Q blocks and hc
 
 // accumulate_indirect bindings (set 0)
 SOFTGI_II_CONST_UINT(kIndBindReceivers, 0u)     // float[6 * count]: px, py, pz, nx, ny, nz planes
@@ -24,10 +25,14 @@ SOFTGI_II_CONST_UINT(kIndBindProxies, 3u)       // vec4 per proxy: centre, radiu
 SOFTGI_II_CONST_UINT(kIndBindAlbedo, 4u)        // vec4 per proxy: albedo / pi, 0
 SOFTGI_II_CONST_UINT(kIndBindVis, 5u)           // IndirectEvaluator visibility ZhTable::data
 SOFTGI_II_CONST_UINT(kIndBindDfac, 6u)          // rows * n D factors (averaged), 1 float otherwise
-SOFTGI_II_CONST_UINT(kIndBindConsts, 7u)        // L~ (3 n^2, coefficient-major), then vh (n)
+SOFTGI_II_CONST_UINT(kIndBindConsts, 7u)        // L~ (3 n^2, coefficient-major), vh (n), then hc (n, exact only)
 SOFTGI_II_CONST_UINT(kIndBindBasis, 8u)         // shexp basis recurrence constants (asin included)
 SOFTGI_II_CONST_UINT(kIndBindOut, 9u)           // float[4 * count]: rgb, omega
 SOFTGI_II_CONST_UINT(kIndBindPairs, 10u)        // uint: receiver-proxy pairs inside the sphere of influence
+// Exact only (1 float otherwise). The shader walks both in the evaluator's order and derives the
+// offsets (TableView::moff, mrow, qoff) as running sums; the host checks they agree.
+SOFTGI_II_CONST_UINT(kIndBindMtab, 11u)         // TableView::mtab: rows x mrow, the m-blocks of M per row
+SOFTGI_II_CONST_UINT(kIndBindQrot, 12u)         // TableView::qrot: band blocks of Rot(Q), Q = Rx(-90 deg)
 
 #undef SOFTGI_II_CONST_UINT
 #ifdef __cplusplus

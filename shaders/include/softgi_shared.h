@@ -38,6 +38,9 @@ SOFTGI_CONST_UINT(kRulePrinted, 3u)
 // Exponential methods of the Vulkan exponentiate pass.
 SOFTGI_CONST_UINT(kExpHyb, 0u)
 SOFTGI_CONST_UINT(kExpOl, 1u)
+SOFTGI_CONST_UINT(kExpPsStar, 2u)  // PS*-p: the factored series (eq. 22) of the scaled vector, then squarings
+SOFTGI_CONST_UINT(kExpPs, 3u)      // PS-p: the plain product series (eq. 17), no DC isolation, no scaling
+SOFTGI_CONST_UINT(kExpMaxDegree, 30u)  // the largest series degree p (the ps_degree parameter's range)
 // Status words of the exponentiate pass.
 SOFTGI_CONST_UINT(kExpStatusSquarings, 0u)
 SOFTGI_CONST_UINT(kExpStatusBadInput, 1u)    // first receiver with a non-finite log coefficient + 1 (atomicMin of i + 1; 0xffffffff none)
@@ -64,6 +67,7 @@ SOFTGI_CONST_UINT(kExpBindSqTerms, 4u)   // ProductPlan squares: (j | k << 16, v
 SOFTGI_CONST_UINT(kExpBindPrIndex, 5u)   // ProductPlan products: begin, offdiag_end
 SOFTGI_CONST_UINT(kExpBindPrTerms, 6u)   // ProductPlan products: (j | k << 16, v) pairs
 SOFTGI_CONST_UINT(kExpBindStatus, 7u)    // uint[4]: squarings, products, non-finite receivers, overflow
+SOFTGI_CONST_UINT(kExpBindSeries, 8u)    // PS*: 1/k! as float(1/double k!); PS: 1.0f/k (k = 0..degree)
 
 // shade bindings (set 0)
 SOFTGI_CONST_UINT(kShadeBindReceivers, 0u)
@@ -73,6 +77,18 @@ SOFTGI_CONST_UINT(kShadeBindPrIndex, 3u)
 SOFTGI_CONST_UINT(kShadeBindPrTerms, 4u)
 SOFTGI_CONST_UINT(kShadeBindBasis, 5u)
 SOFTGI_CONST_UINT(kShadeBindOut, 6u)      // vec4 per receiver (rgb, unused)
+SOFTGI_CONST_UINT(kShadeBindTapPixel, 7u)    // gather: int per receiver, the display pixel whose taps it reads
+SOFTGI_CONST_UINT(kShadeBindTapIndex, 8u)    // gather: ivec4 per display pixel, coarse samples (-1 unused, packed to the front)
+SOFTGI_CONST_UINT(kShadeBindTapWeight, 9u)   // gather: vec4 per display pixel, their eq. 11 weights (paper 000)
+SOFTGI_CONST_UINT(kShadeBindLightTable, 10u) // spherical lights: LightLobeTable psi (rows_theta x rows_f), then k (x order)
+SOFTGI_CONST_UINT(kShadeBindLights, 11u)     // spherical lights: 2 vec4 per light (centre, radius; radiance, 0)
+SOFTGI_CONST_UINT(kShadeBindStatus, 12u)     // uint: receivers whose shading was clamped at 0
+// Where shade.comp reads a receiver's visibility g (specialisation constant VIS).
+SOFTGI_CONST_UINT(kShadeVisNone, 0u)      // unshadowed: g = sqrt(4 pi) y_00
+SOFTGI_CONST_UINT(kShadeVisReceiver, 1u)  // n^2 floats per receiver
+SOFTGI_CONST_UINT(kShadeVisGather, 2u)    // interpolated from a coarse field with per-pixel taps (image_splat, eq. 11)
+// shade.comp push-constant flags.
+SOFTGI_CONST_UINT(kShadeFlagZeroNormalEmpty, 1u)  // a receiver with a zero normal (no surface) shades to 0
 
 #undef SOFTGI_CONST_UINT
 #ifdef __cplusplus

@@ -29,6 +29,8 @@ layout(push_constant) uniform Push {
   uint end;         // one past the last receiver of this dispatch
   uint rows;        // table rows
   float scale;      // table: (rows - 1) / (pi/2)
+  float cut;        // > 0: a blocker counts only where |c - p| < cut r, before the rules (image_splat's
+                    // per-pair sphere-of-influence cut, paper 000 section 4.1); 0: every blocker
 } pc;
 
 const float kHalfPi = 1.57079632679489662;
@@ -58,6 +60,7 @@ void main() {
     const vec4 sphere = blockers[b];
     const float r = sphere.w;
     const vec3 d = sphere.xyz - P;
+    if (pc.cut > 0.0 && !(length(d) < pc.cut * r)) continue;  // image_splat_core.cpp accumulate_log_range
     const float h = dot(d, Nrm);  // centre height above the tangent plane T_p
     const float d2 = dot(d, d);
     const float a2 = max(d2 - h * h, 0.0);  // squared in-plane distance from p to q1

@@ -1,17 +1,25 @@
 #version 450
-// SHEXP diffuse shading (paper 004 eq. 9 and section 7), the CPU's shade_batch per receiver:
-// E/pi = (H(N) * g) . L per colour channel, H(N)_lm = hcoef_l y_lm(N) (clamped cosine / pi with the
-// rotation factor folded in), g windowed per coefficient, one SH product (shexp::ProductPlan) per
-// receiver for the three channels. Unshadowed (no visibility) when HAS_VIS is 0: g = sqrt(4 pi) y_00.
+// Diffuse shading of receivers (paper 004 eq. 9 and section 7; paper 000 eq. 10's first term), the
+// CPU's shade_batch followed by add_lights_and_clamp (techniques/shexp/lights.cpp), per receiver:
+//   E = max(0, (H(N) * g) . L + sum_lights L_H(theta, f) . g)  per colour channel,
+// H(N)_lm = hcoef_l y_lm(N) (clamped cosine / pi with the rotation factor folded in), g the
+// visibility windowed per coefficient, one SH product (shexp::ProductPlan) per receiver for the
+// three channels. The visibility comes from the receiver (VIS = kShadeVisReceiver), from nowhere
+// (kShadeVisNone: unshadowed, g = sqrt(4 pi) y_00), or is interpolated from a coarse field with
+// per-pixel taps (kShadeVisGather: image_splat's eq. 11 upsampling of O_p, paper 000 section 4.2).
+// Spherical lights (LIGHTS = 1): paper 004 section 7's single-lobe table L_H(theta, f), looked up and
+// turned to the receiver's frame as shexp::light_lh_world does.
 #extension GL_GOOGLE_include_directive : require
 // [[unroll]]: loops whose trip counts are the specialisation constant N (registers, not scratch).
 #extension GL_EXT_control_flow_attributes : require
 #include "softgi_shared.h"
 #define SHEXP_BASIS_BINDING kShadeBindBasis
 #include "shexp_basis.glsl"
+#include "shexp_math.glsl"
 
 layout(constant_id = 0) const uint N = 4;  // shading order
-layout(constant_id = 1) const uint HAS_VIS = 1;
+layout(constant_id = 1) const uint VIS = kShadeVisReceiver;
+layout(constant_id = 2) const uint LIGHTS = 0;
 layout(local_size_x = kShexpShadeGroup) in;
 
 layout(std430, set = 0, binding = kShadeBindReceivers) readonly buffer Receivers { float rec[]; };
@@ -20,21 +28,27 @@ layout(std430, set = 0, binding = kShadeBindConsts) readonly buffer Consts { flo
 layout(std430, set = 0, binding = kShadeBindPrIndex) readonly buffer PrIndex { uvec2 pr_range[]; };  // (begin, offdiag_end); end = next begin
 layout(std430, set = 0, binding = kShadeBindPrTerms) readonly buffer PrTerms { uvec2 pr_terms[]; };
 layout(std430, set = 0, binding = kShadeBindOut) writeonly buffer Out { vec4 outv[]; };
+layout(std430, set = 0, binding = kShadeBindTapPixel) readonly buffer TapPixel { int tap_pixel[]; };
+layout(std430, set = 0, binding = kShadeBindTapIndex) readonly buffer TapIndex { ivec4 tap_index[]; };
+layout(std430, set = 0, binding = kShadeBindTapWeight) readonly buffer TapWeight { vec4 tap_weight[]; };
+layout(std430, set = 0, binding = kShadeBindLightTable) readonly buffer LightTable { float ltab[]; };
+layout(std430, set = 0, binding = kShadeBindLights) readonly buffer Lights { vec4 lights[]; };
+layout(std430, set = 0, binding = kShadeBindStatus) buffer Status { uint clamped; };
 layout(push_constant) uniform Push {
-  uint count;  // receivers in all (the planes of rec are this long)
-  uint first;  // first receiver of this dispatch
-  uint end;    // one past the last
+  uint count;        // receivers in all (the planes of rec are this long)
+  uint first;        // first receiver of this dispatch
+  uint end;          // one past the last
+  uint flags;        // kShadeFlag*
+  uint light_count;  // spherical lights (LIGHTS = 1)
+  uint rows_theta;   // light table rows in theta over [0, pi/2] ...
+  uint rows_f;       // ... and in f over [0, pi]
+  float theta_floor; // the smallest theta the light table's solid-angle normalisation uses (lights.cpp)
 } pc;
 
 const float kSqrt4Pi = 3.5449077018110318;
 
-void main() {
-  const uint i = pc.first + gl_GlobalInvocationID.x;
-  if (i >= pc.end) return;
-  const uint n2 = N * N;
-  const vec3 s = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
-  float H[kShexpMaxCoeffs], g[kShexpMaxCoeffs];
-  // y(N) by the recurrence of the accumulation kernel (basis_soa of the CPU).
+// y(s) by the recurrence of the accumulation kernel (basis_soa of the CPU).
+void basis(vec3 s, out float Y[kShexpMaxCoeffs]) {
   float C[kShexpMaxOrder], S[kShexpMaxOrder];
   C[0] = 1.0;
   S[0] = 0.0;
@@ -55,17 +69,105 @@ void main() {
       }
       const uint i0 = l * l + l;
       if (m == 0) {
-        H[i0] = qv;
+        Y[i0] = qv;
       } else {
-        H[i0 + m] = qv * C[m];
-        H[i0 - m] = qv * S[m];
+        Y[i0 + m] = qv * C[m];
+        Y[i0 - m] = qv * S[m];
       }
     }
   }
+}
+
+// LightLobeTable::lookup's coordinate: clamped to the table, the last cell interpolating to its end.
+void table_coord(float x, float range, uint rows, out uint k0, out float w) {
+  float u = x / range * float(rows - 1);
+  if (!(u > 0.0)) u = 0.0;
+  if (u > float(rows - 1)) u = float(rows - 1);
+  k0 = min(uint(u), rows - 2);
+  w = u - float(k0);
+}
+
+// Paper 004 section 7: L_H of a spherical light (centre c, radius R) at p with normal n, dotted with g
+// (shexp::light_lh_world + LightLobeTable::lookup, then the dot product of the CPU's light loop).
+// Returns false where the CPU skips the light (degenerate distance or radius).
+bool light_dot(vec3 p, vec3 n, vec3 c, float R, float g[kShexpMaxCoeffs], out float dsum) {
+  dsum = 0.0;
+  const vec3 d = c - p;
+  const float dist = length(d);
+  if (!(dist > 0.0) || !(R > 0.0)) return false;
+  const float theta = dist > R ? shexp_asin01(R / dist) : kShexpHalfPi;
+  const vec3 dir = d / dist;
+  const float cf = clamp(dot(dir, n), -1.0, 1.0);
+  const float f = shexp_acos(cf);
+  uint i0, j0;
+  float wi, wj;
+  table_coord(theta, kShexpHalfPi, pc.rows_theta, i0, wi);
+  table_coord(f, kShexpPi, pc.rows_f, j0, wj);
+  const float w[4] = float[4]((1.0 - wi) * (1.0 - wj), (1.0 - wi) * wj, wi * (1.0 - wj), wi * wj);
+  const uint cells[4] = uint[4](i0 * pc.rows_f + j0, i0 * pc.rows_f + j0 + 1, (i0 + 1) * pc.rows_f + j0, (i0 + 1) * pc.rows_f + j0 + 1);
+  const uint kbase = pc.rows_theta * pc.rows_f;  // k follows the psi plane
+  float psi = 0.0;
+  float k[kShexpMaxOrder];
+  [[unroll]] for (uint l = 0; l < N; ++l) k[l] = 0.0;
+  for (uint q = 0; q < 4; ++q) {
+    psi += w[q] * ltab[cells[q]];
+    [[unroll]] for (uint l = 0; l < N; ++l) k[l] += w[q] * ltab[kbase + cells[q] * N + l];
+  }
+  // k is stored per unit solid angle of the light: multiplied back by 4 pi sin^2(theta / 2).
+  const float sh = shexp_sincos_quarter(0.5 * max(theta, pc.theta_floor)).x;
+  const float omega = 4.0 * kShexpPi * sh * sh;
+  // Canonical frame: N = z, light in the xz plane on the +x side; the lobe axis at psi from z.
+  vec3 tang = dir - cf * n;
+  const float tl = length(tang);
+  if (tl > 1e-6) {
+    tang /= tl;
+  } else {  // light on the normal: the lobe is on the normal too (psi = 0 or pi), any tangent will do
+    tang = abs(n.x) < 0.9 ? normalize(cross(n, vec3(1, 0, 0))) : normalize(cross(n, vec3(0, 1, 0)));
+  }
+  const vec2 sc = shexp_sincos_half(psi);
+  const vec3 axis = sc.y * n + sc.x * tang;
+  float Y[kShexpMaxCoeffs];
+  basis(axis, Y);
+  [[unroll]] for (uint l = 0; l < N; ++l) {
+    const float kl = k[l] * omega;
+    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) dsum += (kl * Y[q]) * g[q];
+  }
+  return true;
+}
+
+void main() {
+  const uint i = pc.first + gl_GlobalInvocationID.x;
+  if (i >= pc.end) return;
+  const uint n2 = N * N;
+  const vec3 p = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
+  const vec3 s = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
+  if ((pc.flags & kShadeFlagZeroNormalEmpty) != 0u && s == vec3(0.0)) {  // no surface (DirectShader::shade)
+    outv[i] = vec4(0.0);
+    return;
+  }
+  float H[kShexpMaxCoeffs], g[kShexpMaxCoeffs];
+  basis(s, H);
+  [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = 0.0;
+  bool unshadowed = VIS == kShadeVisNone;
+  if (VIS == kShadeVisReceiver) {
+    [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = vis[i * n2 + k];
+  } else if (VIS == kShadeVisGather) {
+    // Eq. 11 (paper 000): sum over the pixel's taps, in the CPU's order; no tap at all: unshadowed.
+    const int px = tap_pixel[i];
+    const ivec4 idx = tap_index[px];
+    const vec4 wt = tap_weight[px];
+    unshadowed = idx.x < 0;
+    for (int t = 0; t < 4 && idx[t] >= 0; ++t) {
+      const uint base = uint(idx[t]) * n2;
+      [[unroll]] for (uint k = 0; k < n2; ++k) g[k] += wt[t] * vis[base + k];
+    }
+  }
+  if (unshadowed) {
+    [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = k == 0 ? kSqrt4Pi : 0.0;
+  }
   [[unroll]] for (uint k = 0; k < n2; ++k) {
     H[k] *= consts[3 * n2 + k];  // hcoef
-    const float gk = HAS_VIS != 0 ? vis[i * n2 + k] : (k == 0 ? kSqrt4Pi : 0.0);
-    g[k] = gk * consts[4 * n2 + k];  // gwin
+    g[k] *= consts[4 * n2 + k];  // gwin
   }
   vec3 e = vec3(0.0);
   for (uint k = 0; k < n2; ++k) {
@@ -85,5 +187,14 @@ void main() {
     }
     e += hg * vec3(consts[k], consts[n2 + k], consts[2 * n2 + k]);
   }
-  outv[i] = vec4(e, 0.0);
+  if (LIGHTS != 0) {
+    for (uint li = 0; li < pc.light_count; ++li) {
+      const vec4 cr = lights[2 * li];
+      float dsum;
+      if (light_dot(p, s, cr.xyz, cr.w, g, dsum)) e += dsum * lights[2 * li + 1].xyz;
+    }
+  }
+  // Truncated SH can ring below zero in deep shadow; outgoing radiance cannot.
+  if (e.x < 0.0 || e.y < 0.0 || e.z < 0.0) atomicAdd(clamped, 1u);
+  outv[i] = vec4(max(e, vec3(0.0)), 0.0);
 }

@@ -379,7 +379,7 @@ void pass_exponentiate(const Settings& s, FrameContext& ctx) {
   const std::size_t n2 = static_cast<std::size_t>(f.channels), count = n2 ? f.v.size() / n2 : 0;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
     try {
-      exponentiate(t, s.exp, 2, s.isa, f.v.data() + br.begin() * n2, g->v.data() + br.begin() * n2, br.size(), br.begin());
+      exponentiate(t, s.exp, s.ps_degree, s.isa, f.v.data() + br.begin() * n2, g->v.data() + br.begin() * n2, br.size(), br.begin());
     } catch (const std::exception& e) {
       throw std::runtime_error(std::string("image_splat exponentiate (receivers ") + std::to_string(br.begin()) + ".." +
                                std::to_string(br.end() - 1) + "): " + e.what());
@@ -544,7 +544,7 @@ void pass_robust(const Settings& s, FrameContext& ctx) {
   if (ev) rm->indirect.assign(nm * 3, 0.0f);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nm, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
     accumulate_log_range(t, s.rule, s.isa, rm->soa, br.begin(), br.end(), all, log.data());
-    exponentiate(t, s.exp, 2, s.isa, log.data() + br.begin() * n2, rm->visibility.data() + br.begin() * n2, br.size(), br.begin());
+    exponentiate(t, s.exp, s.ps_degree, s.isa, log.data() + br.begin() * n2, rm->visibility.data() + br.begin() * n2, br.size(), br.begin());
     if (ev) {
       ev->accumulate(rm->soa, br.begin(), br.end(), all_ind, rgb.data(), omega.data());
       normalise(s, rgb.data() + br.begin() * 3, omega.data() + br.begin(), rm->visibility.data() + br.begin() * n2, n2, br.size(),
@@ -570,7 +570,54 @@ glm::vec3 background(const DirectShader& d, const glm::vec3& dir) {
   return glm::max(v, glm::vec3(0.0f));
 }
 
-void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx) {
+}  // namespace
+
+DirectKernels cpu_direct_kernels() {
+  DirectKernels kern;
+  kern.surface = [](const DirectShader& shader, const render::GBuffer& fine, const Upsampled& up, glm::vec3* e) {
+    // Surface pixels in blocks: O_p interpolated with the eq. 11 weights into a block-local buffer
+    // (section 4.2), then shaded.
+    const bool shadowed = !up.coarse_visibility.empty();
+    const std::size_t n2 = static_cast<std::size_t>(shader.order) * shader.order;
+    std::atomic<long long> clamped{0};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, up.surface.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+      shexp::ReceiverSoA soa;
+      soa.resize(br.size());
+      std::vector<float> g(shadowed ? br.size() * n2 : 0, 0.0f);
+      for (std::size_t k = br.begin(); k != br.end(); ++k) {
+        const std::size_t p = static_cast<std::size_t>(up.surface[k]), j = k - br.begin();
+        soa.set(j, fine.position[p], fine.normal[p]);
+        if (!shadowed) continue;
+        float* gj = g.data() + j * n2;
+        const auto& idx = up.w.index[p];
+        const auto& wt = up.w.weight[p];
+        if (idx[0] < 0) {  // no coarse sample at all: unshadowed unless a fallback shades the pixel
+          gj[0] = static_cast<float>(sh::kSqrt4Pi);
+          continue;
+        }
+        for (int t = 0; t < 4 && idx[t] >= 0; ++t) {
+          const float* src = up.coarse_visibility.data() + static_cast<std::size_t>(idx[t]) * n2;
+          for (std::size_t c = 0; c < n2; ++c) gj[c] += wt[t] * src[c];
+        }
+      }
+      clamped += shader.shade(soa, 0, br.size(), shadowed ? g.data() : nullptr, e + br.begin());
+    });
+    return clamped.load();
+  };
+  kern.receivers = [](const DirectShader& shader, const shexp::ReceiverSoA& rec, const float* g, glm::vec3* out) {
+    std::atomic<long long> clamped{0};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rec.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+      clamped += shader.shade(rec, br.begin(), br.end(), g, out + br.begin());
+    });
+    return clamped.load();
+  };
+  return kern;
+}
+
+namespace {
+
+// The kernels (k): DirectShader::shade on the CPU, shaders/shexp/shade.comp on Vulkan.
+void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const DirectKernels& k) {
   const auto& fine = ctx.get<render::GBuffer>(render::kGBuffer);
   const auto& up = *ctx.get<std::shared_ptr<const Upsampled>>(kUpsampled);
   std::shared_ptr<const shexp::LightLobeTable> lt;
@@ -579,45 +626,18 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx) {
   if (ctx.has(kRobust)) rm = ctx.get<std::shared_ptr<const RobustMisses>>(kRobust);
   const bool shadowed = !up.coarse_visibility.empty();
   const int n = s.order;
-  const std::size_t n2 = static_cast<std::size_t>(n) * n;
   const DirectShader shader = make_direct_shader(env_light(st, ctx.scene, n, s.window_h), n, s.window_h, lt, ctx.posed.lights, s.isa);
 
-  // Surface pixels in blocks: O_p interpolated with the eq. 11 weights into a block-local buffer
-  // (section 4.2), then shaded; the robust misses are shaded apart below.
+  // Surface pixels with the eq. 11 interpolation of O_p; the robust misses are shaded apart below.
   const std::size_t np = fine.object.size();
   const std::size_t surface = up.surface.size();
-  std::vector<glm::vec3> e(np);
-  std::atomic<long long> clamped{0};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
-    shexp::ReceiverSoA soa;
-    soa.resize(br.size());
-    std::vector<float> g(shadowed ? br.size() * n2 : 0, 0.0f);
-    std::vector<glm::vec3> out(br.size());
-    for (std::size_t k = br.begin(); k != br.end(); ++k) {
-      const std::size_t p = static_cast<std::size_t>(up.surface[k]), j = k - br.begin();
-      soa.set(j, fine.position[p], fine.normal[p]);
-      if (!shadowed) continue;
-      float* gj = g.data() + j * n2;
-      const auto& idx = up.w.index[p];
-      const auto& wt = up.w.weight[p];
-      if (idx[0] < 0) {  // no coarse sample at all: unshadowed unless a fallback shades the pixel
-        gj[0] = static_cast<float>(sh::kSqrt4Pi);
-        continue;
-      }
-      for (int t = 0; t < 4 && idx[t] >= 0; ++t) {
-        const float* src = up.coarse_visibility.data() + static_cast<std::size_t>(idx[t]) * n2;
-        for (std::size_t c = 0; c < n2; ++c) gj[c] += wt[t] * src[c];
-      }
-    }
-    clamped += shader.shade(soa, 0, br.size(), shadowed ? g.data() : nullptr, out.data());
-    for (std::size_t k = br.begin(); k != br.end(); ++k) e[static_cast<std::size_t>(up.surface[k])] = out[k - br.begin()];
-  });
+  std::vector<glm::vec3> es(surface), e(np);
+  long long clamped = k.surface(shader, fine, up, es.data());
+  for (std::size_t i = 0; i < surface; ++i) e[static_cast<std::size_t>(up.surface[i])] = es[i];
   if (rm && !rm->pixel.empty()) {
     std::vector<glm::vec3> em(rm->pixel.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rm->pixel.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
-      clamped += shader.shade(rm->soa, br.begin(), br.end(), shadowed ? rm->visibility.data() : nullptr, em.data() + br.begin());
-    });
-    for (std::size_t k = 0; k < rm->pixel.size(); ++k) e[rm->pixel[k]] = em[k];
+    clamped += k.receivers(shader, rm->soa, shadowed ? rm->visibility.data() : nullptr, em.data());
+    for (std::size_t i = 0; i < rm->pixel.size(); ++i) e[rm->pixel[i]] = em[i];
   }
   Image img(fine.width, fine.height);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
@@ -631,9 +651,7 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx) {
     const auto& occ = *ctx.get<std::shared_ptr<const Field>>(kOcclusion);
     const auto& coarse = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
     std::vector<glm::vec3> ce(r.soa.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
-      shader.shade(r.soa, br.begin(), br.end(), occ.v.data(), ce.data() + br.begin());
-    });
+    k.receivers(shader, r.soa, occ.v.data(), ce.data());
     const std::vector<float> in = to_pixels(r, reinterpret_cast<const float*>(ce.data()), 3);
     std::vector<float> outv(fine.object.size() * 3);
     for (std::size_t i = 0; i < fine.object.size(); ++i)
@@ -655,7 +673,7 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx) {
   rec.counters["lights"] = lt ? static_cast<double>(ctx.posed.lights.size()) : 0.0;
   rec.counters["robust_pixels"] = rm ? static_cast<double>(rm->pixel.size()) : 0.0;
   rec.counters["interpolated_pixels"] = static_cast<double>(interpolated);
-  rec.counters["pixels_clamped"] = static_cast<double>(clamped.load());
+  rec.counters["pixels_clamped"] = static_cast<double>(clamped);
   rec.bytes = img.rgb.size() * sizeof(glm::vec3) + np * 6 * sizeof(float);
   ctx.put<Image>(render::kDirect, std::move(img));
 }
@@ -726,15 +744,12 @@ class ImageSplat final : public render::Technique {
     // Host passes run the same function on both backends; GPU passes have a Vulkan twin (image_splat_vulkan.cpp).
     const auto cpu = render::host_impl;
     const auto both = render::cpu_vulkan_impl;
-    // accumulate_log: the per-pair cut cases (hard cut, printed rule; see accumulate_log_range) are
-    // not in SHEXP's shader and run the CPU pass on Vulkan too.
     auto vk_accumulate = [s](FrameContext& c) {
       const auto& t = *c.get<std::shared_ptr<const ShadowTables>>(kTables);
-      if (!vulkan_accumulate_supported(t, s.rule)) return pass_accumulate_log(s, c);
       c.put<std::shared_ptr<const Field>>(kLogOcclusion, vulkan_accumulate_log(c, s, t, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
                                                                               *c.get<std::shared_ptr<const ProxyBins>>(kBins)));
     };
-    // exponentiate: HYB and OL on the GPU, PS* and exact on the host.
+    // exponentiate: HYB, OL and PS* on the GPU; the exact exponential (eq. 28, a reference) on the host.
     auto vk_exponentiate = [s](FrameContext& c) {
       if (!vulkan_exp_supports(s.exp)) return pass_exponentiate(s, c);
       c.put<std::shared_ptr<const Field>>(kOcclusion, vulkan_exponentiate(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables),
@@ -797,7 +812,8 @@ class ImageSplat final : public render::Technique {
     }
     g.add({"shade_direct", {render::kGBuffer, render::kReceiverGBuffer, kUpsampled}, opt_direct, {render::kDirect},
            "psi_p's first term O_p . L~(N_p) (eq. 10) and spherical lights, times the albedo",
-           cpu([st, s](FrameContext& c) { pass_shade_direct(*st, s, c); })});
+           both([st, s](FrameContext& c) { pass_shade_direct(*st, s, c, cpu_direct_kernels()); },
+                [st, s](FrameContext& c) { pass_shade_direct(*st, s, c, vulkan_direct_kernels(c)); })});
     g.add({"shade_indirect", {render::kGBuffer, render::kReceiverGBuffer, kUpsampled, kIndirectNorm}, opt_indirect, {render::kIndirect},
            "psi_p's second term I_p . H(N_p) (eq. 10), times the albedo", cpu([s](FrameContext& c) { pass_shade_indirect(s, c); })});
     render::add_compose_pass(g);

@@ -102,10 +102,7 @@ ReceiverBuffer make_receivers(const render::GBuffer& coarse, int tile_size) {
 
 float influence_radius(float r, double support_alpha) {
   if (!(support_alpha > 0.0)) return std::numeric_limits<float>::infinity();
-  // Relative margin for float rounding of the distance the kernels compute (a few ulps); binning
-  // more than needed costs pairs that add exactly 0, binning less would drop contributions.
-  constexpr double kMargin = 1e-4;
-  return static_cast<float>(r / support_alpha * (1.0 + kMargin));
+  return static_cast<float>(r / support_alpha * (1.0 + kInfluenceMargin));
 }
 
 bool sphere_meets_box(const glm::vec3& c, float radius, const glm::vec3& lo, const glm::vec3& hi) {
@@ -163,14 +160,21 @@ std::size_t ProxyBins::bytes() const {
 
 // --- accumulation --------------------------------------------------------------------------------
 
-void accumulate_log_range(const ShadowTables& t, shexp::ReplacementRule rule, shexp::KernelIsa isa, const ReceiverSoA& rec,
-                          std::size_t begin, std::size_t end, const BlockerList& list, float* out) {
+float pair_cut_factor(const ShadowTables& t, shexp::ReplacementRule rule) {
   // The SHEXP kernel has no per-pair cut; it serves every case where the table itself is zero outside
   // the sphere of influence. Two cases need the cut per pair, as splatting (Figure 3) does: a hard cut
   // (smooth_clamp = false, the unclamped table), and the printed replacement rule, whose scale factor
   // grows without bound and can give a far receiver a sphere larger than the proxy (shexp_internal.hpp).
-  const bool per_pair = t.eta_shadow > 0.0 && (t.hard_cut || rule == shexp::ReplacementRule::Printed);
-  if (!per_pair) {
+  if (!(t.eta_shadow > 0.0) || !(t.hard_cut || rule == shexp::ReplacementRule::Printed)) return 0.0f;
+  if (t.hard_cut) return static_cast<float>(t.eta_shadow);
+  // influence_radius(r, alpha) / r; no support bound: nothing to cut.
+  return t.support_alpha_shadow > 0.0 ? static_cast<float>(1.0 / t.support_alpha_shadow * (1.0 + kInfluenceMargin)) : 0.0f;
+}
+
+void accumulate_log_range(const ShadowTables& t, shexp::ReplacementRule rule, shexp::KernelIsa isa, const ReceiverSoA& rec,
+                          std::size_t begin, std::size_t end, const BlockerList& list, float* out) {
+  const float cut_factor = pair_cut_factor(t, rule);
+  if (cut_factor == 0.0f) {
     shexp::accumulate_log(isa, t.log, rule, rec, begin, end, list, out);
     return;
   }
@@ -181,8 +185,7 @@ void accumulate_log_range(const ShadowTables& t, shexp::ReplacementRule rule, sh
     float* o = out + i * n2;
     for (std::size_t b = 0; b < list.size(); ++b) {
       const glm::vec3 c(list.cx[b], list.cy[b], list.cz[b]);
-      const float cut = t.hard_cut ? static_cast<float>(t.eta_shadow * list.r[b]) : influence_radius(list.r[b], t.support_alpha_shadow);
-      if (!(glm::length(c - p) < cut)) continue;
+      if (!(glm::length(c - p) < cut_factor * list.r[b])) continue;
       const shexp::AdjustedSphere a = shexp::apply_replacement_rule(rule, p, nrm, c, list.r[b]);
       if (!(a.radius > 0.0f)) continue;
       shexp::sphere_zh_vector(t.log, p, a.center, a.radius, &list.w[b * list.order], v.data());
@@ -258,8 +261,7 @@ DirectShader make_direct_shader(const std::vector<glm::vec3>& env_sh, int order,
   return d;
 }
 
-long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g, glm::vec3* out) const {
-  const int n2 = order * order;
+shexp::BatchShade DirectShader::batch(const float* g) const {
   shexp::BatchShade bs;
   bs.order = order;
   bs.plan = &shexp::ProductPlan::get(order);
@@ -267,31 +269,14 @@ long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::si
   bs.hcoef = hcoef.data();
   bs.gwin = gwin.data();
   bs.g = g;
+  return bs;
+}
+
+long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g, glm::vec3* out) const {
+  const shexp::BatchShade bs = batch(g);
   // Eq. 10's first term: (H(N) * O) . L per channel = O . L~(N) by the triple-product identity.
   shexp::shade_batch(isa, bs, rec, begin, end, out);
-  std::array<float, sh::kMaxCoeffs> gw{}, LH{};
-  long long clamped = 0;
-  for (std::size_t i = begin; i < end; ++i) {
-    if (rec.nx[i] == 0.0f && rec.ny[i] == 0.0f && rec.nz[i] == 0.0f) {  // no surface (background pixel)
-      out[i - begin] = glm::vec3(0.0f);
-      continue;
-    }
-    glm::vec3 e = out[i - begin];
-    if (lights_table && !lights.empty()) {
-      for (int k = 0; k < n2; ++k) gw[k] = (g ? g[i * n2 + k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f)) * gwin[k];
-      const glm::vec3 p(rec.px[i], rec.py[i], rec.pz[i]), N(rec.nx[i], rec.ny[i], rec.nz[i]);
-      for (const auto& light : lights)
-        if (shexp::light_lh_world(*lights_table, p, N, light.position, light.radius, LH.data())) {
-          float dsum = 0.0f;
-          for (int k = 0; k < n2; ++k) dsum += LH[k] * gw[k];
-          e += dsum * light.radiance;
-        }
-    }
-    // Truncated SH can ring below zero in deep shadow; reflected radiance cannot.
-    if (e.x < 0.0f || e.y < 0.0f || e.z < 0.0f) ++clamped;
-    out[i - begin] = glm::max(e, glm::vec3(0.0f));
-  }
-  return clamped;
+  return shexp::add_lights_and_clamp(lights_table.get(), lights, order, gwin.data(), rec, begin, end, g, true, out);
 }
 
 std::vector<glm::vec3> irradiance_sh(const std::vector<glm::vec3>& env_sh, int order) {

@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -109,7 +110,10 @@ struct ProxyBins {
   double shadow_tile_pairs = 0.0, indirect_tile_pairs = 0.0;
   std::size_t bytes() const;
 };
-// influence_radius(r) = r / alpha, or infinity for alpha <= 0 (no sphere of influence).
+// influence_radius(r) = r / alpha (1 + kInfluenceMargin), or infinity for alpha <= 0 (no sphere of
+// influence). The margin covers the float rounding of the distance the kernels compute (a few ulps):
+// binning more than needed costs pairs that add exactly 0, binning less would drop contributions.
+inline constexpr double kInfluenceMargin = 1e-4;
 float influence_radius(float r, double support_alpha);
 bool sphere_meets_box(const glm::vec3& c, float radius, const glm::vec3& lo, const glm::vec3& hi);
 // All proxy spheres of the posed scene, flat, with the albedo of their set (scene.proxies[s].albedo).
@@ -122,6 +126,10 @@ ProxyBins bin_proxies(const ReceiverBuffer& rec, const shexp::BlockerList& all_s
 // Sum of log occlusion vectors (eq. 4, exponent) for receivers [begin, end) over `list`. The clamped
 // table goes through shexp::accumulate_log (the SHEXP kernel, self-shadowing rules included); with
 // hard_cut, pairs with |c - p| >= eta r are skipped first (scalar path: rule, then eq. 34 per pair).
+// The per-pair cut of accumulate_log_range: a pair counts only where |c - p| < factor r; 0 when the
+// clamped table alone confines each proxy (then the SHEXP kernel runs unchanged). Shared with the
+// Vulkan pass, whose shader applies the same cut.
+float pair_cut_factor(const ShadowTables& t, shexp::ReplacementRule rule);
 void accumulate_log_range(const ShadowTables& t, shexp::ReplacementRule rule, shexp::KernelIsa isa,
                           const shexp::ReceiverSoA& rec, std::size_t begin, std::size_t end,
                           const shexp::BlockerList& list, float* out);
@@ -153,6 +161,8 @@ struct DirectShader {
   // unshadowed). A receiver with a zero normal (no surface) gets 0. Returns the receivers clamped at 0.
   long long shade(const shexp::ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
                   glm::vec3* out) const;
+  // SHEXP's batch-shading constants over this shader's floats (g: visibility, n^2 per receiver).
+  shexp::BatchShade batch(const float* g) const;
 };
 DirectShader make_direct_shader(const std::vector<glm::vec3>& env_sh, int order, double window_h,
                                 std::shared_ptr<const shexp::LightLobeTable> lt, const std::vector<scene::SphericalLight>& lights,
@@ -179,6 +189,19 @@ struct Upsampled {  // display resolution
   std::vector<float> indirect;           // 3 per display pixel (empty without indirect)
   std::size_t bytes() const;
 };
+// The kernels of shade_direct (eq. 10's first term): the pass body is one (image_splat.cpp
+// pass_shade_direct); the kernels are DirectShader::shade on the CPU and shaders/shexp/shade.comp on
+// Vulkan (vulkan_direct_kernels, image_splat_vulkan.hpp).
+struct DirectKernels {
+  // out[k] for the display surface pixels up.surface[k] of `fine`: O_p interpolated with the eq. 11
+  // weights (section 4.2; a pixel without a tap, or a frame without O_p, is unshadowed), then shaded.
+  // Returns the pixels clamped at 0.
+  std::function<long long(const DirectShader& d, const render::GBuffer& fine, const Upsampled& up, glm::vec3* out)> surface;
+  // out[i] for every receiver of rec, visibility g (n^2 per receiver; null: unshadowed).
+  std::function<long long(const DirectShader& d, const shexp::ReceiverSoA& rec, const float* g, glm::vec3* out)> receivers;
+};
+DirectKernels cpu_direct_kernels();
+
 // For fallback = robust: the misses shaded from the full proxy list.
 struct RobustMisses {
   std::vector<std::int32_t> pixel;  // display pixel of each miss

@@ -44,14 +44,14 @@ struct GpuState {
   std::mutex m;
   PipelineCache pipelines;
   vk::Buffer basis;
-  std::map<int, SquareBuffers> squares;          // shexp::ProductPlan squares per order
+  std::map<int, PlanBuffers> plans;             // shexp::ProductPlan per order
   std::vector<float> log_host;                   // the floats in log_table (uploaded when they change)
   vk::Buffer log_table;
   std::weak_ptr<const sh::ShTables> ol_src;      // the ShTables whose OL table is in `ol`
   vk::Buffer ol;
   std::uint32_t ol_count = 0;
   vk::Buffer receivers, rlist, ranges, blockers, weights, log_out;  // accumulate_log
-  vk::Buffer exp_in, exp_out, status;                               // exponentiate
+  vk::Buffer exp_in, exp_out, status, series;                       // exponentiate
   vk::Buffer fdepth, fnormal, cdepth, cnormal, up_index, up_weight, up_miss, up_status;  // upsample weights
   const void* up_resident = nullptr;  // UpsampleWeights::index.data() of the weights in up_index / up_weight
   std::size_t up_pixels = 0;
@@ -121,22 +121,17 @@ void ol_table(vk::Context& dev, GpuState& g, const std::shared_ptr<const sh::ShT
   g.ol_src = sht;
 }
 
-// shexp::ProductPlan's squares in the exponentiate shader's form: begin per output, (j | k << 16, v).
-void square_plan(vk::Context& dev, GpuState& g, int order) {
-  if (!g.squares.count(order)) g.squares.emplace(order, upload_square_plan(dev, shexp::ProductPlan::get(order), "image_splat"));
+// shexp::ProductPlan in the exponentiate shader's form.
+const PlanBuffers& product_plan(vk::Context& dev, GpuState& g, int order) {
+  auto it = g.plans.find(order);
+  if (it != g.plans.end()) return it->second;
+  return g.plans.emplace(order, upload_product_plan(dev, shexp::ProductPlan::get(order), "image_splat")).first->second;
 }
 
 }  // namespace
 
-bool vulkan_accumulate_supported(const ShadowTables& t, shexp::ReplacementRule rule) {
-  // accumulate_log_range's per_pair condition (image_splat_core.cpp).
-  return !(t.eta_shadow > 0.0 && (t.hard_cut || rule == shexp::ReplacementRule::Printed));
-}
-
 std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t,
                                              const ReceiverBuffer& r, const ProxyBins& bins) {
-  if (!vulkan_accumulate_supported(t, s.rule))
-    throw std::logic_error("image_splat accumulate_log on vulkan: the per-pair cut (hard cut or printed rule) is host-only");
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
@@ -182,7 +177,7 @@ std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Se
   vk::SubmitResult res;
   if (count)
     res = run_accumulate_log(dev, p, {g.receivers, g.rlist, g.ranges, g.blockers, g.weights, table, g.basis, g.log_out}, count, t.log,
-                             "image_splat accumulate_log");
+                             "image_splat accumulate_log", pair_cut_factor(t, s.rule));
 
   auto f = std::make_shared<Field>();
   f->channels = n2;
@@ -198,15 +193,16 @@ std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Se
   rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
   rec.counters["kernel_gpu_seconds"] = secs;
   rec.counters["hard_cut"] = t.hard_cut;
+  rec.counters["pair_cut"] = pair_cut_factor(t, s.rule) > 0.0f;
   rec.counters["upload_bytes"] = static_cast<double>((sph.size() + w.size() + 6 * count) * sizeof(float) + (rlist.size() + ranges.size()) * 4);
   rec.bytes = f->v.size() * sizeof(float);
   return f;
 }
 
-bool vulkan_exp_supports(ExpMode m) { return m == ExpMode::HYB || m == ExpMode::OL; }
+bool vulkan_exp_supports(ExpMode m) { return m == ExpMode::HYB || m == ExpMode::OL || m == ExpMode::PSStar || m == ExpMode::PS; }
 
 std::shared_ptr<Field> vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const Field& log) {
-  if (!vulkan_exp_supports(s.exp)) throw std::logic_error("image_splat exponentiate on vulkan: HYB and OL only");
+  if (!vulkan_exp_supports(s.exp)) throw std::logic_error("image_splat exponentiate on vulkan: HYB, OL, PS* and PS only");
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
@@ -217,20 +213,21 @@ std::shared_ptr<Field> vulkan_exponentiate(render::FrameContext& ctx, const Sett
   check_fits(dev, count * n2 * sizeof(float), "the log vectors of " + std::to_string(count) + " receivers", "exponentiate");
 
   ol_table(dev, g, t.sh);
-  square_plan(dev, g, n);
+  const PlanBuffers& plan = product_plan(dev, g, n);
   put(dev, g.exp_in, log.v, "image_splat exp input");
   dev.ensure_buffer(g.exp_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Host, "image_splat occlusion");
   reset_exp_status(dev, g.status, "image_splat exp status");
 
-  const std::uint32_t method = s.exp == ExpMode::HYB ? gpu::kExpHyb : gpu::kExpOl;
+  const std::uint32_t method = s.exp == ExpMode::HYB ? gpu::kExpHyb : s.exp == ExpMode::OL ? gpu::kExpOl : s.exp == ExpMode::PSStar ? gpu::kExpPsStar : gpu::kExpPs;
+  put(dev, g.series, exp_series(method, s.ps_degree), "image_splat exp series");
   // Accumulation order = shading order: the log vector is exponentiated at the shadow order n.
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "image_splat.exponentiate.n" + std::to_string(n) + ".m" + std::to_string(method),
                                     words(spv::exponentiate_comp),
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(n)}, {2, method}});
-  const SquareBuffers& sq = g.squares.at(n);
   vk::SubmitResult res;
   if (count)
-    res = run_exponentiate(dev, p, {g.exp_in, g.exp_out, g.ol, sq.begin, sq.terms, g.status}, count, g.ol_count, "image_splat exponentiate");
+    res = run_exponentiate(dev, p, {g.exp_in, g.exp_out, g.ol, plan, g.series, g.status}, count, g.ol_count, s.ps_degree,
+                           "image_splat exponentiate");
 
   std::uint32_t status[gpu::kExpStatusWords];
   dev.download(g.status, status, sizeof status);
@@ -390,6 +387,42 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   }, "image_splat upsample apply");
   dev.download(g.ap_out, out, nf * ch * sizeof(float));
   ctx.record().counters["apply_gpu_seconds"] = timer_seconds(res);
+}
+
+DirectKernels vulkan_direct_kernels(render::FrameContext& ctx) {
+  render::FrameContext* c = &ctx;
+  DirectKernels k;
+  k.surface = [c](const DirectShader& d, const render::GBuffer& fine, const Upsampled& up, glm::vec3* out) -> long long {
+    const std::size_t ns = up.surface.size();
+    if (ns == 0) return 0;
+    shexp::ReceiverSoA soa;
+    soa.resize(ns);
+    for (std::size_t i = 0; i < ns; ++i) {
+      const std::size_t p = static_cast<std::size_t>(up.surface[i]);
+      soa.set(i, fine.position[p], fine.normal[p]);
+    }
+    const shexp::BatchShade bs = d.batch(nullptr);
+    const std::size_t n2 = static_cast<std::size_t>(d.order) * d.order;
+    shexp::GpuShade in{&bs, d.lights_table.get(), &d.lights, true, nullptr};
+    shexp::GpuShade::Gather ga;
+    if (!up.coarse_visibility.empty()) {  // section 4.2: O_p interpolated on the device
+      if (up.coarse_visibility.size() % n2 != 0 || up.w.index.size() != fine.object.size() || up.w.weight.size() != up.w.index.size())
+        throw std::logic_error("image_splat shade_direct on vulkan: upsampled visibility and weights do not match the display buffer");
+      ga.pixel = up.surface.data();
+      ga.index = up.w.index.data();
+      ga.weight = up.w.weight.data();
+      ga.pixels = up.w.index.size();
+      ga.coarse = up.coarse_visibility.data();
+      ga.coarse_count = up.coarse_visibility.size() / n2;
+      in.gather = &ga;
+    }
+    return shexp::vulkan_shade(*c, in, soa, out);
+  };
+  k.receivers = [c](const DirectShader& d, const shexp::ReceiverSoA& rec, const float* g, glm::vec3* out) -> long long {
+    const shexp::BatchShade bs = d.batch(g);
+    return shexp::vulkan_shade(*c, shexp::GpuShade{&bs, d.lights_table.get(), &d.lights, true, nullptr}, rec, out);
+  };
+  return k;
 }
 
 UpsampleKernels cpu_upsample_kernels() { return {upsample_weights, upsample_apply}; }

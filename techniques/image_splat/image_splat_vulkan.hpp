@@ -16,18 +16,14 @@
 
 namespace softgi::techniques::image_splat {
 
-// accumulate_log on the GPU covers every case in which the clamped table alone confines a proxy to
-// its sphere of influence. The per-pair cut cases of accumulate_log_range (a hard cut at eta r when
-// smooth_clamp is off, and the printed replacement rule with a sphere of influence) are not in the
-// SHEXP shader: for them the "vulkan" implementation runs the CPU pass.
-bool vulkan_accumulate_supported(const ShadowTables& t, shexp::ReplacementRule rule);
 // Eq. 4's exponent summed per receiver over its tile's blocker list (paper 004 eqs. 34, 38 and the
-// replacement rules of section 6.2), one invocation per receiver. Writes the record's counters.
+// replacement rules of section 6.2), one invocation per receiver, with accumulate_log_range's
+// per-pair cut where it applies (pair_cut_factor). Writes the record's counters.
 std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t,
                                              const ReceiverBuffer& r, const ProxyBins& bins);
 
-// exponentiate on the GPU: HYB and OL (paper 004 section 4.3, as shexp::exp_batch); the other
-// methods (PS*, exact) run the CPU pass under "vulkan" too.
+// exponentiate on the GPU: HYB, OL and PS* (paper 004 section 4, as shexp::exp_batch); the exact
+// exponential (eq. 28, the reference) runs the CPU pass under "vulkan" too.
 bool vulkan_exp_supports(ExpMode m);
 std::shared_ptr<Field> vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const Field& log);
 
@@ -48,5 +44,10 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
 // upsample_apply on the GPU (shaders/image_splat/upsample_apply.comp); the weights stay on the
 // device when they are the ones vulkan_upsample_weights computed last.
 void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, const float* in, int channels, float* out);
+
+// shade_direct's kernels on the GPU (shaders/shexp/shade.comp): the surface pixels gather O_p with
+// the eq. 11 weights and are shaded (product, spherical lights, clamp) in one dispatch; the robust
+// misses and the shaded fallback's coarse receivers with their own visibility in another.
+DirectKernels vulkan_direct_kernels(render::FrameContext& ctx);
 
 }  // namespace softgi::techniques::image_splat

@@ -1,11 +1,13 @@
-// image_splat's indirect accumulation on the Vulkan backend (paper 000 section 5, eqs. 13 and 15):
-// host dispatch of shaders/image_splat/accumulate_indirect.comp over the per-tile proxy lists.
+// image_splat's indirect accumulation on the Vulkan backend (paper 000 section 5, eqs. 13, 15 and
+// 16-17): host dispatch of shaders/image_splat/accumulate_indirect.comp over the per-tile proxy lists.
 #include "image_splat_vulkan_shading.hpp"
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <mutex>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -35,8 +37,8 @@ struct GpuState {
   std::mutex m;
   PipelineCache pipelines;
   vk::Buffer basis;
-  std::vector<float> vis_host, dfac_host, consts_host;
-  vk::Buffer vis, dfac, consts;
+  std::vector<float> vis_host, dfac_host, consts_host, mtab_host, qrot_host;
+  vk::Buffer vis, dfac, consts, mtab, qrot;
   vk::Buffer receivers, rlist, ranges, proxies, albedo, out, pairs;
 };
 
@@ -44,28 +46,63 @@ GpuState& gpu_state(vk::Context& dev) {
   return *dev.cached<GpuState>("image_splat.indirect.gpu", [] { return std::make_shared<GpuState>(); });
 }
 
-void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::vector<float> now, const char* name) {
-  if (now.empty()) now.push_back(0.0f);  // an unused binding still needs a buffer
-  if (!buf || host != now) {
-    buf = dev.upload_vector(now, kStorage, name);
-    host = std::move(now);
+// Compared float by float rather than keyed on the evaluator's address: a rebuilt evaluator may
+// reuse the address, and an unchanged light keeps its tables. The exact operator's M table (rows x
+// up to 146 floats) is compared in place, not copied.
+void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const char* name) {
+  static const float kUnused = 0.0f;  // an unused binding still needs a buffer
+  if (now.empty()) now = std::span<const float>(&kUnused, 1);
+  if (!buf || !std::equal(host.begin(), host.end(), now.begin(), now.end())) {
+    host.assign(now.begin(), now.end());
+    buf = dev.upload_vector(host, kStorage, name);
   }
+}
+
+// The shader walks the exact operator's M and Q blocks in the evaluator's order and derives their
+// offsets as running sums (constant after the order specialisation); refuse tables laid out
+// otherwise rather than read the wrong floats.
+void check_exact_layout(const IndirectEvaluator::TableView& tv) {
+  const int n = tv.order;
+  const auto bad = [](const std::string& what) {
+    throw std::logic_error("image_splat accumulate_indirect on vulkan: the exact operator's " + what + " is not the shader's layout");
+  };
+  if (tv.moff.size() != static_cast<std::size_t>(2 * n - 1) || tv.qoff.size() != static_cast<std::size_t>(n) ||
+      tv.hc.size() != static_cast<std::size_t>(n))
+    bad("offset or hc count");
+  int off = 0;
+  for (int m = -(n - 1); m <= n - 1; ++m) {
+    if (tv.moff[static_cast<std::size_t>(m + n - 1)] != off) bad("M block offset of m = " + std::to_string(m));
+    off += (n - std::abs(m)) * (n - std::abs(m));
+  }
+  if (tv.mrow != off || tv.mtab.size() != static_cast<std::size_t>(tv.rows) * static_cast<std::size_t>(off)) bad("M row size");
+  int qo = 0;
+  for (int l = 0; l < n; ++l) {
+    if (tv.qoff[static_cast<std::size_t>(l)] != qo) bad("Q block offset of band " + std::to_string(l));
+    qo += (2 * l + 1) * (2 * l + 1);
+  }
+  if (tv.qrot.size() != static_cast<std::size_t>(qo)) bad("Q block size");
 }
 
 }  // namespace
 
-bool vulkan_indirect_supported(IndirectOperator op) { return op != IndirectOperator::Exact; }
+bool vulkan_indirect_supported(IndirectOperator op) {
+  return op == IndirectOperator::PointSampled || op == IndirectOperator::AveragedPolynomial || op == IndirectOperator::AveragedExact ||
+         op == IndirectOperator::Exact;
+}
 
 std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& ctx, const ReceiverBuffer& r, const ProxyBins& bins,
                                                          const IndirectEvaluator& ev) {
   const IndirectSetup& setup = ev.setup();
   if (!vulkan_indirect_supported(setup.op))
-    throw std::logic_error("image_splat accumulate_indirect on vulkan: the exact operator is host-only");
+    throw std::logic_error("image_splat accumulate_indirect on vulkan: unknown indirect operator " +
+                           std::to_string(static_cast<int>(setup.op)));
   const IndirectEvaluator::TableView tv = ev.tables();
   const int n = tv.order;
   if (n < 1 || n > static_cast<int>(gpu::kShexpMaxOrder) || tv.rows < 2)
     throw std::logic_error("image_splat accumulate_indirect on vulkan: tables of order " + std::to_string(n) + " with " +
                            std::to_string(tv.rows) + " rows");
+  const bool exact = setup.op == IndirectOperator::Exact;
+  if (exact) check_exact_layout(tv);
   const std::size_t count = r.soa.size();
   if (count > std::numeric_limits<std::uint32_t>::max() / 8)
     throw std::invalid_argument("image_splat accumulate_indirect on vulkan: " + std::to_string(count) + " receivers exceed the 32-bit indexing");
@@ -109,11 +146,14 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
     for (std::size_t i = r.tiles[k].begin; i < r.tiles[k].end; ++i) rlist[i] = static_cast<std::uint32_t>(k);
   }
 
-  upload_if_changed(dev, g.vis, g.vis_host, std::vector<float>(tv.vis.begin(), tv.vis.end()), "image_splat indirect visibility ZH table");
-  upload_if_changed(dev, g.dfac, g.dfac_host, std::vector<float>(tv.dfac.begin(), tv.dfac.end()), "image_splat indirect D table");
+  upload_if_changed(dev, g.vis, g.vis_host, tv.vis, "image_splat indirect visibility ZH table");
+  upload_if_changed(dev, g.dfac, g.dfac_host, tv.dfac, "image_splat indirect D table");
+  upload_if_changed(dev, g.mtab, g.mtab_host, tv.mtab, "image_splat indirect M blocks (eq. 16)");
+  upload_if_changed(dev, g.qrot, g.qrot_host, tv.qrot, "image_splat indirect Q = Rx(-90 deg) band blocks");
   std::vector<float> consts(tv.ltilde.begin(), tv.ltilde.end());
   consts.insert(consts.end(), tv.vh.begin(), tv.vh.end());
-  upload_if_changed(dev, g.consts, g.consts_host, std::move(consts), "image_splat indirect L~ and band factors");
+  consts.insert(consts.end(), tv.hc.begin(), tv.hc.end());
+  upload_if_changed(dev, g.consts, g.consts_host, consts, "image_splat indirect L~ and band factors");
   if (!g.basis) g.basis = dev.upload_vector(shexp::basis_recurrence_constants(), kStorage, "image_splat indirect basis constants");
   upload_receivers(dev, g.receivers, r.soa, "image_splat indirect receivers");
   put(dev, g.rlist, rlist, "image_splat indirect receiver tiles");
@@ -125,7 +165,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   dev.ensure_buffer(g.pairs, sizeof zero, kStorage, vk::MemoryKind::Host, "image_splat indirect pair count");
   dev.upload(g.pairs, &zero, sizeof zero);
 
-  const std::uint32_t op = setup.op == IndirectOperator::PointSampled ? gpu::kIndOpPoint : gpu::kIndOpAveraged;
+  const std::uint32_t op = exact ? gpu::kIndOpExact : setup.op == IndirectOperator::PointSampled ? gpu::kIndOpPoint : gpu::kIndOpAveraged;
   vk::ComputePipeline& p = pipeline(dev, g.pipelines,
                                     "image_splat.accumulate_indirect.n" + std::to_string(n) + ".rule" + std::to_string(static_cast<int>(setup.rule)) +
                                         ".op" + std::to_string(op),
@@ -142,7 +182,8 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
       vk::Bind::buffer_at(gpu::kIndBindAlbedo, g.albedo),       vk::Bind::buffer_at(gpu::kIndBindVis, g.vis),
       vk::Bind::buffer_at(gpu::kIndBindDfac, g.dfac),           vk::Bind::buffer_at(gpu::kIndBindConsts, g.consts),
       vk::Bind::buffer_at(gpu::kIndBindBasis, g.basis),         vk::Bind::buffer_at(gpu::kIndBindOut, g.out),
-      vk::Bind::buffer_at(gpu::kIndBindPairs, g.pairs)};
+      vk::Bind::buffer_at(gpu::kIndBindPairs, g.pairs),         vk::Bind::buffer_at(gpu::kIndBindMtab, g.mtab),
+      vk::Bind::buffer_at(gpu::kIndBindQrot, g.qrot)};
   vk::SubmitResult res;
   if (count)
     res = dev.submit([&](vk::Recorder& rec) {

@@ -10,9 +10,10 @@
 
 namespace softgi::techniques::image_splat {
 
-// The point-sampled (eq. 13), averaged_poly and averaged (eq. 15) operators run on the GPU; the
-// exact operator (eqs. 16-17: per pair two SH rotations and the M blocks) runs the CPU pass under
-// "vulkan".
+// Every operator runs on the GPU: point-sampled (eq. 13), averaged_poly and averaged (eq. 15), and
+// exact (eqs. 16-17: per pair the two SH rotations and the M blocks, on the evaluator's uploaded M
+// and Q floats). False only for a value outside IndirectOperator, which then runs the CPU pass
+// (and its error) under "vulkan".
 bool vulkan_indirect_supported(IndirectOperator op);
 // IndirectEvaluator::accumulate over every tile's proxy list, one invocation per receiver, on the
 // evaluator's own tables (IndirectEvaluator::tables()). The same input checks and messages as the

@@ -338,6 +338,14 @@ IndirectEvaluator::TableView IndirectEvaluator::tables() const {
   v.vis = im.vis.data;
   v.vh = std::span<const float>(im.vh, static_cast<std::size_t>(im.n));
   v.dfac = im.dfac;
+  if (im.setup.op == IndirectOperator::Exact) {
+    v.mtab = im.mtab;
+    v.moff = std::span<const int>(im.moff.data(), static_cast<std::size_t>(2 * im.n - 1));
+    v.mrow = im.mrow;
+    v.qrot = im.qrot;
+    v.qoff = std::span<const int>(im.qoff.data(), static_cast<std::size_t>(im.n));
+    v.hc = std::span<const float>(im.hc, static_cast<std::size_t>(im.n));
+  }
   return v;
 }
 

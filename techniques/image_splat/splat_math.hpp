@@ -136,6 +136,14 @@ class IndirectEvaluator {
     std::span<const float> vis;     // the (clamped) visibility ZhTable::data: rows x (value, slope) x n
     std::span<const float> vh;      // n: (g_cos,l / pi) sqrt((2l+1)/(4pi)), the V . H(N) band factors
     std::span<const float> dfac;    // averaged operators: rows x n, sqrt(4pi/(2l+1)) D_l; else empty
+    // Exact operator (eqs. 16-17) only; empty / 0 for the others.
+    std::span<const float> mtab;  // rows x mrow: per row the m-blocks of M (clamp weight folded in)
+    std::span<const int> moff;    // 2n - 1: block of m starts at moff[m + n - 1] within a row; block
+                                  // m is (n-|m|) x (n-|m|) row-major over l, l' in |m|..n-1
+    int mrow = 0;                 // floats per row of mtab
+    std::span<const float> qrot;  // band blocks of Rot(Q), Q = Rx(-90 deg): band l at qoff[l],
+    std::span<const int> qoff;    // n entries, (2l+1) x (2l+1) row-major
+    std::span<const float> hc;    // n: H(N)_lm = hc_l y_lm(N), sqrt(4pi/(2l+1)) g_cos,l / pi
   };
   TableView tables() const;
   ~IndirectEvaluator();

@@ -20,9 +20,7 @@ double solid_angle(double theta) {
   const double s = std::sin(0.5 * theta);
   return 4.0 * sh::kPi * s * s;
 }
-// The smallest theta the table samples: the normalised L_H/Omega has a finite limit at theta -> 0
-// (a directional light), which this stands in for.
-constexpr double kThetaFloor = 1e-3;
+constexpr double kThetaFloor = kLightThetaFloor;
 
 struct LobeFit {
   double psi = 0.0;
@@ -170,6 +168,36 @@ bool light_lh_world(const LightLobeTable& t, const glm::vec3& p, const glm::vec3
   for (int l = 0; l < t.order; ++l)
     for (int m = -l; m <= l; ++m) out[sh::index(l, m)] = k[l] * y[sh::index(l, m)];
   return true;
+}
+
+long long add_lights_and_clamp(const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights, int order,
+                               const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
+                               bool zero_normal_empty, glm::vec3* out) {
+  const int n2 = order * order;
+  const bool shade_lights = table && !lights.empty();
+  std::array<float, sh::kMaxCoeffs> gw{}, LH{};
+  long long clamped = 0;
+  for (std::size_t i = begin; i < end; ++i) {
+    if (zero_normal_empty && rec.nx[i] == 0.0f && rec.ny[i] == 0.0f && rec.nz[i] == 0.0f) {
+      out[i - begin] = glm::vec3(0.0f);
+      continue;
+    }
+    glm::vec3 e = out[i - begin];
+    if (shade_lights) {
+      for (int k = 0; k < n2; ++k) gw[k] = (g ? g[i * n2 + k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f)) * gwin[k];
+      const glm::vec3 p(rec.px[i], rec.py[i], rec.pz[i]), N(rec.nx[i], rec.ny[i], rec.nz[i]);
+      for (const auto& light : lights)
+        if (light_lh_world(*table, p, N, light.position, light.radius, LH.data())) {
+          float d = 0.0f;
+          for (int k = 0; k < n2; ++k) d += LH[k] * gw[k];
+          e += d * light.radiance;
+        }
+    }
+    // Truncated SH can ring below zero in deep shadow; outgoing radiance cannot.
+    if (e.x < 0.0f || e.y < 0.0f || e.z < 0.0f) ++clamped;
+    out[i - begin] = glm::max(e, glm::vec3(0.0f));
+  }
+  return clamped;
 }
 
 }  // namespace softgi::techniques::shexp

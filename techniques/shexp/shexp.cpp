@@ -532,8 +532,9 @@ void pass_projected(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const Field>>(kVisibility, g);
 }
 
-// gpu: the batch shading (H(N) * g) . L runs on the Vulkan backend's device (shexp_vulkan.cpp);
-// everything else, including the analytic lights, is the same host code.
+// gpu: the shading of the receivers -- (H(N) * g) . L, the analytic lights and the clamp -- runs on
+// the Vulkan backend's device (shexp_vulkan.cpp, shaders/shexp/shade.comp); the light and the
+// per-vertex results around it are the same host code.
 void pass_shade(State& st, const Settings& s, FrameContext& ctx, bool gpu = false) {
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
   const int n = s.order, n2 = n * n;
@@ -577,31 +578,19 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, bool gpu = fals
   bs.gwin = gwin.data();
   bs.g = vis ? vis->v.data() : nullptr;
   std::vector<glm::vec3> shade(r.soa.size());
-  if (gpu) vulkan_shade_batch(ctx, bs, r.soa, shade);
-  std::atomic<long long> clamped{0};
-  const auto& lights = ctx.posed.lights;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
-    if (!gpu) shade_batch(s.isa, bs, r.soa, br.begin(), br.end(), shade.data() + br.begin());
-    std::array<float, sh::kMaxCoeffs> g{}, LH{};
-    long long cl = 0;
-    for (std::size_t i = br.begin(); i != br.end(); ++i) {
-      glm::vec3 e = shade[i];
-      if (lt && !lights.empty()) {
-        for (int k = 0; k < n2; ++k) g[k] = (vis ? vis->v[i * n2 + k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f)) * gwin[k];
-        const glm::vec3 p(r.soa.px[i], r.soa.py[i], r.soa.pz[i]), N(r.soa.nx[i], r.soa.ny[i], r.soa.nz[i]);
-        for (const auto& light : lights)
-          if (light_lh_world(*lt, p, N, light.position, light.radius, LH.data())) {
-            float d = 0.0f;
-            for (int k = 0; k < n2; ++k) d += LH[k] * g[k];
-            e += d * light.radiance;
-          }
-      }
-      // Truncated SH can ring below zero in deep shadow; outgoing radiance cannot.
-      if (e.x < 0.0f || e.y < 0.0f || e.z < 0.0f) ++cl;
-      shade[i] = glm::max(e, glm::vec3(0.0f));
-    }
-    clamped += cl;
-  });
+  long long clamped = 0;
+  if (gpu) {
+    // The whole shading on the device: product, spherical lights and the clamp (shade.comp).
+    clamped = vulkan_shade(ctx, GpuShade{&bs, lt.get(), &ctx.posed.lights, false, nullptr}, r.soa, shade.data());
+  } else {
+    std::atomic<long long> cl{0};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
+      shade_batch(s.isa, bs, r.soa, br.begin(), br.end(), shade.data() + br.begin());
+      cl += add_lights_and_clamp(lt.get(), ctx.posed.lights, n, gwin.data(), r.soa, br.begin(), br.end(), bs.g, false,
+                                 shade.data() + br.begin());
+    });
+    clamped = cl.load();
+  }
 
   const scene::PosedScene& posed = ctx.posed;
   sh_out->irradiance.resize(posed.objects.size());
@@ -620,8 +609,8 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, bool gpu = fals
   auto& rec = ctx.record();
   rec.counters["receivers"] = static_cast<double>(r.soa.size());
   rec.counters["shadowed"] = vis ? 1.0 : 0.0;
-  rec.counters["lights"] = lt ? static_cast<double>(lights.size()) : 0.0;
-  rec.counters["vertices_clamped"] = static_cast<double>(clamped.load());
+  rec.counters["lights"] = lt ? static_cast<double>(ctx.posed.lights.size()) : 0.0;
+  rec.counters["vertices_clamped"] = static_cast<double>(clamped);
   rec.bytes = r.soa.size() * 2 * sizeof(glm::vec3);
   ctx.put<std::shared_ptr<const Shading>>(kShading, sh_out);
 }
@@ -750,7 +739,7 @@ class Shexp final : public render::Technique {
       g.add({"accumulate_log", {kReceivers, kTables, kCuts}, {}, {kLogVisibility},
              "sum of blocker log vectors per receiver (eqs. 8, 34, 38; rules of section 6.2)",
              both([s](FrameContext& c) { pass_accumulate(s, c); }, [s](FrameContext& c) { vulkan_accumulate(s, c); })});
-      // The Vulkan exponential covers HYB and OL; PS*, PS and the exact exponential run the host pass.
+      // The Vulkan exponential covers HYB, OL, PS* and PS; the exact exponential (eq. 28) runs the host pass.
       render::PassFn exp_cpu = [s](FrameContext& c) { pass_exponentiate(s, c); };
       g.add({"exponentiate", {kReceivers, kTables, kLogVisibility}, {}, {kVisibility},
              "SH exponential per receiver (section 4), truncated to the shading order",

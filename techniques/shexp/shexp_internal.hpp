@@ -247,5 +247,16 @@ std::vector<double> light_lh_canonical(int order, double theta, double f, double
 // through the fitted lobe; false when the light is behind the receiver's horizon entirely or degenerate.
 bool light_lh_world(const LightLobeTable& t, const glm::vec3& p, const glm::vec3& n, const glm::vec3& c, float radius,
                     float* out);
+// The smallest theta the light table samples (and the floor of its solid-angle normalisation): the
+// normalised L_H / Omega has a finite limit at theta -> 0 (a directional light), which this stands in for.
+inline constexpr double kLightThetaFloor = 1e-3;
+// The end of the diffuse shading of receivers [begin, end) of rec, shared by SHEXP's shade pass and
+// image_splat's shade_direct (and mirrored by shaders/shexp/shade.comp): out[i - begin] holds
+// (H(N) * g) . L (shade_batch); adds the spherical lights' L_H . (gwin g_i) (section 7; g_i at
+// g + i n^2, null: unshadowed) when `table` is given, then clamps at 0. zero_normal_empty: a receiver
+// with a zero normal (no surface) gets 0 and is not counted. Returns the receivers clamped at 0.
+long long add_lights_and_clamp(const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights, int order,
+                               const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
+                               bool zero_normal_empty, glm::vec3* out);
 
 }  // namespace softgi::techniques::shexp

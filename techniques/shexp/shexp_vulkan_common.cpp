@@ -68,13 +68,47 @@ std::vector<std::uint32_t> pack_terms(const std::vector<std::uint16_t>& j, const
   return terms;
 }
 
-SquareBuffers upload_square_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique) {
+PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique) {
+  const int n2 = p.order * p.order;
   const std::vector<std::uint32_t> begin(p.sq_begin.begin(), p.sq_begin.end());
+  std::vector<std::uint32_t> pr_range;
+  for (int i = 0; i < n2; ++i) {
+    pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[i]));
+    pr_range.push_back(static_cast<std::uint32_t>(p.pr_offdiag_end[i]));
+  }
+  pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
+  pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
   const std::string o = technique + " product plan " + std::to_string(p.order);
-  SquareBuffers b;
-  b.begin = dev.upload_vector(begin, kStorage, o + " squares index");
-  b.terms = dev.upload_vector(pack_terms(p.sq_j, p.sq_k, p.sq_v), kStorage, o + " squares");
+  PlanBuffers b;
+  b.sq_begin = dev.upload_vector(begin, kStorage, o + " squares index");
+  b.sq_terms = dev.upload_vector(pack_terms(p.sq_j, p.sq_k, p.sq_v), kStorage, o + " squares");
+  b.pr_range = dev.upload_vector(pr_range, kStorage, o + " products index");
+  b.pr_terms = dev.upload_vector(pack_terms(p.pr_j, p.pr_k, p.pr_v), kStorage, o + " products");
   return b;
+}
+
+std::vector<float> exp_series(std::uint32_t method, int degree) {
+  if (degree < 1 || degree > static_cast<int>(gpu::kExpMaxDegree))
+    throw std::invalid_argument("shexp exponentiate on vulkan: series degree " + std::to_string(degree) + " outside 1.." +
+                                std::to_string(gpu::kExpMaxDegree));
+  std::vector<float> h(static_cast<std::size_t>(degree) + 1, 1.0f);
+  double fact = 1.0;
+  for (int k = 2; k <= degree; ++k) {
+    fact *= k;
+    h[k] = method == gpu::kExpPs ? 1.0f / static_cast<float>(k) : static_cast<float>(1.0 / fact);
+  }
+  return h;
+}
+
+void exp_series_counts(std::uint32_t method, int degree, double& squares, double& products) {
+  squares = products = 0.0;
+  if (method == gpu::kExpPs) {
+    products = std::max(0, degree - 1);
+  } else if (method == gpu::kExpPsStar) {
+    squares = (degree >= 2) + (degree >= 4);
+    for (int k = 6; k <= degree; k += 2) products += 1.0;
+    products += degree >= 3;
+  }
 }
 
 PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int order, std::size_t min_rows, float w_fill,
@@ -106,10 +140,10 @@ PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int ord
 }
 
 vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline& p, const AccumulateBuffers& b, std::size_t count,
-                                    const ZhTable& log, const std::string& submit_name) {
+                                    const ZhTable& log, const std::string& submit_name, float cut) {
   struct Push {
     std::uint32_t count, first, end, rows;
-    float scale;
+    float scale, cut;
   };
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kAccBindReceivers, b.receivers), vk::Bind::buffer_at(gpu::kAccBindReceiverList, b.rlist),
@@ -119,7 +153,7 @@ vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline&
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("accumulate_log");
     dispatch_chunks<Push>(rec, p, binds, count, gpu::kShexpAccumulateGroup, [&](std::uint32_t first, std::uint32_t end) {
-      return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(log.rows), log.scale};
+      return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(log.rows), log.scale, cut};
     });
     rec.end_timer();
     rec.barrier();
@@ -127,17 +161,21 @@ vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline&
 }
 
 vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
-                                  std::uint32_t ol_count, const std::string& submit_name) {
+                                  std::uint32_t ol_count, int degree, const std::string& submit_name) {
   struct Push {
-    std::uint32_t first, end, ol_count;
+    std::uint32_t first, end, ol_count, degree;
   };
-  const std::vector<vk::Bind> binds = {vk::Bind::buffer_at(gpu::kExpBindIn, b.in),          vk::Bind::buffer_at(gpu::kExpBindOut, b.out),
-                                       vk::Bind::buffer_at(gpu::kExpBindOl, b.ol),          vk::Bind::buffer_at(gpu::kExpBindSqIndex, b.sq_begin),
-                                       vk::Bind::buffer_at(gpu::kExpBindSqTerms, b.sq_terms), vk::Bind::buffer_at(gpu::kExpBindStatus, b.status)};
+  const std::vector<vk::Bind> binds = {
+      vk::Bind::buffer_at(gpu::kExpBindIn, b.in),                vk::Bind::buffer_at(gpu::kExpBindOut, b.out),
+      vk::Bind::buffer_at(gpu::kExpBindOl, b.ol),                vk::Bind::buffer_at(gpu::kExpBindSqIndex, b.plan.sq_begin),
+      vk::Bind::buffer_at(gpu::kExpBindSqTerms, b.plan.sq_terms), vk::Bind::buffer_at(gpu::kExpBindPrIndex, b.plan.pr_range),
+      vk::Bind::buffer_at(gpu::kExpBindPrTerms, b.plan.pr_terms), vk::Bind::buffer_at(gpu::kExpBindSeries, b.series),
+      vk::Bind::buffer_at(gpu::kExpBindStatus, b.status)};
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("exponentiate");
-    dispatch_chunks<Push>(rec, p, binds, count, gpu::kShexpExpGroup,
-                          [&](std::uint32_t first, std::uint32_t end) { return Push{first, end, ol_count}; });
+    dispatch_chunks<Push>(rec, p, binds, count, gpu::kShexpExpGroup, [&](std::uint32_t first, std::uint32_t end) {
+      return Push{first, end, ol_count, static_cast<std::uint32_t>(degree)};
+    });
     rec.end_timer();
     rec.barrier();
   }, submit_name);

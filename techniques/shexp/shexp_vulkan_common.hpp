@@ -79,11 +79,12 @@ OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::st
 
 // ProductPlan terms in the shaders' form: (j | k << 16, bits(v)) pairs.
 std::vector<std::uint32_t> pack_terms(const std::vector<std::uint16_t>& j, const std::vector<std::uint16_t>& k, const std::vector<float>& v);
-// ProductPlan squares as exponentiate.comp reads them: begin per output, packed terms.
-struct SquareBuffers {
-  vk::Buffer begin, terms;
+// A ProductPlan as the shaders read it: squares as begin per output + packed terms; products as
+// (begin, offdiag_end) per output plus a final (end, end) + packed terms.
+struct PlanBuffers {
+  vk::Buffer sq_begin, sq_terms, pr_range, pr_terms;
 };
-SquareBuffers upload_square_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique);
+PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique);
 
 // Blocker lists concatenated as accumulate_log.comp reads them: spheres (cx, cy, cz, r), band
 // weights (`order` per sphere; `w_fill` for a list without weights) and a (first, count) range per
@@ -97,22 +98,30 @@ PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int ord
                                   const std::string& technique, const std::string& order_name);
 
 // The accumulate_log.comp dispatch over `count` receivers (bindings as softgi_shared.h names them),
-// timed as "accumulate_log".
+// timed as "accumulate_log". cut > 0: a blocker counts only where |c - p| < cut r (image_splat).
 struct AccumulateBuffers {
   const vk::Buffer &receivers, &rlist, &ranges, &blockers, &weights, &table, &basis, &out;
 };
 vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline& p, const AccumulateBuffers& b, std::size_t count,
-                                    const ZhTable& log, const std::string& submit_name);
+                                    const ZhTable& log, const std::string& submit_name, float cut = 0.0f);
 
-// exponentiate.comp's status words: reset before the dispatch, and the CPU pass's errors (exp_batch)
-// raised from them afterwards, naming the receiver. `log` holds the n2 input coefficients per
-// receiver; `receiver_name(i)` names receiver i in the non-finite-input message.
-// The exponentiate.comp dispatch over `count` receivers, timed as "exponentiate".
+// exponentiate.comp's methods: HYB, OL, PS* and PS (softgi_shared.h kExp*; the exact exponential
+// stays on the host). The series coefficients of PS* (float(1/k!)) and PS (1.0f/k), k = 0..degree,
+// as the CPU's exp_block computes them; degree in 1..kExpMaxDegree.
+std::vector<float> exp_series(std::uint32_t method, int degree);
+// Squares and products one receiver's series costs (the CPU's ExpStats, squarings excluded).
+void exp_series_counts(std::uint32_t method, int degree, double& squares, double& products);
+// The exponentiate.comp dispatch over `count` receivers, timed as "exponentiate". exponentiate.comp's
+// status words: reset before the dispatch, and the CPU pass's errors (exp_batch) raised from them
+// afterwards, naming the receiver. `log` holds the n2 input coefficients per receiver;
+// `receiver_name(i)` names receiver i in the non-finite-input message.
 struct ExponentiateBuffers {
-  const vk::Buffer &in, &out, &ol, &sq_begin, &sq_terms, &status;
+  const vk::Buffer &in, &out, &ol;
+  const PlanBuffers& plan;
+  const vk::Buffer &series, &status;
 };
 vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
-                                  std::uint32_t ol_count, const std::string& submit_name);
+                                  std::uint32_t ol_count, int degree, const std::string& submit_name);
 void reset_exp_status(vk::Context& dev, vk::Buffer& status, const std::string& name);
 void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const float* log, int n2, const std::string& pass,
                       const std::function<std::string(std::size_t)>& receiver_name);

@@ -1,10 +1,9 @@
 // image_splat (paper 000) on the Vulkan backend against the CPU backend, pass by pass: the CPU graph
 // runs up to a pass, then the pass runs on both backends with the same inputs and the outputs are
 // compared (and the CPU output is put back, so every pass starts from identical inputs). The GPU
-// passes: accumulate_log, exponentiate (HYB, OL), upsample. Every built-in scene at SH orders 3, 4
-// and 6. Host passes must be mapped to one function under both
-// names; the host-only modes of the GPU passes (per-pair cut, PS*/exact exponential) must give the
-// CPU result bit for bit.
+// passes: accumulate_log, exponentiate (HYB, OL, PS*), upsample, shade_direct. Every built-in scene at
+// SH orders 3, 4 and 6. Host passes must be mapped to one function under both names; the host-only
+// mode of a GPU pass (the exact exponential) must give the CPU result bit for bit.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -20,6 +19,7 @@
 #include "../../techniques/image_splat/image_splat_vulkan.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/image.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/technique.hpp"
 #include "softgi/scene/builtin.hpp"
@@ -48,6 +48,17 @@ constexpr double kMissMeasureRelTol = 1e-4;
 // The indirect field interpolated with those weights (<= 4 taps of one field): per pixel relative to
 // its largest channel, floored as in compare_rows (kFloorFraction).
 constexpr double kUpsampleRelTol = 1e-4;
+// shade_direct: SHEXP's shade tolerance (kShadeRelTol in test_shexp_parity.cpp: one SH product and a
+// dot product per channel, unfused on lavapipe) on visibility interpolated from <= 4 taps (a few
+// roundings more), plus the spherical lights (cornell): the GPU evaluates asin, acos and sin by fixed
+// polynomials where the CPU calls std::asin / std::acos / double sin, and the lobe axis through the
+// basis recurrence where the CPU calls sh::eval_basis; each moves the light's table coordinates or
+// the lobe by a few float ulps, and L_H varies smoothly across table cells. Observed on lavapipe:
+// <= 4.9e-6 (cornell, with its light), <= 8.4e-7 elsewhere.
+constexpr double kShadeDirectRelTol = 2e-4;
+// Pixels whose clamped-at-0 decision may differ: those whose most negative channel is within float
+// noise of 0, a small fraction of the surface.
+constexpr double kClampedPixelSlack = 1e-2;
 // Display size of the parity frames: small, the suite also runs under ASan. receiver_scale 2 gives a
 // 20 x 15 receiver buffer (up to 300 receivers), tile_size 8 (params_for) six tiles: six blocker lists.
 constexpr int kWidth = 40, kHeight = 30;
@@ -97,6 +108,11 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
       pass.impl.at("cpu")(ctx);
       if (pass.name == "upsample") {
         compare_upsample(ctx, params, pass, result, scene_name, label);
+        ++out.compared;
+        continue;
+      }
+      if (pass.name == "shade_direct") {
+        compare_direct(ctx, pass, result, scene_name, label);
         ++out.compared;
         continue;
       }
@@ -203,6 +219,37 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
     ctx.put<std::shared_ptr<const is::Upsampled>>(res, cpu);
   }
 
+  // shade_direct on both backends: the direct image (eq. 10's first term with the spherical lights,
+  // times the albedo; background: the SH light along the ray) per pixel, and the count of clamped
+  // pixels (equal up to the pixels whose sum lies within float noise of 0).
+  static void compare_direct(render::FrameContext& ctx, const render::PassDesc& pass, render::FrameResult& result,
+                             const std::string& scene_name, const std::string& label) {
+    const std::string res = pass.writes.at(0);
+    const Image cpu = ctx.get<Image>(res);
+    const double cpu_clamped = result.passes.back().counters["pixels_clamped"];
+    result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
+    pass.impl.at("vulkan")(ctx);
+    const Image& gpu = ctx.get<Image>(res);
+    ASSERT_EQ(cpu.rgb.size(), gpu.rgb.size());
+    const auto flat = [](const Image& im) {
+      std::vector<float> v;
+      for (const auto& c : im.rgb) v.insert(v.end(), {c.x, c.y, c.z});
+      return v;
+    };
+    const Compared c = compare_rows(flat(cpu), flat(gpu), 3);
+    auto& counters = result.passes.back().counters;
+    EXPECT_LE(c.worst, kShadeDirectRelTol) << "shade_direct (" << label << "): pixel " << c.worst_index << " differs by " << c.worst << " of its size";
+    EXPECT_LE(std::abs(counters["pixels_clamped"] - cpu_clamped), kClampedPixelSlack * std::max(1.0, counters["surface_pixels"]))
+        << "shade_direct (" << label << "): clamped pixels";
+    if (ctx_->device_info().timestamp_valid_bits > 0) {
+      EXPECT_GE(counters["kernel_gpu_seconds"], 0.0);
+    }
+    std::printf("[parity] %-9s %-22s shade_direct    %zu pixels, worst relative difference %.3g, clamped %g / %g (GPU kernel %.3f ms)\n",
+                scene_name.c_str(), label.c_str(), cpu.rgb.size(), c.worst, cpu_clamped, counters["pixels_clamped"],
+                counters["kernel_gpu_seconds"] * 1e3);
+    ctx.put<Image>(res, cpu);
+  }
+
   static render::ParamSet params_for(int order) {
     render::ParamSet p = render::default_params(*tech_);
     p.set("order", std::to_string(order));
@@ -228,27 +275,49 @@ TEST_P(ImageSplatParity, GpuPassesMatchTheCpuPasses) {
   p.set("indirect_operator", "averaged");
   p.set("indirect_order", "4");
   compared += run(name, sc, p, "order 4 ol").compared;
-  EXPECT_EQ(compared, 12u) << "accumulate_log, exponentiate and upsample at orders 3, 4, 6 (HYB) and 4 (OL)";
+  EXPECT_EQ(compared, 16u) << "accumulate_log, exponentiate, upsample and shade_direct at orders 3, 4, 6 (HYB) and 4 (OL)";
 }
 
 INSTANTIATE_TEST_SUITE_P(BuiltinScenes, ImageSplatParity, ::testing::Values("spheres", "cornell", "character", "crowd", "bunny"));
 
-// The modes the GPU passes leave to the host run the CPU pass under "vulkan": the result is the CPU's.
-TEST_F(ImageSplatParity, HostOnlyModesGiveTheCpuResult) {
+// The per-pair cut of accumulate_log_range (a hard cut at eta r with smooth_clamp off; the printed
+// rule with a sphere of influence) and the PS* exponential run on the GPU too; the exact exponential
+// (eq. 28, the reference) is the only host-only mode left, and gives the CPU result bit for bit.
+TEST_F(ImageSplatParity, PerPairCutsAndEveryExponentialRunOnBothBackends) {
   const scene::Scene sc = scene::make_builtin("character");
   render::ParamSet hard = params_for(4);
-  hard.set("smooth_clamp", "false");  // hard cut at eta r: per-pair cut, not in SHEXP's shader
-  hard.set("exp", "ps*");             // PS*-2: no GPU exponential
+  hard.set("smooth_clamp", "false");
+  hard.set("exp", "ps*");
   hard.set("indirect", "false");
   const Run a = run("character", sc, hard, "hard cut, ps*");
-  EXPECT_EQ(a.compared, 1u) << "upsample";
-  EXPECT_EQ(a.identical, 2u);
+  EXPECT_EQ(a.compared, 4u) << "accumulate_log, exponentiate, upsample and shade_direct";
+  EXPECT_EQ(a.identical, 0u);
   render::ParamSet printed = params_for(4);
-  printed.set("replacement_rule", "printed");  // the printed rule with a sphere of influence: per-pair cut
+  printed.set("replacement_rule", "printed");
   printed.set("indirect", "false");
   const Run b = run("character", sc, printed, "printed rule");
-  EXPECT_EQ(b.identical, 1u) << "accumulate_log on the host";
-  EXPECT_EQ(b.compared, 2u) << "exponentiate and upsample on the GPU";
+  EXPECT_EQ(b.compared, 4u) << "accumulate_log, exponentiate, upsample and shade_direct";
+  render::ParamSet exact = params_for(3);
+  exact.set("exp", "exact");
+  exact.set("indirect", "false");
+  const Run c = run("character", sc, exact, "exact exp");
+  EXPECT_EQ(c.identical, 1u) << "exponentiate on the host";
+  EXPECT_EQ(c.compared, 3u) << "accumulate_log, upsample and shade_direct on the GPU";
+}
+
+// The fallbacks of section 4.2 around the GPU shading: "shaded" shades the coarse receivers on the
+// GPU and interpolates them for the misses, "none" keeps the eq. 11 result, "robust" (the default,
+// above) shades the misses from the full proxy list. Each is compared pass by pass.
+TEST_F(ImageSplatParity, ShadeDirectFallbacksMatchTheCpu) {
+  for (const std::string scene_name : {"character", "cornell"}) {
+    const scene::Scene sc = scene::make_builtin(scene_name);
+    for (const std::string fallback : {"shaded", "none"}) {
+      render::ParamSet p = params_for(4);
+      p.set("fallback", fallback);
+      const Run r = run(scene_name, sc, p, "fallback " + fallback);
+      EXPECT_EQ(r.compared, 4u) << "accumulate_log, exponentiate, upsample and shade_direct";
+    }
+  }
 }
 
 }  // namespace

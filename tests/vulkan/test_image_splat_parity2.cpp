@@ -1,16 +1,17 @@
 // image_splat (paper 000) on the Vulkan backend, second set of GPU passes: accumulate_indirect
-// (section 5; the point-sampled eq. 13, averaged_poly and averaged eq. 15 operators) against the CPU
-// pass. As in test_image_splat_parity.cpp, the CPU graph runs up to the pass, the pass runs on both
-// backends from the same inputs and the outputs are compared; every built-in scene, shadow orders 3,
-// 4 and 6, indirect orders 3 and 4 where the operator allows. The exact operator stays on the host
-// and must give the CPU result bit for bit. A direct test covers every replacement rule on random
-// receiver-proxy configurations (receivers inside, straddling and behind proxies).
+// (section 5; the point-sampled eq. 13, averaged_poly and averaged eq. 15, and exact eqs. 16-17
+// operators) against the CPU pass. As in test_image_splat_parity.cpp, the CPU graph runs up to the
+// pass, the pass runs on both backends from the same inputs and the outputs are compared; every
+// built-in scene, shadow orders 3, 4 and 6, indirect orders 3 and 4 where the operator allows (and 6
+// for exact). A direct test covers every replacement rule on random receiver-proxy configurations
+// (receivers inside, straddling and behind proxies).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <memory>
 #include <random>
 #include <set>
@@ -45,6 +46,14 @@ namespace {
 // not fuse multiply-adds. Sums of up to a few hundred proxies: the bound of the accumulate_log
 // parity test, whose error sources these are.
 constexpr double kIndirectRelTol = 2e-3;
+// exact (paper 000 eqs. 16-17): the error sources above, plus per pair the rotation
+// R = Q Rz(-beta) Q^T Rz(-phi) of L~ (two band-block products of up to 11 terms and the angle
+// multiples cos(m a), sin(m a) by recurrence: a few ulps each), H at N' = R N by the recurrence
+// basis, and the M blocks interpolated entry by entry (the CPU's formula, summed over up to 6 terms),
+// all unfused on lavapipe. They stay at the other operators' level (random receivers with rule off,
+// no tangent spheres: <= 4.5e-6 exact, <= 4.7e-6 averaged): the asin conditioning dominates here too,
+// so the same bound (observed <= 2.1e-4, crowd at indirect order 6; random receivers <= 3.4e-5).
+constexpr double kExactRelTol = kIndirectRelTol;
 // omega_p = sum of F_0 from the same table row pairs: the asin conditioning above only.
 constexpr double kOmegaRelTol = 2e-3;
 // Pairs inside the sphere of influence (dist < eta r): the backends may disagree only for pairs
@@ -78,13 +87,14 @@ class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
   }
 
   struct Run {
-    std::size_t compared = 0, identical = 0;
+    std::size_t compared = 0;
     double worst_rgb = 0.0, worst_omega = 0.0;
   };
 
   // The CPU graph up to and including accumulate_indirect, then accumulate_indirect on Vulkan from
   // the same inputs.
-  static Run run(const std::string& scene_name, const scene::Scene& sc, const render::ParamSet& params, const std::string& label) {
+  static Run run(const std::string& scene_name, const scene::Scene& sc, const render::ParamSet& params, const std::string& label,
+                 double rgb_tol = kIndirectRelTol) {
     const scene::PosedScene posed = scene::evaluate(sc, 0.0);
     std::set<std::string> empty;
     render::PassGraph graph = tech_->plan(sc, params, empty);
@@ -116,9 +126,7 @@ class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
       EXPECT_GT(cpu_res->omega.size(), 0u) << "the parity frame has no receivers";
       auto& counters = result.passes.back().counters;
       if (counters.count("kernel_gpu_seconds") == 0) {
-        EXPECT_EQ(cpu_res->rgb, gpu_res->rgb) << label << ": the host-only operator must run the CPU pass";
-        EXPECT_EQ(cpu_res->omega, gpu_res->omega) << label;
-        out.identical += cpu_res->rgb == gpu_res->rgb && cpu_res->omega == gpu_res->omega;
+        ADD_FAILURE() << label << ": accumulate_indirect ran the CPU pass under vulkan (every operator has a GPU path)";
         break;
       }
       EXPECT_EQ(cpu_res->pairs, gpu_res->pairs);
@@ -126,7 +134,7 @@ class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
           << label << ": pairs inside the sphere of influence";
       std::size_t wi = 0;
       out.worst_rgb = compare_rows(cpu_res->rgb, gpu_res->rgb, 3, &wi);
-      EXPECT_LE(out.worst_rgb, kIndirectRelTol) << scene_name << " (" << label << "): receiver " << wi << " differs by " << out.worst_rgb
+      EXPECT_LE(out.worst_rgb, rgb_tol) << scene_name << " (" << label << "): receiver " << wi << " differs by " << out.worst_rgb
                                                 << " of its size";
       out.worst_omega = compare_rows(cpu_res->omega, gpu_res->omega, 1, &wi);
       EXPECT_LE(out.worst_omega, kOmegaRelTol) << scene_name << " (" << label << "): omega of receiver " << wi;
@@ -170,20 +178,50 @@ TEST_P(ImageSplatParity2, AccumulateIndirectMatchesTheCpuPass) {
       SCOPED_TRACE(name + " " + label);
       compared += run(name, sc, params_for(4, op, io), label).compared;
     }
-  EXPECT_EQ(compared, 7u) << "averaged_poly at orders 3, 4, 6; point and averaged at indirect orders 3 and 4";
+  for (int io : {3, 4, 6}) {
+    const std::string label = "order 4 exact " + std::to_string(io);
+    SCOPED_TRACE(name + " " + label);
+    compared += run(name, sc, params_for(4, "exact", io), label, kExactRelTol).compared;
+  }
+  EXPECT_EQ(compared, 10u) << "averaged_poly at orders 3, 4, 6; point and averaged at indirect orders 3 and 4; exact at 3, 4, 6";
 }
 
 INSTANTIATE_TEST_SUITE_P(BuiltinScenes, ImageSplatParity2, ::testing::Values("spheres", "cornell", "character", "crowd", "bunny"));
 
-TEST_F(ImageSplatParity2, ExactOperatorRunsTheCpuPass) {
-  const scene::Scene sc = scene::make_builtin("character");
-  const Run r = run("character", sc, params_for(4, "exact", 3), "exact 3");
-  EXPECT_EQ(r.identical, 1u);
-  EXPECT_EQ(r.compared, 0u);
+// The exact operator's own floats are exposed for the upload, and only by the exact evaluator.
+TEST_F(ImageSplatParity2, ExactTablesAreExposedForTheUpload) {
+  std::vector<glm::vec3> env(16, glm::vec3(0.1f));
+  env[0] = glm::vec3(1.0f);
+  for (auto op : {is::IndirectOperator::PointSampled, is::IndirectOperator::AveragedExact, is::IndirectOperator::Exact}) {
+    SCOPED_TRACE(is::to_string(op));
+    is::IndirectSetup setup;
+    setup.order = 4;
+    setup.op = op;
+    setup.table_resolution = 32;
+    const is::IndirectEvaluator ev(setup, is::irradiance_sh(env, 4));
+    const is::IndirectEvaluator::TableView tv = ev.tables();
+    if (op != is::IndirectOperator::Exact) {
+      EXPECT_TRUE(tv.mtab.empty() && tv.moff.empty() && tv.qrot.empty() && tv.qoff.empty() && tv.hc.empty());
+      EXPECT_EQ(tv.mrow, 0);
+      continue;
+    }
+    // m-blocks of sizes (4 - |m|)^2, m = -3..3; Q band blocks (2l + 1)^2, l = 0..3.
+    EXPECT_EQ(tv.mrow, 1 + 4 + 9 + 16 + 9 + 4 + 1);
+    EXPECT_EQ(tv.mtab.size(), static_cast<std::size_t>(32 * tv.mrow));
+    ASSERT_EQ(tv.moff.size(), 7u);
+    EXPECT_EQ(tv.moff[3], 14);
+    ASSERT_EQ(tv.qoff.size(), 4u);
+    EXPECT_EQ(tv.qoff[3], 1 + 9 + 25);
+    EXPECT_EQ(tv.qrot.size(), static_cast<std::size_t>(1 + 9 + 25 + 49));
+    EXPECT_EQ(tv.hc.size(), 4u);
+    EXPECT_FLOAT_EQ(tv.qrot[0], 1.0f);  // band 0 is invariant
+    // Row 0 is the empty cap: M = 0.
+    for (int i = 0; i < tv.mrow; ++i) EXPECT_EQ(tv.mtab[static_cast<std::size_t>(i)], 0.0f) << i;
+  }
 }
 
-// Every replacement rule (the shared GLSL port of shexp::apply_replacement_rule), both GPU operator
-// kinds and indirect orders 3 and 6, on random receivers around random proxies in one tile: receivers
+// Every replacement rule (the shared GLSL port of shexp::apply_replacement_rule), every operator
+// and indirect orders 3 and 6, on random receivers around random proxies in one tile: receivers
 // inside proxies, proxies straddling and behind the tangent plane, with and without a sphere of
 // influence (smooth and hard cut).
 TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
@@ -215,8 +253,10 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
   ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
   result.passes.push_back(render::PassRecord{"accumulate_indirect"});
   int cases = 0;
+  std::map<std::string, std::pair<double, double>> worst;  // per operator: rgb, omega
   for (auto rule : {shexp::ReplacementRule::Off, shexp::ReplacementRule::Continuous, shexp::ReplacementRule::Clamped, shexp::ReplacementRule::Printed})
-    for (auto op : {is::IndirectOperator::PointSampled, is::IndirectOperator::AveragedExact, is::IndirectOperator::AveragedPolynomial})
+    for (auto op : {is::IndirectOperator::PointSampled, is::IndirectOperator::AveragedExact, is::IndirectOperator::AveragedPolynomial,
+                    is::IndirectOperator::Exact})
       for (int n : {3, 6}) {  // 4 is in the scene test; each order is a pipeline to compile
         if (op == is::IndirectOperator::AveragedPolynomial && n != 3) continue;
         for (const auto& [eta, smooth] : {std::pair<double, bool>{0.0, true}, {4.0, true}, {4.0, false}}) {
@@ -234,18 +274,26 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
           const long long inside = ev.accumulate(r.soa, 0, kReceivers, bins.indirect[0], rgb.data(), omega.data());
           const auto gpu = is::vulkan_accumulate_indirect(ctx, r, bins, ev);
           const double wr = compare_rows(rgb, gpu->rgb, 3), wo = compare_rows(omega, gpu->omega, 1);
-          EXPECT_LE(wr, kIndirectRelTol);
+          EXPECT_LE(wr, op == is::IndirectOperator::Exact ? kExactRelTol : kIndirectRelTol);
           EXPECT_LE(wo, kOmegaRelTol);
           EXPECT_LE(std::abs(result.passes.back().counters["pairs_inside_influence"] - static_cast<double>(inside)),
                     kPairCountRelTol * static_cast<double>(inside) + 2.0);
           if (wr > 1e-4 || wo > 1e-4) std::printf("[parity2] %-40s worst rgb %.3g omega %.3g\n", label.c_str(), wr, wo);
+          // Rule off separately: no rule-adjusted tangent spheres, so no ill-conditioned asin.
+          for (const std::string& key : {std::string(is::to_string(op)) + (rule == shexp::ReplacementRule::Off ? ", rule off" : ""),
+                                         std::string(is::to_string(op))}) {
+            auto& w = worst[key];
+            w = {std::max(w.first, wr), std::max(w.second, wo)};
+          }
           ++cases;
         }
       }
-  EXPECT_EQ(cases, 4 * (2 + 2 + 1) * 3);
+  for (const auto& [op, w] : worst)
+    std::printf("[parity2] random receivers, %-24s worst rgb %.3g omega %.3g\n", op.c_str(), w.first, w.second);
+  EXPECT_EQ(cases, 4 * (2 + 2 + 1 + 2) * 3);
 }
 
-// Bad proxies get the CPU evaluator's message on Vulkan too, and the exact operator is refused.
+// Bad proxies get the CPU evaluator's message on Vulkan too, for the exact operator as well.
 TEST_F(ImageSplatParity2, AccumulateIndirectOnVulkanRejectsBadInput) {
   const scene::Scene sc = scene::make_builtin("spheres");
   const scene::PosedScene posed = scene::evaluate(sc, 0.0);
@@ -276,7 +324,17 @@ TEST_F(ImageSplatParity2, AccumulateIndirectOnVulkanRejectsBadInput) {
   EXPECT_GT(ok->omega[0], 0.0f) << "the context is usable after the error";
   setup.op = is::IndirectOperator::Exact;
   const is::IndirectEvaluator exact(setup, is::irradiance_sh(env, 3));
-  EXPECT_THROW(is::vulkan_accumulate_indirect(ctx, r, bins, exact), std::logic_error);
+  EXPECT_TRUE(is::vulkan_indirect_supported(setup.op));
+  bins.indirect[0].cx[0] = std::numeric_limits<float>::infinity();
+  try {
+    is::vulkan_accumulate_indirect(ctx, r, bins, exact);
+    ADD_FAILURE() << "no error for an infinite proxy centre (exact)";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("proxy 0 has a non-finite centre, radius or albedo"), std::string::npos) << e.what();
+  }
+  bins.indirect[0].cx[0] = 0.0f;
+  const auto ok_exact = is::vulkan_accumulate_indirect(ctx, r, bins, exact);
+  EXPECT_GT(ok_exact->omega[0], 0.0f) << "the context is usable after the error (exact)";
 }
 
 }  // namespace
