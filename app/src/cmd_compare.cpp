@@ -366,6 +366,37 @@ void run_compare(const CompareArgs& args) {
   for (const auto& run : runs)
     if (run.vs_cpu >= 0.0) cross += "- " + run.name + " on " + run.backend + " against the CPU backend: relMSE " + fmt(run.vs_cpu) + "\n";
   if (!cross.empty()) md << "\nBackends against each other (final images, surface pixels):\n\n" << cross;
+  // Per pass, side by side: a technique on the CPU backend and on each other backend of this run.
+  // Fence waits (host time from submission to fence) stand next to the timestamps because some
+  // drivers' timestamps do not cover compute work (docs/backends.md, the lavapipe caveat).
+  for (const auto& cpu_run : runs) {
+    if (cpu_run.backend != "cpu" || !cpu_run.error.empty()) continue;
+    for (const auto& other : runs) {
+      if (other.name != cpu_run.name || other.backend == "cpu" || !other.error.empty()) continue;
+      md << "\n" << cpu_run.name << " per pass, cpu against " << other.backend << " (ms):\n\n"
+         << "| pass | cpu wall | " << other.backend << " wall | " << other.backend << " fence wait | " << other.backend
+         << " timestamps |\n|---|---|---|---|---|\n";
+      std::vector<std::string> pass_names;
+      for (const auto& p : cpu_run.frame.passes) pass_names.push_back(p.name);
+      for (const auto& p : other.frame.passes)
+        if (std::find(pass_names.begin(), pass_names.end(), p.name) == pass_names.end()) pass_names.push_back(p.name);
+      const auto find = [](const render::FrameResult& f, const std::string& n) -> const render::PassRecord* {
+        for (const auto& p : f.passes)
+          if (p.name == n) return &p;
+        return nullptr;
+      };
+      for (const auto& n : pass_names) {
+        const render::PassRecord* a = find(cpu_run.frame, n);
+        const render::PassRecord* b = find(other.frame, n);
+        const auto wait = b ? b->counters.find("gpu_wait_seconds") : decltype(b->counters.end()){};
+        const bool has_wait = b && wait != b->counters.end() && wait->second > 0.0;
+        md << "| " << n << " | " << (a ? ms(a->wall_seconds) : "-") << " | " << (b ? ms(b->wall_seconds) : "-") << " | "
+           << (has_wait ? ms(wait->second) : "-") << " | " << (b && b->gpu_seconds >= 0.0 && has_wait ? ms(b->gpu_seconds) : "-") << " |\n";
+      }
+      md << "| frame | " << ms(cpu_run.frame.total_seconds) << " | " << ms(other.frame.total_seconds) << " | | |\n\n"
+         << "Passes without a fence wait ran no device work (host passes: the same function on both backends).\n";
+    }
+  }
   bool any_direct = false;
   for (const auto& run : runs) any_direct = any_direct || !run.vs_direct.empty();
   if (any_direct) {

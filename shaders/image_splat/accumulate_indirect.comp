@@ -10,11 +10,13 @@
 #extension GL_EXT_control_flow_attributes : require
 #include "softgi_shared.h"
 #include "image_splat_indirect_shared.h"
-#define SHEXP_BASIS_BINDING kIndBindBasis
-#include "shexp_basis.glsl"
-#include "replacement_rule.glsl"
 
 layout(constant_id = 0) const uint N = 3;  // indirect order
+#define SHEXP_BASIS_BINDING kIndBindBasis
+#define SHEXP_BASIS_ORDER N
+#include "shexp_basis.glsl"
+#include "shexp_math.glsl"
+#include "replacement_rule.glsl"
 layout(constant_id = 1) const uint RULE = kRuleContinuous;
 layout(constant_id = 2) const uint OP = kIndOpAveraged;
 layout(local_size_x = kIndGroup) in;
@@ -39,23 +41,6 @@ layout(push_constant) uniform Push {
   float scale;  // theta -> row coordinate
   float eta;    // sphere of influence: pairs with |c - p| >= eta r are cut (<= 0: none)
 } pc;
-
-const float kHalfPi = 1.57079632679489662;
-
-// asin(x) on [0, 1]: Abramowitz & Stegun 4.4.46 (|error| <= 2e-8), as the SHEXP kernel's asin01
-// (kernel_body.hpp); closer to the CPU's std::asin than the driver's asin, whose Vulkan precision
-// bound is loose.
-float asin01(float x) {
-  const float x2 = x * x, x4 = x2 * x2;
-  const float p01 = basis_c[kBasisAsin + 1] * x + basis_c[kBasisAsin + 0];
-  const float p23 = basis_c[kBasisAsin + 3] * x + basis_c[kBasisAsin + 2];
-  const float p45 = basis_c[kBasisAsin + 5] * x + basis_c[kBasisAsin + 4];
-  const float p67 = basis_c[kBasisAsin + 7] * x + basis_c[kBasisAsin + 6];
-  const float p = (p67 * x2 + p45) * x4 + (p23 * x2 + p01);
-  const float omx = max(1.0 - x, 0.0);
-  const float s = omx * inversesqrt(max(omx, 1e-30));
-  return max(kHalfPi - s * p, 0.0);
-}
 
 float lt(uint k, uint c) { return consts[3 * k + c]; }
 float vh(uint l) { return consts[3 * N * N + l]; }
@@ -89,35 +74,10 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
   // N' = R N; H(N')_lm = hc_l y_lm(N') (H is zonal about N: R H(N) = H(R N)).
   const float x1 = cphi * Nrm.x + sphi * Nrm.y, y1 = -sphi * Nrm.x + cphi * Nrm.y, z1 = Nrm.z;
   const vec3 np = vec3(cb * x1 - sb * z1, y1, sb * x1 + cb * z1);
-  float hp[kShexpMaxOrder * kShexpMaxOrder];
-  {
-    float C[kShexpMaxOrder], S[kShexpMaxOrder];
-    C[0] = 1.0;
-    S[0] = 0.0;
-    [[unroll]] for (uint m = 1; m < N; ++m) {
-      C[m] = C[m - 1] * np.x - S[m - 1] * np.y;
-      S[m] = S[m - 1] * np.x + C[m - 1] * np.y;
-    }
-    [[unroll]] for (uint m = 0; m < N; ++m) {
-      float q_prev = 0.0, qv = basis_qmm(m);
-      [[unroll]] for (uint l = m; l < N; ++l) {
-        if (l == m + 1) {
-          q_prev = qv;
-          qv = basis_a1(m) * (np.z * qv);
-        } else if (l > m + 1) {
-          const float next = basis_A(l, m) * (np.z * qv) - basis_B(l, m) * q_prev;
-          q_prev = qv;
-          qv = next;
-        }
-        const uint i0 = l * l + l;
-        if (m == 0) {
-          hp[i0] = qv * hc(l);
-        } else {
-          hp[i0 + m] = (qv * C[m]) * hc(l);
-          hp[i0 - m] = (qv * S[m]) * hc(l);
-        }
-      }
-    }
+  float hp[kShexpMaxCoeffs];
+  shexp_basis_eval(np, hp);
+  [[unroll]] for (uint l = 0; l < N; ++l) {
+    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) hp[q] *= hc(l);
   }
   // f = R L~ = Q Rz(-beta) Q^T Rz(-phi) L~, band by band; band l of Q at the running offset
   // (TableView::qoff, checked on the host).
@@ -193,7 +153,7 @@ void main() {
     if (cut && dist >= pc.eta * s.w) continue;  // outside the sphere of influence (section 4.1)
     ++inside;
     const float alpha = min(1.0, s.w / dist);  // eq. 1
-    const float u = asin01(alpha) * pc.scale;
+    const float u = shexp_asin01(alpha) * pc.scale;
     const vec3 d = dv / dist;
     int k = min(int(min(u, float(pc.rows - 1))), int(pc.rows) - 2);
     k = max(k, 0);
@@ -226,34 +186,12 @@ void main() {
       [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = dfac[d0 + l] + fr * (dfac[d0 + N + l] - dfac[d0 + l]);
     }
     // B_l = sum_m y_lm(d) L~_lm per channel; kappa = sum_l fac_l B_l. Basis by the SHEXP recurrence.
-    float C[kShexpMaxOrder], S[kShexpMaxOrder];
-    C[0] = 1.0;
-    S[0] = 0.0;
-    [[unroll]] for (uint m = 1; m < N; ++m) {
-      C[m] = C[m - 1] * d.x - S[m - 1] * d.y;
-      S[m] = S[m - 1] * d.x + C[m - 1] * d.y;
-    }
+    float y[kShexpMaxCoeffs];
+    shexp_basis_eval(d, y);
     vec3 B[kShexpMaxOrder];
-    [[unroll]] for (uint l = 0; l < N; ++l) B[l] = vec3(0.0);
-    [[unroll]] for (uint m = 0; m < N; ++m) {
-      float q_prev = 0.0, qv = basis_qmm(m);
-      [[unroll]] for (uint l = m; l < N; ++l) {
-        if (l == m + 1) {
-          q_prev = qv;
-          qv = basis_a1(m) * (d.z * qv);
-        } else if (l > m + 1) {
-          const float next = basis_A(l, m) * (d.z * qv) - basis_B(l, m) * q_prev;
-          q_prev = qv;
-          qv = next;
-        }
-        const uint i0 = l * l + l;
-        if (m == 0) {
-          B[l] += qv * vec3(lt(i0, 0), lt(i0, 1), lt(i0, 2));
-        } else {
-          const float yc = qv * C[m], ys = qv * S[m];
-          B[l] += yc * vec3(lt(i0 + m, 0), lt(i0 + m, 1), lt(i0 + m, 2)) + ys * vec3(lt(i0 - m, 0), lt(i0 - m, 1), lt(i0 - m, 2));
-        }
-      }
+    [[unroll]] for (uint l = 0; l < N; ++l) {
+      B[l] = vec3(0.0);
+      [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) B[l] += y[q] * vec3(lt(q, 0), lt(q, 1), lt(q, 2));
     }
     vec3 kap = vec3(0.0);
     [[unroll]] for (uint l = 0; l < N; ++l) kap += fac[l] * B[l];

@@ -11,6 +11,7 @@
 #include "softgi_shared.h"
 #define SHEXP_BASIS_BINDING kAccBindBasis
 #include "shexp_basis.glsl"
+#include "shexp_math.glsl"
 
 layout(constant_id = 0) const uint N = 4;           // accumulation order
 layout(constant_id = 1) const uint RULE = kRuleContinuous;
@@ -32,21 +33,6 @@ layout(push_constant) uniform Push {
   float cut;        // > 0: a blocker counts only where |c - p| < cut r, before the rules (image_splat's
                     // per-pair sphere-of-influence cut, paper 000 section 4.1); 0: every blocker
 } pc;
-
-const float kHalfPi = 1.57079632679489662;
-
-// asin(x) on [0, 1]: Abramowitz & Stegun 4.4.46 in Estrin's form, as kernel_body.hpp asin01.
-float asin01(float x) {
-  const float x2 = x * x, x4 = x2 * x2;
-  const float p01 = basis_c[kBasisAsin + 1] * x + basis_c[kBasisAsin + 0];
-  const float p23 = basis_c[kBasisAsin + 3] * x + basis_c[kBasisAsin + 2];
-  const float p45 = basis_c[kBasisAsin + 5] * x + basis_c[kBasisAsin + 4];
-  const float p67 = basis_c[kBasisAsin + 7] * x + basis_c[kBasisAsin + 6];
-  const float p = (p67 * x2 + p45) * x4 + (p23 * x2 + p01);
-  const float omx = max(1.0 - x, 0.0);
-  const float s = omx * inversesqrt(max(omx, 1e-30));
-  return max(kHalfPi - s * p, 0.0);
-}
 
 void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
@@ -92,7 +78,7 @@ void main() {
     const vec3 v = d + (hh - h) * Nrm;
     const float inv = inversesqrt(max(dot(v, v), 1e-30));
     const float st = (1e-6 * r < rho) ? min(rho * inv, 1.0) : 0.0;
-    const float theta = st > 0.0 ? asin01(st) : 0.0;
+    const float theta = st > 0.0 ? shexp_asin01(st) : 0.0;
     const float u = theta * pc.scale;
     const int k = clamp(int(u), 0, int(pc.rows) - 2);
     const float fr = u - float(k);

@@ -13,11 +13,12 @@
 // [[unroll]]: loops whose trip counts are the specialisation constant N (registers, not scratch).
 #extension GL_EXT_control_flow_attributes : require
 #include "softgi_shared.h"
-#define SHEXP_BASIS_BINDING kShadeBindBasis
-#include "shexp_basis.glsl"
-#include "shexp_math.glsl"
 
 layout(constant_id = 0) const uint N = 4;  // shading order
+#define SHEXP_BASIS_BINDING kShadeBindBasis
+#define SHEXP_BASIS_ORDER N
+#include "shexp_basis.glsl"
+#include "shexp_math.glsl"
 layout(constant_id = 1) const uint VIS = kShadeVisReceiver;
 layout(constant_id = 2) const uint LIGHTS = 0;
 layout(local_size_x = kShexpShadeGroup) in;
@@ -46,37 +47,6 @@ layout(push_constant) uniform Push {
 } pc;
 
 const float kSqrt4Pi = 3.5449077018110318;
-
-// y(s) by the recurrence of the accumulation kernel (basis_soa of the CPU).
-void basis(vec3 s, out float Y[kShexpMaxCoeffs]) {
-  float C[kShexpMaxOrder], S[kShexpMaxOrder];
-  C[0] = 1.0;
-  S[0] = 0.0;
-  [[unroll]] for (uint m = 1; m < N; ++m) {
-    C[m] = C[m - 1] * s.x - S[m - 1] * s.y;
-    S[m] = S[m - 1] * s.x + C[m - 1] * s.y;
-  }
-  [[unroll]] for (uint m = 0; m < N; ++m) {
-    float q_prev = 0.0, qv = basis_qmm(m);
-    [[unroll]] for (uint l = m; l < N; ++l) {
-      if (l == m + 1) {
-        q_prev = qv;
-        qv = basis_a1(m) * (s.z * qv);
-      } else if (l > m + 1) {
-        const float next = basis_A(l, m) * (s.z * qv) - basis_B(l, m) * q_prev;
-        q_prev = qv;
-        qv = next;
-      }
-      const uint i0 = l * l + l;
-      if (m == 0) {
-        Y[i0] = qv;
-      } else {
-        Y[i0 + m] = qv * C[m];
-        Y[i0 - m] = qv * S[m];
-      }
-    }
-  }
-}
 
 // LightLobeTable::lookup's coordinate: clamped to the table, the last cell interpolating to its end.
 void table_coord(float x, float range, uint rows, out uint k0, out float w) {
@@ -127,7 +97,7 @@ bool light_dot(vec3 p, vec3 n, vec3 c, float R, float g[kShexpMaxCoeffs], out fl
   const vec2 sc = shexp_sincos_half(psi);
   const vec3 axis = sc.y * n + sc.x * tang;
   float Y[kShexpMaxCoeffs];
-  basis(axis, Y);
+  shexp_basis_eval(axis, Y);
   [[unroll]] for (uint l = 0; l < N; ++l) {
     const float kl = k[l] * omega;
     [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) dsum += (kl * Y[q]) * g[q];
@@ -146,7 +116,7 @@ void main() {
     return;
   }
   float H[kShexpMaxCoeffs], g[kShexpMaxCoeffs];
-  basis(s, H);
+  shexp_basis_eval(s, H);
   [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = 0.0;
   bool unshadowed = VIS == kShadeVisNone;
   if (VIS == kShadeVisReceiver) {

@@ -72,6 +72,11 @@ file(READ ${CMP}/summary.md md)
 if(NOT md MATCHES "shexp on vulkan against the CPU backend")
   message(FATAL_ERROR "summary.md does not compare the backends:\n${md}")
 endif()
+# The per-pass table side by side: GPU passes carry a fence wait, host passes none.
+if(NOT md MATCHES "shexp per pass, cpu against vulkan" OR NOT md MATCHES "\\| accumulate_log \\| [0-9.]+ \\| [0-9.]+ \\| [0-9.]+ \\|"
+   OR NOT md MATCHES "\\| tables \\| [0-9.]+ \\| [0-9.]+ \\| - \\|")
+  message(FATAL_ERROR "summary.md has no per-pass table of both backends:\n${md}")
+endif()
 
 expect_failure("unknown backend 'metal'" render --scene spheres --technique shexp --backend metal --out ${WORK_DIR}/bad)
 expect_failure("no device matches 'nosuchgpu'" render --scene spheres --technique shexp --backend vulkan --device nosuchgpu --out ${WORK_DIR}/bad)
