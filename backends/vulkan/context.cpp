@@ -365,6 +365,9 @@ Context::Context(const ContextOptions& options) : options_(options), fence_timeo
       check(create(instance_, &mi, nullptr, &messenger_), "vkCreateDebugUtilsMessengerEXT");
     }
     auto pds = physical_devices(instance_);
+    // Before any error below can destroy the instance: the driver is loaded by now (an unknown
+    // device, for one, throws before vkCreateDevice).
+    pin_loaded_libraries();
     std::vector<DeviceInfo> infos;
     for (std::size_t i = 0; i < pds.size(); ++i) infos.push_back(describe_device(pds[i], static_cast<int>(i)));
     std::string request = options.device;

@@ -1,9 +1,11 @@
-// The Vulkan backend as the CLI uses it: a whole SHEXP frame (GPU time per GPU pass, none for host
-// passes, the same image as the CPU backend), every SHEXP pass implemented on both backends, and a
+// The Vulkan backend as the CLI uses it: whole SHEXP and image_splat frames (GPU time per GPU pass,
+// none for host passes, the same image as the CPU backend), every SHEXP pass implemented on both backends, and a
 // scene too large for the device's buffers rejected with a message naming what is too large.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <set>
 #include <stdexcept>
@@ -16,6 +18,7 @@
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/technique.hpp"
 #include "softgi/scene/builtin.hpp"
+#include "softgi/techniques/image_splat.hpp"
 #include "softgi/techniques/shexp.hpp"
 #include "vulkan_test_util.hpp"
 
@@ -71,6 +74,64 @@ TEST(VulkanBackend, RendersAShexpFrameLikeTheCpuBackendWithGpuTimes) {
       }
     ASSERT_GT(peak, 0.0);
     EXPECT_LE(diff, kFrameRelTol * peak);
+  }
+  ctx.reset();
+  EXPECT_EQ(log->problems(), 0u) << log->summary();
+}
+
+// A whole image_splat frame (paper 000) on both backends, on `cornell` (a spherical light: every
+// pass of the graph runs, the light through shade_direct's GPU shading) and `character` (skinned,
+// robust misses). The backends' G-buffers differ at silhouettes (rasterised against ray traced:
+// object ids differ at up to 2 % of the pixels, tests/vulkan/test_vulkan_gbuffer.cpp), and a
+// receiver-buffer sample that moves across a silhouette changes the eq. 11 taps of its
+// neighbourhood; elsewhere the per-pass tolerances of the parity tests (<= 2e-3 relative, per
+// receiver) hold. So: at most kSilhouetteFraction of the pixels may differ by more than
+// kFrameRelTol of the image's largest value. Observed at 64x48: 1.3 % on cornell, 0 on character.
+constexpr double kSilhouetteFraction = 0.03;
+
+TEST(VulkanBackend, RendersAnImageSplatFrameLikeTheCpuBackend) {
+  auto ctx = softgi::testing::validated_context();
+  auto log = ctx->validation_log();
+  {
+    backends::VulkanBackend vk(ctx);
+    backends::CpuBackend cpu;
+    auto tech = techniques::image_splat::create();
+    const render::ParamSet params = render::default_params(*tech);
+    const std::set<std::string> gpu_passes = {"gbuffer",     "receiver_gbuffer",    "accumulate_log", "exponentiate",
+                                              "upsample",    "accumulate_indirect", "shade_direct"};
+    for (const std::string name : {"cornell", "character"}) {
+      SCOPED_TRACE(name);
+      const scene::Scene sc = scene::make_builtin(name);
+      render::RenderRequest req;
+      req.width = 64;
+      req.height = 48;
+      const render::FrameResult a = vk.render(*tech, sc, params, req);
+      const render::FrameResult b = cpu.render(*tech, sc, params, req);
+      ASSERT_EQ(a.passes.size(), b.passes.size());
+      std::set<std::string> timed;
+      for (std::size_t i = 0; i < a.passes.size(); ++i) {
+        EXPECT_EQ(a.passes[i].name, b.passes[i].name);
+        const bool gpu = a.passes[i].counters.count("gpu_submissions") && a.passes[i].counters.at("gpu_submissions") > 0;
+        EXPECT_EQ(gpu, gpu_passes.count(a.passes[i].name) == 1) << a.passes[i].name << (gpu ? " submitted GPU work" : " ran on the host");
+        if (gpu) timed.insert(a.passes[i].name);
+      }
+      if (name == "cornell") {
+        EXPECT_EQ(timed, gpu_passes) << "every GPU pass ran";
+      }
+      ASSERT_EQ(a.final_image.rgb.size(), b.final_image.rgb.size());
+      double peak = 0.0;
+      for (const auto& c : b.final_image.rgb) peak = std::max({peak, static_cast<double>(c.x), static_cast<double>(c.y), static_cast<double>(c.z)});
+      ASSERT_GT(peak, 0.0);
+      std::size_t off = 0;
+      for (std::size_t i = 0; i < a.final_image.rgb.size(); ++i) {
+        const glm::vec3 d = glm::abs(a.final_image.rgb[i] - b.final_image.rgb[i]);
+        off += std::max({d.x, d.y, d.z}) > kFrameRelTol * peak;
+      }
+      const double fraction = static_cast<double>(off) / static_cast<double>(a.final_image.rgb.size());
+      EXPECT_LE(fraction, kSilhouetteFraction);
+      std::printf("[frame] image_splat %-9s %zu of %zu pixels differ by more than %g of the peak\n", name.c_str(), off,
+                  a.final_image.rgb.size(), kFrameRelTol);
+    }
   }
   ctx.reset();
   EXPECT_EQ(log->problems(), 0u) << log->summary();
