@@ -262,14 +262,7 @@ DirectShader make_direct_shader(const std::vector<glm::vec3>& env_sh, int order,
 }
 
 shexp::BatchShade DirectShader::batch(const float* g) const {
-  shexp::BatchShade bs;
-  bs.order = order;
-  bs.plan = &shexp::ProductPlan::get(order);
-  bs.L = L.data();
-  bs.hcoef = hcoef.data();
-  bs.gwin = gwin.data();
-  bs.g = g;
-  return bs;
+  return shexp::BatchShade::make(order, L.data(), hcoef.data(), gwin.data(), g);
 }
 
 long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g, glm::vec3* out) const {

@@ -392,6 +392,17 @@ void exp_batch(KernelIsa isa, const BatchExp& e, const float* f, float* g, std::
   }
 }
 
+BatchShade BatchShade::make(int order, const float* L, const float* hcoef, const float* gwin, const float* g) {
+  BatchShade b;
+  b.order = order;
+  b.plan = &ProductPlan::get(order);
+  b.L = L;
+  b.hcoef = hcoef;
+  b.gwin = gwin;
+  b.g = g;
+  return b;
+}
+
 void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out) {
   if (!b.plan || b.plan->order != b.order || !b.L || !b.hcoef || !b.gwin)
     throw std::invalid_argument("shexp shade_batch: incomplete shading inputs");

@@ -570,13 +570,7 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, bool gpu = fals
       if (vis && s.window_visibility && s.window_h > 0.0) gwin[k] = static_cast<float>(sh::window_factor(l, s.window_h));
     }
   for (int c = 0; c < 3; ++c) std::copy(L[c].begin(), L[c].end(), Lflat.begin() + c * n2);
-  BatchShade bs;
-  bs.order = n;
-  bs.plan = &ProductPlan::get(n);
-  bs.L = Lflat.data();
-  bs.hcoef = hcoef.data();
-  bs.gwin = gwin.data();
-  bs.g = vis ? vis->v.data() : nullptr;
+  const BatchShade bs = BatchShade::make(n, Lflat.data(), hcoef.data(), gwin.data(), vis ? vis->v.data() : nullptr);
   std::vector<glm::vec3> shade(r.soa.size());
   long long clamped = 0;
   if (gpu) {

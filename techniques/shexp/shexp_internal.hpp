@@ -157,6 +157,8 @@ struct BatchShade {
   const float* hcoef = nullptr;  // order^2: H(N)_lm = hcoef y_lm(N) (clamped cosine / pi, rotation factor folded in)
   const float* gwin = nullptr;   // order^2: window factor of the visibility per coefficient (1 = none)
   const float* g = nullptr;      // visibility, receiver-major order^2 per receiver; null = unshadowed
+  // The plan of `order` with the given arrays (ProductPlan::get is cached).
+  static BatchShade make(int order, const float* L, const float* hcoef, const float* gwin, const float* g);
 };
 // out[i - begin] = (H(N_i) * g_i) . L per channel, for receivers [begin, end).
 void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out);

@@ -189,13 +189,7 @@ TEST_F(ShexpParity, ShadingWithSphericalLightsMatchesTheCpuOnRandomInput) {
       for (int c = 0; c < 3; ++c) L[c * n2 + k] = (k == 0 ? 1.0f : 0.2f * u(rng));
     }
     for (const bool with_vis : {true, false}) {
-      sx::BatchShade bs;
-      bs.order = order;
-      bs.plan = &sx::ProductPlan::get(order);
-      bs.L = L.data();
-      bs.hcoef = hcoef.data();
-      bs.gwin = gwin.data();
-      bs.g = with_vis ? vis.data() : nullptr;
+      const sx::BatchShade bs = sx::BatchShade::make(order, L.data(), hcoef.data(), gwin.data(), with_vis ? vis.data() : nullptr);
       std::vector<glm::vec3> cpu(count), gpu(count);
       sx::shade_batch(sx::KernelIsa::Scalar, bs, soa, 0, count, cpu.data());
       const long long cpu_clamped = sx::add_lights_and_clamp(&lt, lights, order, gwin.data(), soa, 0, count, bs.g, true, cpu.data());
