@@ -104,10 +104,7 @@ void check_upsample_input(const PlaneView& coarse, const PlaneView& fine, const 
 // The clamped log table: ShadowTables::log.data, the CPU accumulation's own floats. The ShadowTables
 // object is copied every frame (it carries eta_indirect), so the upload is keyed by content.
 const vk::Buffer& log_table(vk::Context& dev, GpuState& g, const ShadowTables& t) {
-  if (!g.log_table || g.log_host != t.log.data) {
-    g.log_table = dev.upload_vector(t.log.data, kStorage, "image_splat log ZH table");
-    g.log_host = t.log.data;
-  }
+  upload_if_changed(dev, g.log_table, g.log_host, t.log.data, "image_splat log ZH table");
   return g.log_table;
 }
 

@@ -46,17 +46,8 @@ GpuState& gpu_state(vk::Context& dev) {
   return *dev.cached<GpuState>("image_splat.indirect.gpu", [] { return std::make_shared<GpuState>(); });
 }
 
-// Compared float by float rather than keyed on the evaluator's address: a rebuilt evaluator may
-// reuse the address, and an unchanged light keeps its tables. The exact operator's M table (rows x
-// up to 146 floats) is compared in place, not copied.
-void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const char* name) {
-  static const float kUnused = 0.0f;  // an unused binding still needs a buffer
-  if (now.empty()) now = std::span<const float>(&kUnused, 1);
-  if (!buf || !std::equal(host.begin(), host.end(), now.begin(), now.end())) {
-    host.assign(now.begin(), now.end());
-    buf = dev.upload_vector(host, kStorage, name);
-  }
-}
+// Tables are compared float by float (upload_if_changed) rather than keyed on the evaluator's
+// address: a rebuilt evaluator may reuse the address, and an unchanged light keeps its tables.
 
 // The shader walks the exact operator's M and Q blocks in the evaluator's order and derives their
 // offsets as running sums (constant after the order specialisation); refuse tables laid out

@@ -20,7 +20,6 @@ double solid_angle(double theta) {
   const double s = std::sin(0.5 * theta);
   return 4.0 * sh::kPi * s * s;
 }
-constexpr double kThetaFloor = kLightThetaFloor;
 
 struct LobeFit {
   double psi = 0.0;
@@ -96,7 +95,7 @@ LightLobeTable make_light_lobe_table(int order, int rows_theta, int rows_f, doub
   t.k.assign(static_cast<std::size_t>(rows_theta) * rows_f * order, 0.0f);
   std::vector<double> err(rows_theta, 0.0);
   tbb::parallel_for(0, rows_theta, [&](int i) {
-    const double theta = std::max(kThetaFloor, (sh::kPi / 2) * i / (rows_theta - 1));
+    const double theta = std::max(kLightThetaFloor, (sh::kPi / 2) * i / (rows_theta - 1));
     const double omega = solid_angle(theta);
     double peak = 0.0, worst = 0.0;  // largest ||L_H|| and largest fit residual over f
     for (int j = 0; j < rows_f; ++j) {
@@ -138,7 +137,7 @@ void LightLobeTable::lookup(float theta, float f, float& psi_out, float* k_out) 
     psi_out += w[c] * psi[cells[c]];
     for (int l = 0; l < order; ++l) k_out[l] += w[c] * k[cells[c] * order + l];
   }
-  const float omega = static_cast<float>(solid_angle(std::max(static_cast<double>(theta), kThetaFloor)));
+  const float omega = static_cast<float>(solid_angle(std::max(static_cast<double>(theta), kLightThetaFloor)));
   for (int l = 0; l < order; ++l) k_out[l] *= omega;
 }
 

@@ -1,6 +1,6 @@
-// SHEXP's GPU passes on the Vulkan backend (paper 004): accumulate_log, exponentiate (HYB, OL) and
-// the shading of the shade pass (also image_splat's shade_direct). They read and write the same host-side frame resources as
-// the CPU passes (so the backends can be compared pass by pass), upload what they need, and read
+// SHEXP's GPU passes on the Vulkan backend (paper 004): accumulate_log, exponentiate (HYB, OL, PS*,
+// PS) and the shading of the shade pass (also image_splat's shade_direct). They read and write the
+// same host-side frame resources as the CPU passes (so the backends can be compared pass by pass), upload what they need, and read
 // their result back. Tables, product plans and basis constants are the CPU's own floats, uploaded
 // once per device and kept in the context's cache.
 #include <algorithm>
@@ -53,8 +53,8 @@ struct GpuState {
   vk::Buffer exp_in, exp_out, status, series;                         // exponentiate
   vk::Buffer shade_rec, shade_vis, shade_consts, shade_out, shade_status, shade_lights;  // shade
   vk::Buffer shade_tap_pixel, shade_tap_index, shade_tap_weight;                 // shade: eq. 11 gather (image_splat)
-  vk::Buffer light_table;                 // LightLobeTable psi then k
-  std::vector<float> light_psi, light_k;  // the floats in light_table (uploaded when they change)
+  vk::Buffer light_table;               // LightLobeTable psi then k
+  std::vector<float> light_host;        // the floats in light_table (upload_if_changed)
 };
 
 GpuState& gpu_state(vk::Context& dev) {
@@ -257,19 +257,15 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   if (lights) {
     if (lt->order != n)
       throw std::logic_error("shexp shade on vulkan: light table of order " + std::to_string(lt->order) + " for order " + std::to_string(n));
-    if (g.light_psi != lt->psi || g.light_k != lt->k || !g.light_table) {
-      std::vector<float> tab(lt->psi);
-      tab.insert(tab.end(), lt->k.begin(), lt->k.end());
-      g.light_table = dev.upload_vector(tab, kStorage, "shexp light lobe table");
-      g.light_psi = lt->psi;
-      g.light_k = lt->k;
-    }
+    std::vector<float> tab(lt->psi);
+    tab.insert(tab.end(), lt->k.begin(), lt->k.end());
+    upload_if_changed(dev, g.light_table, g.light_host, tab, "shexp light lobe table");
     for (const auto& l : *in.lights) {
       light_data.insert(light_data.end(), {l.position.x, l.position.y, l.position.z, l.radius});
       light_data.insert(light_data.end(), {l.radiance.x, l.radiance.y, l.radiance.z, 0.0f});
     }
   } else if (!g.light_table) {
-    g.light_table = dev.upload_vector(std::vector<float>(1, 0.0f), kStorage, "shexp light lobe table (unused)");
+    upload_if_changed(dev, g.light_table, g.light_host, {}, "shexp light lobe table (unused)");
   }
   put(dev, g.shade_lights, light_data, "shexp spherical lights");
   const std::uint32_t zero = 0;

@@ -68,6 +68,15 @@ std::vector<std::uint32_t> pack_terms(const std::vector<std::uint16_t>& j, const
   return terms;
 }
 
+void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name) {
+  static const float kUnused = 0.0f;
+  if (now.empty()) now = std::span<const float>(&kUnused, 1);
+  if (!buf || !std::equal(host.begin(), host.end(), now.begin(), now.end())) {
+    host.assign(now.begin(), now.end());
+    buf = dev.upload_vector(host, kStorage, name);
+  }
+}
+
 PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique) {
   const int n2 = p.order * p.order;
   const std::vector<std::uint32_t> begin(p.sq_begin.begin(), p.sq_begin.end());

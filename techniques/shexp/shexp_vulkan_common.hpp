@@ -66,6 +66,11 @@ void put(vk::Context& dev, vk::Buffer& b, const V& v, const std::string& name) {
   if (!v.empty()) dev.upload(b, v.data(), v.size() * sizeof(v[0]));
 }
 
+// A table of host floats in a device buffer, re-uploaded only when its floats differ from `host`
+// (the copy last uploaded), compared in place. An empty table uploads one 0 (an unused binding still
+// needs a buffer).
+void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name);
+
 // Receivers as six planes px, py, pz, nx, ny, nz (accumulate_log.comp's and shade.comp's layout).
 void upload_receivers(vk::Context& dev, vk::Buffer& buf, const ReceiverSoA& soa, const std::string& name);
 
