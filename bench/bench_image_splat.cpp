@@ -5,7 +5,7 @@
 //    (a running animation), on the CPU or the Vulkan backend (`--backend`, frame_bench.hpp). From the
 //    pass records: accumulate_log's receiver-proxy pairs per second (pairs = receivers of each tile x
 //    proxies binned to the tile, as the passes count them), GFLOP/s and share of the FMA peak using
-//    SHEXP's flop model (shexp::kernel_flops_per_pair: the log kernel is SHEXP's kernel, on the GPU
+//    SHEXP's flop model (techniques::common::kernel_flops_per_pair: the log kernel is SHEXP's kernel, on the GPU
 //    SHEXP's shader). Two shares are given: with the rules' fast path for every pair (proxies entirely
 //    in front of the receiver's tangent plane, most pairs here) and with the straddling-case count for
 //    every pair; the true share lies between them. exponentiate: receivers per second; and
@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "../techniques/shexp/shexp_internal.hpp"
+#include "../techniques/common/accumulation.hpp"
 #include "fma_peak.hpp"
 #include "frame_bench.hpp"
 #include "softgi/backends/cpu_backend.hpp"
@@ -29,7 +29,7 @@
 namespace {
 
 using namespace softgi;
-namespace sx = softgi::techniques::shexp;
+namespace sx = softgi::techniques::common;
 
 constexpr int kDisplay = 1024;       // paper 000 section 6: renderings at 1024x1024
 constexpr int kReceiverScale = 4;    // 256x256 receiver buffer
@@ -57,7 +57,7 @@ void BM_Accumulation(benchmark::State& state, const std::string& scene_name, con
     state.SkipWithError("this CPU cannot run this kernel");
     return;
   }
-  techniques::register_all();
+  softgi::bench::register_builtin();
   render::Backend* be = nullptr;
   try {
     be = &softgi::bench::backend_named(backend);
@@ -119,7 +119,7 @@ void BM_Accumulation(benchmark::State& state, const std::string& scene_name, con
   base.scene = scene_name;
   base.technique = "image_splat";
   base.backend = backend;
-  if (backend == "cpu") base.backend.append(" ").append(kernel).append(kernel == "auto" ? " = " : "").append(kernel == "auto" ? sx::to_string(isa) : "");
+  if (backend == backends::cpu::kBackendName) base.backend.append(" ").append(kernel).append(kernel == "auto" ? " = " : "").append(kernel == "auto" ? sx::to_string(isa) : "");
   softgi::bench::report_passes(state, sums, fm, base);
   if (ind_secs > 0.0) {
     state.counters["ind_pairs/frame"] = ind_pairs / frames;
@@ -139,7 +139,7 @@ int main(int argc, char** argv) {
     for (const std::string scene : {"character", "crowd"})
       for (const auto& b : backends)
         for (const std::string k : kKernels) {
-          if (k != "auto" && (b != "cpu" || scene != "character")) continue;
+          if (k != "auto" && (b != backends::cpu::kBackendName || scene != "character")) continue;
           benchmark::RegisterBenchmark(("BM_Accumulation/" + scene + "/" + b + "/" + k).c_str(),
                                        [=](benchmark::State& st) { BM_Accumulation(st, scene, b, k); })
               ->Iterations(5)

@@ -4,7 +4,7 @@
 // After the benchmarks run, a summary table is printed with the time per call of every method
 // (taken from this run through a capturing reporter), the reconstruction error of every exponential
 // method against exp_exact (eq. 28) on the single-cap and cap-sum sweeps of exp_sweep.hpp, and the
-// speed ratio against Exact, followed by the target lines. See bench/README.md.
+// speed ratio against Exact, followed by the accuracy target lines of docs/sh.md. See bench/README.md.
 //
 // Inputs: every timed call takes the next of a fixed array of kInputs pre-generated log-visibility
 // vectors (single caps of 1..89 degrees and sums of 1..200 caps, fixed seeds, shuffled with a fixed
@@ -130,7 +130,7 @@ struct OrderContext {
   std::vector<LogVisInput> single_caps, cap_sums;  // error sweeps
   InputSet<double> in_d;
   InputSet<float> in_f;
-  InputSet<double> in_caps50;  // single caps of 1..50 degrees only (the error domain)
+  InputSet<double> in_caps50;  // single caps of 1..50 degrees only (the domain of the accuracy targets, docs/sh.md)
 };
 
 std::array<std::unique_ptr<OrderContext>, kMaxOrder + 1> g_ctx;

@@ -12,7 +12,7 @@
 //  - BM_CrowdHierarchy: hierarchy with ratio vectors against the flat list on `crowd`;
 //  - BM_Frame/<scene>/<backend>: whole frames on the CPU or Vulkan backend (`--backend`), the
 //    accumulation passes' pairs per second, GFLOP/s and share of the FMA peak (frame_bench.hpp).
-// GCC 12 reports its own AVX-512 intrinsics as maybe uninitialised (see techniques/shexp/kernel.cpp).
+// GCC 12 reports its own AVX-512 intrinsics as maybe uninitialised (see techniques/common/kernel.cpp).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
@@ -180,7 +180,7 @@ struct Timed {
 
 Timed render_timed(render::Technique& t, const scene::Scene& s, const std::vector<std::string>& params, double time = 0.0,
                    int width = 0, int height = 0) {
-  static backends::CpuBackend cpu;
+  render::Backend& cpu = softgi::bench::backend_named(render::reference_backend_name());
   render::ParamSet p = render::default_params(t);
   for (const auto& a : params) p.set_assignment(a);
   render::RenderRequest req;
@@ -205,7 +205,7 @@ Timed render_timed(render::Technique& t, const scene::Scene& s, const std::vecto
 // way (kernel=auto), and both scalar (kernel=scalar): visibility passes (accumulate_log +
 // exponentiate against product_accumulate) and whole frames.
 void BM_Figure8(benchmark::State& state) {
-  techniques::register_all();
+  softgi::bench::register_builtin();
   const int order = static_cast<int>(state.range(0));
   const scene::Scene s = figure8_scene();
   const std::string o = "order=" + std::to_string(order);
@@ -290,7 +290,7 @@ double vertex_rel_rmse(const render::FrameResult& a, const render::FrameResult& 
 }
 
 void BM_Figure9(benchmark::State& state) {
-  techniques::register_all();
+  softgi::bench::register_builtin();
   std::string why;
   const scene::Scene* s = bunny63(why);
   if (!s) {
@@ -342,7 +342,7 @@ class MaskTechnique : public render::Technique {
     render::PassGraph g;
     render::add_gbuffer_pass(g);
     render::PassDesc p{"mask", {render::kGBuffer}, {}, {render::kDirect}, "", {}};
-    p.impl["cpu"] = [](render::FrameContext& ctx) {
+    p.impl[render::kHostImpl] = [](render::FrameContext& ctx) {
       const auto& gb = ctx.get<render::GBuffer>(render::kGBuffer);
       Image m(gb.width, gb.height);
       for (std::size_t i = 0; i < m.rgb.size(); ++i) m.rgb[i] = glm::vec3(gb.object[i] >= 0 ? 1.0f : 0.0f);
@@ -355,7 +355,7 @@ class MaskTechnique : public render::Technique {
 };
 
 void BM_Figure7(benchmark::State& state) {
-  techniques::register_all();
+  softgi::bench::register_builtin();
   const std::string name = state.range(0) == 0 ? "spheres" : "bunny";
   scene::Scene s;
   try {
@@ -368,7 +368,7 @@ void BM_Figure7(benchmark::State& state) {
   // against each other) below the differences being measured.
   constexpr int kW = 256, kH = 192, kSpp = 1024;
   const double t = 0.5;
-  backends::CpuBackend cpu;
+  render::Backend& cpu = softgi::bench::backend_named(render::reference_backend_name());
   MaskTechnique mt;
   render::RenderRequest mreq;
   mreq.time = t;
@@ -430,7 +430,7 @@ void BM_Figure7(benchmark::State& state) {
 // --- hierarchy on crowd ------------------------------------------------------------------------
 
 void BM_CrowdHierarchy(benchmark::State& state) {
-  techniques::register_all();
+  softgi::bench::register_builtin();
   const scene::Scene s = scene::make_builtin("crowd");
   auto flat = render::create_technique("shexp"), hier = render::create_technique("shexp");
   const std::vector<std::string> pf = {"hierarchy=false"}, ph = {"hierarchy=true"};
@@ -476,7 +476,7 @@ void BM_CrowdHierarchy(benchmark::State& state) {
 void BM_Frame(benchmark::State& state, const std::string& scene_name, const std::string& backend) {
   constexpr int kFrameSide = 512;  // docs/backends.md's timing table
   constexpr double kStep = 1.0 / 30.0;
-  techniques::register_all();
+  softgi::bench::register_builtin();
   render::Backend* be = nullptr;
   try {
     be = &softgi::bench::backend_named(backend);

@@ -16,7 +16,7 @@ namespace softgi::bench {
 
 inline constexpr int kFmaChains = 12;  // independent accumulators: > latency (4) x FMA ports (2)
 
-// GCC 12 reports its own AVX-512 intrinsics as maybe uninitialised (see techniques/shexp/kernel.cpp).
+// GCC 12 reports its own AVX-512 intrinsics as maybe uninitialised (see techniques/common/kernel.cpp).
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"

@@ -22,13 +22,23 @@
 #include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/render/technique.hpp"
+#include "softgi/techniques/registry.hpp"
 #include "softgi/sh/product.hpp"
 
 namespace softgi::bench {
 
-// `--backend=cpu|vulkan|both` (default both), taken out of argv before benchmark::Initialize sees it.
+// Every backend and technique this build has, registered once.
+inline void register_builtin() {
+  backends::register_cpu_backend();
+  backends::register_vulkan_backend();
+  techniques::register_vulkan_kernels();
+}
+
+// `--backend=NAME[,NAME...]|all` (default all: every registered backend), taken out of argv before
+// benchmark::Initialize sees it.
 inline std::vector<std::string> take_backend_flag(int& argc, char** argv) {
-  std::string v = "both";
+  register_builtin();
+  std::string v = "all";
   int out = 1;
   for (int i = 1; i < argc; ++i) {
     const char* a = argv[i];
@@ -40,32 +50,37 @@ inline std::vector<std::string> take_backend_flag(int& argc, char** argv) {
   }
   argc = out;
   argv[argc] = nullptr;
-  if (v == "both") return {"cpu", "vulkan"};
-  if (v == "cpu" || v == "vulkan") return {v};
-  throw std::invalid_argument("--backend=" + v + ": unknown backend (expected cpu, vulkan or both)");
+  if (v == "all" || v == "both") return render::backend_names();
+  std::vector<std::string> names;
+  for (std::size_t pos = 0; pos <= v.size();) {
+    const std::size_t end = std::min(v.find(',', pos), v.size());
+    const std::string name = v.substr(pos, end - pos);
+    render::backend_info(name);  // unknown: the registry's error lists the registered ones
+    names.push_back(name);
+    pos = end + 1;
+  }
+  return names;
 }
 
-// One backend object per kind and process: a VulkanBackend owns the instance, device and the GPU
-// objects cached across frames (pipelines, uploaded tables), so every Vulkan benchmark shares it.
-// A failed Vulkan device creation is remembered and rethrown (same message) for each later request.
+// One backend object per name and process: a device backend owns the instance, device and the GPU
+// objects cached across frames (pipelines, uploaded tables), so every benchmark shares it. A failed
+// creation is remembered and rethrown (same message) for each later request.
 inline render::Backend& backend_named(const std::string& name) {
-  if (name == "cpu") {
-    static backends::CpuBackend cpu;
-    return cpu;
-  }
-  if (name != "vulkan") throw std::invalid_argument("backend '" + name + "': unknown (expected cpu or vulkan)");
-  static std::unique_ptr<backends::VulkanBackend> vk;
-  static std::string error;
-  if (!vk && error.empty()) {
+  static std::map<std::string, std::unique_ptr<render::Backend>> made;
+  static std::map<std::string, std::string> errors;
+  auto it = made.find(name);
+  if (it != made.end()) return *it->second;
+  if (!errors.count(name)) {
     try {
-      vk = std::make_unique<backends::VulkanBackend>();
-      std::fprintf(stderr, "vulkan device: %s\n", vk->device_name().c_str());
+      auto b = render::create_backend(name);
+      const auto d = b->device_record();
+      if (!d.empty()) std::fprintf(stderr, "%s device: %s\n", name.c_str(), d.at("name").c_str());
+      return *made.emplace(name, std::move(b)).first->second;
     } catch (const std::exception& e) {
-      error = e.what();
+      errors[name] = e.what();
     }
   }
-  if (!vk) throw std::runtime_error("no Vulkan backend: " + error);
-  return *vk;
+  throw std::runtime_error("no " + name + " backend: " + errors[name]);
 }
 
 // Where a pass's kernel time came from.

@@ -2,7 +2,7 @@
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
-install(TARGETS softgi_core softgi_io softgi_reference softgi_cpu softgi_techniques softgi_options EXPORT softgiTargets
+install(TARGETS softgi_core softgi_io softgi_reference softgi_cpu softgi_accum softgi_techniques softgi_techniques_vulkan softgi_options EXPORT softgiTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}

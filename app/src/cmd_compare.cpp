@@ -40,7 +40,7 @@ constexpr int kDefaultShOrder = 4;
 constexpr double kWarmupFrameSeconds = 1.0 / 30.0;
 
 struct CompareArgs {
-  std::string scene, out, techniques, backends = "cpu", device;
+  std::string scene, out, techniques, backends, device;  // backends: "" = the reference backend
   double frame = 0.0;
   int spp = 64;
   int width = 0, height = 0;
@@ -107,7 +107,7 @@ struct Reference {
 
 struct TechniqueRun {
   std::string name, settings, error;
-  std::string backend = "cpu", label;  // label: output folder and table name (name, or name-backend off the CPU)
+  std::string backend, label;  // label: output folder and table name (name, or name-backend off the reference backend)
   Json device = Json::object();
   render::ParamSet params;
   render::FrameResult frame;
@@ -118,18 +118,21 @@ struct TechniqueRun {
 };
 
 void run_compare(const CompareArgs& args) {
-  using clock = std::chrono::steady_clock;
-  techniques::register_all();
+  register_builtin();
   if (!std::isfinite(args.frame)) throw std::invalid_argument("--frame: time must be finite");
   std::vector<std::string> names = args.techniques.empty() ? render::technique_names() : split_list(args.techniques);
   if (names.empty()) throw std::invalid_argument("compare: no technique to compare (--techniques is empty or none is registered)");
   std::vector<std::unique_ptr<render::Technique>> techs;
   for (const auto& n : names) techs.push_back(render::create_technique(n));  // unknown names fail here
-  const std::vector<std::string> backend_names = parse_backends(args.backends);
-  if (!args.device.empty() && std::find(backend_names.begin(), backend_names.end(), "vulkan") == backend_names.end())
-    throw std::invalid_argument("--device '" + args.device + "': only the vulkan backend selects a device");
+  const std::string reference_backend = render::reference_backend_name();
+  const std::vector<std::string> backend_names = parse_backends(args.backends.empty() ? reference_backend : args.backends);
+  bool selects_device = false;
+  for (const auto& b : backend_names) selects_device = selects_device || render::backend_info(b).selects_device;
+  if (!args.device.empty() && !selects_device)
+    throw std::invalid_argument("--device '" + args.device + "': none of the backends asked for selects a device");
   std::vector<std::unique_ptr<render::Backend>> backends_used;
-  for (const auto& b : backend_names) backends_used.push_back(make_backend(b, b == "vulkan" ? args.device : "", "compare"));
+  for (const auto& b : backend_names)
+    backends_used.push_back(make_backend(b, render::backend_info(b).selects_device ? args.device : "", "compare"));
 
   const scene::Scene sc = io::load_scene(args.scene);
   int w = args.width, h = args.height;
@@ -139,21 +142,19 @@ void run_compare(const CompareArgs& args) {
   std::cerr << "compare: scene '" << sc.name << "' at " << w << "x" << h << ", t = " << args.frame << " s, "
             << techs.size() << " technique(s), reference " << args.spp << " spp\n";
 
-  // The shared G-buffer once on its own (CPU, Embree): its cost, and the surface mask errors are
-  // measured over.
-  backends::CpuBackend cpu_gbuffer_backend;
-  const scene::PosedScene posed = scene::evaluate(sc, args.frame);
-  render::FrameResult gb_frame;
-  render::GBuffer gb;
+  // The shared G-buffer once on its own, on the reference backend: its cost, and the surface mask
+  // errors are measured over.
+  render::GBufferFrame gbf;
   {
-    render::ParamSet none;
-    render::FrameContext ctx(sc, posed, none, w, h, gb_frame);
-    gb_frame.passes.push_back(render::PassRecord{"gbuffer"});
-    const auto t0 = clock::now();
-    (*render::find_shared_pass_impl("gbuffer", "cpu"))(ctx);
-    gb_frame.passes.back().wall_seconds = std::chrono::duration<double>(clock::now() - t0).count();
-    gb = ctx.get<render::GBuffer>(render::kGBuffer);
+    std::unique_ptr<render::Backend> ref = render::create_backend(reference_backend);
+    render::RenderRequest greq;
+    greq.time = args.frame;
+    greq.width = w;
+    greq.height = h;
+    gbf = render::render_gbuffer(*ref, sc, greq);
   }
+  const render::GBuffer& gb = gbf.gbuffer;
+  const render::FrameResult& gb_frame = gbf.frame;
   Mask surface{w, h, std::vector<std::uint8_t>(gb.object.size(), 0)};
   long long surface_pixels = 0;
   for (std::size_t i = 0; i < gb.object.size(); ++i) {
@@ -161,7 +162,7 @@ void run_compare(const CompareArgs& args) {
     surface_pixels += surface.on[i];
   }
   if (surface_pixels == 0) throw std::runtime_error("compare: scene '" + sc.name + "' shows no surface from its camera");
-  const render::PassRecord& gbr = gb_frame.passes.back();
+  const render::PassRecord& gbr = gb_frame.passes.front();  // "gbuffer" (then the hand-out)
   std::cerr << "compare: G-buffer " << ms(gbr.wall_seconds) << " ms, " << surface_pixels << " surface pixels\n";
 
   // Techniques: one warm-up frame (one-time setup such as tables), then the timed frame; on every
@@ -175,7 +176,7 @@ void run_compare(const CompareArgs& args) {
       TechniqueRun run;
       run.name = t.name();
       run.backend = backend.name();
-      run.label = run.backend == "cpu" ? run.name : run.name + "-" + run.backend;
+      run.label = run.backend == reference_backend ? run.name : run.name + "-" + run.backend;
       run.device = device_json(backend);
       run.params = render::default_params(t);
       run.order = sh_order_of(run.params);
@@ -277,9 +278,9 @@ void run_compare(const CompareArgs& args) {
       failures.push_back(run.label + ": " + run.error);
     }
     // The same technique on the CPU backend, when both ran: how far the backends' images differ.
-    if (run.backend != "cpu")
+    if (run.backend != reference_backend)
       for (const auto& other : runs)
-        if (other.name == run.name && other.backend == "cpu" && other.error.empty()) {
+        if (other.name == run.name && other.backend == reference_backend && other.error.empty()) {
           const metrics::Metrics m = metrics::compare(run.frame.final_image, other.frame.final_image, surface);
           jt["vs_cpu_backend"] = metrics_json(m);
           run.vs_cpu = m.relmse;
@@ -329,7 +330,7 @@ void run_compare(const CompareArgs& args) {
   std::ostringstream md;
   md << "# softgi compare: " << sc.name << "\n\n"
      << "Scene `" << args.scene << "` (" << sc.source << "), " << w << "x" << h << ", frame t = " << args.frame
-     << " s; softgi " << softgi_version() << ", " << utc_now() << ", backend(s): " << args.backends << ".\n\n"
+     << " s; softgi " << softgi_version() << ", " << utc_now() << ", backend(s): " << (args.backends.empty() ? reference_backend : args.backends) << ".\n\n"
      << "Ground truth: the Embree path tracer with the real geometry as blockers and one-bounce diffuse indirect, "
      << args.spp << " spp through each pixel centre (the visibility of the techniques' one-sample G-buffer); "
      << "lit by the full environment";
@@ -370,9 +371,9 @@ void run_compare(const CompareArgs& args) {
   // Fence waits (host time from submission to fence) stand next to the timestamps because some
   // drivers' timestamps do not cover compute work (docs/backends.md, the lavapipe caveat).
   for (const auto& cpu_run : runs) {
-    if (cpu_run.backend != "cpu" || !cpu_run.error.empty()) continue;
+    if (cpu_run.backend != reference_backend || !cpu_run.error.empty()) continue;
     for (const auto& other : runs) {
-      if (other.name != cpu_run.name || other.backend == "cpu" || !other.error.empty()) continue;
+      if (other.name != cpu_run.name || other.backend == reference_backend || !other.error.empty()) continue;
       md << "\n" << cpu_run.name << " per pass, cpu against " << other.backend << " (ms):\n\n"
          << "| pass | cpu wall | " << other.backend << " wall | " << other.backend << " fence wait | " << other.backend
          << " timestamps |\n|---|---|---|---|---|\n";
@@ -445,7 +446,8 @@ void register_compare(CLI::App& app) {
   sub->add_option("--techniques", args->techniques, "comma-separated subset of the registered techniques (default: all)");
   sub->add_option("--seed", args->seed, "reference random seed (default 1)");
   sub->add_option("--backend", args->backends,
-                  "comma-separated backends to render the techniques with: cpu (default), vulkan, or cpu,vulkan (both, compared)");
+                  "comma-separated backends to render the techniques with (several: compared with the first registered, the "
+                  "reference); " + backends_help());
   sub->add_option("--device", args->device,
                   "Vulkan device: index or name substring (default: $SOFTGI_VULKAN_DEVICE, else a GPU, else lavapipe)");
   sub->callback([args] { run_compare(*args); });

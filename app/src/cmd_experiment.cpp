@@ -321,7 +321,7 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
   }
   if (args.name.empty()) throw std::invalid_argument("experiment: no experiment named (known: " + experiment_names() + ")");
   if (args.out.empty()) throw std::invalid_argument("experiment: --out is required");
-  techniques::register_all();
+  register_builtin();
   const ExperimentDef& def = find_experiment(args.name);
   const int spp = args.quick && !spp_given ? 4 : args.spp;
   const int frames = args.quick && !frames_given ? 1 : args.frames;
@@ -373,17 +373,18 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
   std::cerr << "experiment: " << def.name << ": scene '" << sc.name << "' at " << w << "x" << h << ", " << vars.size()
             << " variant(s), " << frames << " timed frame(s) each, reference " << spp << " spp\n";
 
-  // The display G-buffer once: the surface, ground and silhouette masks.
-  backends::CpuBackend backend;
+  // The display G-buffer once: the surface, ground and silhouette masks. Experiments time the
+  // techniques on the reference backend.
+  std::unique_ptr<render::Backend> backend_ptr = render::create_backend(render::reference_backend_name());
+  render::Backend& backend = *backend_ptr;
   const scene::PosedScene posed = scene::evaluate(sc, def.time);
   render::GBuffer gb;
   {
-    render::FrameResult scratch;
-    render::ParamSet none;
-    render::FrameContext ctx(sc, posed, none, w, h, scratch);
-    scratch.passes.push_back(render::PassRecord{"gbuffer"});
-    (*render::find_shared_pass_impl("gbuffer", "cpu"))(ctx);
-    gb = ctx.get<render::GBuffer>(render::kGBuffer);
+    render::RenderRequest greq;
+    greq.time = def.time;
+    greq.width = w;
+    greq.height = h;
+    gb = std::move(render::render_gbuffer(backend, sc, greq).gbuffer);
   }
   const Mask surface = ex::surface_mask(gb);
   if (ex::count(surface, w, h) == 0) throw std::runtime_error("experiment: scene '" + sc.name + "' shows no surface");
@@ -580,7 +581,7 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
   md << "# softgi experiment " << def.name << ": " << def.title << "\n\n"
      << def.paper << "\n\n"
      << "Scene `" << def.scene << "`, " << w << "x" << h << ", t = " << def.time << " s" << (args.quick ? " (--quick sizes)" : "")
-     << "; softgi " << softgi_version() << ", " << utc_now() << ", CPU backend. Times: median of " << frames
+     << "; softgi " << softgi_version() << ", " << utc_now() << ", " << backend.name() << " backend. Times: median of " << frames
      << " frame(s) 1/30 s apart after an untimed warm-up frame. Errors on the " << image_name << " image over "
      << region_pixels << " " << region_desc << "; relMSE = mean (a - b)^2 / (b^2 + " << metrics::MetricOptions{}.relmse_epsilon
      << "), RSE = sum (a - b)^2 / sum b^2 (relative squared error).";

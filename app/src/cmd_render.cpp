@@ -19,22 +19,23 @@ namespace softgi::app {
 namespace {
 
 struct RenderArgs {
-  std::string scene, technique, backend = "cpu", device, out;
+  std::string scene, technique, backend, device, out;  // backend: "" = the reference backend
   std::vector<std::string> params;
   double frame = 0.0;
   int width = 0, height = 0;
 };
 
 void run_render(const RenderArgs& args) {
-  techniques::register_all();
-  check_backend(args.backend);
-  if (args.backend == "cpu" && !args.device.empty())
-    throw std::invalid_argument("--device '" + args.device + "': only the vulkan backend selects a device");
+  register_builtin();
+  const std::string backend_name = args.backend.empty() ? render::reference_backend_name() : args.backend;
+  check_backend(backend_name);
+  if (!args.device.empty() && !render::backend_info(backend_name).selects_device)
+    throw std::invalid_argument("--device '" + args.device + "': the " + backend_name + " backend selects no device");
   if (!std::isfinite(args.frame)) throw std::invalid_argument("--frame: time must be finite");
   // Cheap checks first: an unknown technique or parameter fails before the scene is loaded.
   std::unique_ptr<render::Technique> technique = render::create_technique(args.technique);
   const render::ParamSet params = technique_params(*technique, args.params);
-  std::unique_ptr<render::Backend> backend_ptr = make_backend(args.backend, args.device, "render");  // device errors early
+  std::unique_ptr<render::Backend> backend_ptr = make_backend(backend_name, args.device, "render");  // device errors early
   render::Backend& backend = *backend_ptr;
   const scene::Scene sc = io::load_scene(args.scene);
   int w = args.width, h = args.height;
@@ -96,7 +97,7 @@ void register_render(CLI::App& app) {
   sub->add_option("--frame", args->frame, "animation time in seconds (default 0)");
   sub->add_option("--width", args->width, "image width (default: the scene camera's)")->check(CLI::Range(1, 16384));
   sub->add_option("--height", args->height, "image height (default: the scene camera's)")->check(CLI::Range(1, 16384));
-  sub->add_option("--backend", args->backend, "backend: cpu (default) or vulkan");
+  sub->add_option("--backend", args->backend, "backend: " + backends_help());
   sub->add_option("--device", args->device,
                   "Vulkan device: index or name substring (default: $SOFTGI_VULKAN_DEVICE, else a GPU, else lavapipe)");
   sub->add_option("--out", args->out, "output directory")->required();

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "frame_output.hpp"
 #include "softgi/render/technique.hpp"
 #include "softgi/techniques/registry.hpp"
 
@@ -13,7 +14,7 @@ namespace softgi::app {
 namespace {
 
 void run_techniques(bool json) {
-  techniques::register_all();
+  register_builtin();
   nlohmann::json all = nlohmann::json::array();
   for (const auto& name : render::technique_names()) {
     auto t = render::create_technique(name);

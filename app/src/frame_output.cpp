@@ -6,9 +6,11 @@
 #include <iostream>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 
+#include "softgi/backends/cpu_backend.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/io/image_io.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -22,9 +24,30 @@ namespace softgi::app {
 
 namespace fs = std::filesystem;
 
+void register_builtin() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    backends::register_cpu_backend();
+    backends::register_vulkan_backend();
+    techniques::register_vulkan_kernels();  // and every technique
+  });
+}
+
+namespace {
+std::string backend_list() {
+  std::string known;
+  for (const auto& n : render::backend_names()) known += (known.empty() ? "" : ", ") + n;
+  return known;
+}
+}  // namespace
+
 std::string check_backend(const std::string& name) {
-  if (name != "cpu" && name != "vulkan")
-    throw std::invalid_argument("--backend: unknown backend '" + name + "' (available: cpu, vulkan)");
+  register_builtin();
+  try {
+    render::backend_info(name);
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument("--backend: unknown backend '" + name + "' (available: " + backend_list() + ")");
+  }
   return name;
 }
 
@@ -39,29 +62,35 @@ std::vector<std::string> parse_backends(const std::string& list) {
     if (std::find(out.begin(), out.end(), item) != out.end()) throw std::invalid_argument("--backend: '" + item + "' listed twice");
     out.push_back(item);
   }
-  if (out.empty()) throw std::invalid_argument("--backend: no backend given (available: cpu, vulkan)");
+  if (out.empty()) throw std::invalid_argument("--backend: no backend given (available: " + backend_list() + ")");
   return out;
 }
 
 std::unique_ptr<render::Backend> make_backend(const std::string& name, const std::string& device, const std::string& command) {
   check_backend(name);
-  if (name == "cpu") {
-    if (!device.empty()) throw std::invalid_argument("--device '" + device + "': only the vulkan backend selects a device");
-    return std::make_unique<backends::CpuBackend>();
-  }
-  backends::VulkanBackendOptions o;
+  render::BackendOptions o;
   o.device = device;
-  auto b = std::make_unique<backends::VulkanBackend>(o);
+  if (!device.empty() && !render::backend_info(name).selects_device)
+    throw std::invalid_argument("--device '" + device + "': the " + name + " backend selects no device");
+  std::unique_ptr<render::Backend> b = render::backend_info(name).create(o);
   const auto d = b->device_record();
-  std::cerr << command << ": vulkan device " << d.at("index") << ": " << d.at("name") << " [" << d.at("type") << "; " << d.at("driver")
-            << " " << d.at("driver_info") << "; Vulkan " << d.at("api_version") << "; validation " << d.at("validation") << "]\n";
+  if (!d.empty())
+    std::cerr << command << ": " << name << " device " << d.at("index") << ": " << d.at("name") << " [" << d.at("type") << "; "
+              << d.at("driver") << " " << d.at("driver_info") << "; Vulkan " << d.at("api_version") << "; validation "
+              << d.at("validation") << "]\n";
   return b;
+}
+
+std::string backends_help() {
+  register_builtin();
+  std::string out;
+  for (const auto& n : render::backend_names()) out += (out.empty() ? "" : ", ") + n + " (" + render::backend_info(n).description + ")";
+  return out + "; default: " + render::reference_backend_name();
 }
 
 Json device_json(const render::Backend& backend) {
   Json j = Json::object();
-  if (const auto* vk = dynamic_cast<const backends::VulkanBackend*>(&backend))
-    for (const auto& [k, v] : vk->device_record()) j[k] = v;
+  for (const auto& [k, v] : backend.device_record()) j[k] = v;
   return j;
 }
 
@@ -93,7 +122,10 @@ Json params_json(const render::ParamSet& params) {
 Json frame_json(const render::FrameResult& r) {
   Json passes = Json::array();
   for (const auto& p : r.passes) {
-    Json jp = {{"name", p.name}, {"wall_seconds", p.wall_seconds}, {"bytes", p.bytes}};
+    Json jp = {{"name", p.name},
+               {"wall_seconds", p.wall_seconds},
+               {"bytes", p.bytes},
+               {"transfer_bytes", {{"upload", p.transfer.upload}, {"download", p.transfer.download}}}};
     if (p.gpu_seconds >= 0.0) jp["gpu_seconds"] = p.gpu_seconds;
     Json c = Json::object();
     for (const auto& [k, v] : p.counters) c[k] = std::isfinite(v) ? Json(v) : Json(nullptr);
@@ -106,6 +138,7 @@ Json frame_json(const render::FrameResult& r) {
           {"pruned", pruned},
           {"total_seconds", r.total_seconds},
           {"bytes", r.bytes()},
+          {"transfer_bytes", {{"upload", r.transfer.upload}, {"download", r.transfer.download}}},
           {"peak_rss_bytes", r.peak_rss_bytes}};
 }
 
@@ -150,7 +183,7 @@ void write_text(const std::string& path, const std::string& text) {
 void write_json(const std::string& path, const Json& j) { write_text(path, j.dump(2) + "\n"); }
 
 std::string techniques_help() {
-  techniques::register_all();
+  register_builtin();
   std::ostringstream os;
   os << "Techniques and their parameters (--param name=value):\n";
   for (const auto& name : render::technique_names()) {

@@ -6,7 +6,6 @@
 #include <string>
 #include <vector>
 
-#include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/backend.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/render/params.hpp"
@@ -18,16 +17,20 @@ namespace softgi::app {
 // Records keep insertion order (parameters in description order, fields as written).
 using Json = nlohmann::ordered_json;
 
-// Backends the CLI can run (--backend): "cpu" and "vulkan". Errors name the backend and list the
+// Registers every backend and technique this build has (idempotent); every command calls it first.
+void register_builtin();
+// Backends the CLI can run (--backend): the registered ones. Errors name the backend and list the
 // available ones.
 std::string check_backend(const std::string& name);
+// "cpu (description), vulkan (description); default: cpu" for --help texts.
+std::string backends_help();
 // A comma-separated list of backends ("cpu,vulkan"), each checked, without duplicates.
 std::vector<std::string> parse_backends(const std::string& list);
-// The backend `name`; `device` (--device NAME|INDEX) selects the Vulkan device and is an error for
-// the CPU backend. The Vulkan device chosen is printed on stderr.
+// The backend `name`; `device` (--device NAME|INDEX) selects the device of a backend that has one
+// and is an error for the others. The device chosen is printed on stderr.
 std::unique_ptr<render::Backend> make_backend(const std::string& name, const std::string& device, const std::string& command);
-// What a record says about the device a frame ran on: {} for the CPU backend, the Vulkan device's
-// name, type, driver, API version, ids and validation state for the Vulkan backend.
+// What a record says about the device a frame ran on (Backend::device_record): {} for the CPU
+// backend; name, type, driver, API version, ids and validation state for the Vulkan backend.
 Json device_json(const render::Backend& backend);
 
 // A technique's parameters, defaults overridden by "name=value" assignments (errors name the

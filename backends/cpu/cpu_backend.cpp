@@ -1,12 +1,23 @@
 #include "softgi/backends/cpu_backend.hpp"
 
+#include <memory>
 #include <mutex>
 
 namespace softgi::backends {
 
-CpuBackend::CpuBackend() {
+void register_cpu_shared_passes();  // gbuffer_embree.cpp
+
+void register_cpu_backend() {
   static std::once_flag once;
-  std::call_once(once, register_cpu_shared_passes);
+  std::call_once(once, [] {
+    render::BackendInfo info;
+    info.name = cpu::kBackendName;
+    info.description = "CPU reference: host code on every core (TBB), Embree primary visibility";
+    info.unavailable = [] { return std::string(); };
+    info.create = [](const render::BackendOptions&) -> std::unique_ptr<render::Backend> { return std::make_unique<CpuBackend>(); };
+    render::register_backend(std::move(info));
+    register_cpu_shared_passes();
+  });
 }
 
 }  // namespace softgi::backends

@@ -397,6 +397,6 @@ render::GBuffer produce_gbuffer(render::FrameContext& ctx, int s, const char* pa
 
 }  // namespace
 
-void register_cpu_shared_passes() { render::register_gbuffer_pass_impls("cpu", produce_gbuffer); }
+void register_cpu_shared_passes() { render::register_gbuffer_pass_impls(cpu::kBackendName, produce_gbuffer); }
 
 }  // namespace softgi::backends

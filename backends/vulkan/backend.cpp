@@ -6,6 +6,7 @@
 
 #include "softgi/backends/vulkan/context.hpp"
 #include "softgi/render/frame.hpp"
+#include "gbuffer_raster.hpp"
 
 namespace softgi::backends {
 
@@ -24,9 +25,11 @@ VulkanBackend::VulkanBackend(const VulkanBackendOptions& options)
 
 VulkanBackend::VulkanBackend(std::shared_ptr<vulkan::Context> context) : ctx_(std::move(context)) {
   if (!ctx_) throw std::invalid_argument("VulkanBackend: null context");
-  static std::once_flag once;
-  std::call_once(once, register_vulkan_shared_passes);
 }
+
+render::Device* VulkanBackend::device() { return ctx_.get(); }
+
+render::TransferBytes VulkanBackend::transfer_total() const { return ctx_->transfer_bytes(); }
 
 VulkanBackend::~VulkanBackend() = default;
 
@@ -49,7 +52,6 @@ std::map<std::string, std::string> VulkanBackend::device_record() const {
 }
 
 void VulkanBackend::execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) {
-  if (!ctx.has(vulkan::kFrameContextResource)) ctx.put<std::shared_ptr<vulkan::Context>>(vulkan::kFrameContextResource, ctx_);
   const double gpu0 = ctx_->gpu_seconds_total(), wait0 = ctx_->wait_seconds_total();
   const std::uint64_t sub0 = ctx_->submissions();
   render::Backend::execute_pass(pass, ctx);
@@ -61,6 +63,33 @@ void VulkanBackend::execute_pass(const render::PassDesc& pass, render::FrameCont
     // dispatches do not bracket their execution (docs/backends.md), this does.
     ctx.record().counters["gpu_wait_seconds"] = ctx_->wait_seconds_total() - wait0;
   }
+}
+
+void register_vulkan_backend() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    render::BackendInfo info;
+    info.name = vulkan::kBackendName;
+    info.description = "Vulkan compute and rasterisation (a GPU, or Mesa lavapipe on the CPU)";
+    info.selects_device = true;
+    // No loader, no driver or no device with compute: the reason, as the loader reported it.
+    info.unavailable = []() -> std::string {
+      try {
+        if (vulkan::list_devices().empty()) return "no Vulkan device (install a driver, e.g. Mesa's lavapipe)";
+        return {};
+      } catch (const std::exception& e) {
+        return e.what();
+      }
+    };
+    info.create = [](const render::BackendOptions& o) -> std::unique_ptr<render::Backend> {
+      VulkanBackendOptions vo;
+      vo.device = o.device;
+      vo.validation = o.validation;
+      return std::make_unique<VulkanBackend>(vo);
+    };
+    render::register_backend(std::move(info));
+    register_gbuffer_raster_passes();
+  });
 }
 
 }  // namespace softgi::backends

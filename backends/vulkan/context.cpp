@@ -2,6 +2,7 @@
 // validation is on), device selection, memory, buffers and images, one-shot submissions with a
 // fence timeout and timestamp queries.
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/backends/vulkan/backend.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -552,6 +553,7 @@ void Context::upload(const Buffer& dst, const void* src, std::size_t bytes, std:
   if (dst_offset + bytes > dst.size())
     throw std::out_of_range("vulkan: upload of " + std::to_string(bytes) + " bytes at " + std::to_string(dst_offset) +
                             " into buffer '" + dst.name() + "' of " + std::to_string(dst.size()) + " bytes");
+  transfer_.upload += bytes;
   if (dst.mapped()) {
     std::memcpy(static_cast<char*>(dst.mapped()) + dst_offset, src, bytes);
     return;
@@ -566,6 +568,7 @@ void Context::download(const Buffer& src, void* dst, std::size_t bytes, std::siz
   if (src_offset + bytes > src.size())
     throw std::out_of_range("vulkan: download of " + std::to_string(bytes) + " bytes at " + std::to_string(src_offset) +
                             " from buffer '" + src.name() + "' of " + std::to_string(src.size()) + " bytes");
+  transfer_.download += bytes;
   if (src.mapped()) {
     std::memcpy(dst, static_cast<const char*>(src.mapped()) + src_offset, bytes);
     return;
@@ -821,9 +824,11 @@ void Image::release() {
 
 // ---------------------------------------------------------------------------------------------
 Context& context_of(render::FrameContext& frame) {
-  if (!frame.has(kFrameContextResource))
-    throw std::logic_error("vulkan: this frame is not executed by the Vulkan backend (no Vulkan context)");
-  return *frame.get<std::shared_ptr<Context>>(kFrameContextResource);
+  auto* c = dynamic_cast<Context*>(frame.device);
+  if (!c) throw std::logic_error("vulkan: this frame is not executed by the Vulkan backend (no Vulkan context)");
+  return *c;
 }
+
+std::string Context::backend_name() const { return kBackendName; }
 
 }  // namespace softgi::backends::vulkan

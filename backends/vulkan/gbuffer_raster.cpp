@@ -48,13 +48,14 @@
 #include <glm/glm.hpp>
 
 #include "gbuffer_shared.h"
+#include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/backends/vulkan/context.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/render/gbuffer.hpp"
-#include "softgi/shaders/gbuffer_raster_frag.h"
-#include "softgi/shaders/gbuffer_raster_vert.h"
+#include "softgi/shaders/gbuffer/gbuffer_raster_frag.h"
+#include "softgi/shaders/gbuffer/gbuffer_raster_vert.h"
 
 namespace softgi::backends {
 
@@ -129,8 +130,8 @@ struct RasterState {
 std::span<const std::uint32_t> words(const std::uint32_t* w, std::size_t bytes) { return {w, bytes / sizeof(std::uint32_t)}; }
 
 std::unique_ptr<RasterPipeline> make_pipeline(vk::Context& ctx) {
-  const auto vs_words = words(gbuffer_raster_vert, sizeof(gbuffer_raster_vert));
-  const auto fs_words = words(gbuffer_raster_frag, sizeof(gbuffer_raster_frag));
+  const auto vs_words = words(gbuffer_gbuffer_raster_vert, sizeof(gbuffer_gbuffer_raster_vert));
+  const auto fs_words = words(gbuffer_gbuffer_raster_frag, sizeof(gbuffer_gbuffer_raster_frag));
   const vk::ShaderReflection rv = vk::reflect_spirv(vs_words), rf = vk::reflect_spirv(fs_words);
   auto p = std::make_unique<RasterPipeline>();
   p->layout = std::make_unique<vk::PipelineLayout>(ctx, std::vector<vk::ShaderReflection>{rv, rf}, "gbuffer_raster");
@@ -437,6 +438,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
   frame.image = glm::vec4(static_cast<float>(cam.width), static_cast<float>(cam.height), fs, cam.tan_half_fov_y);
   frame.image2 = glm::vec4(cam.aspect, 0.0f, 0.0f, 0.0f);
   std::memcpy(state->frame.mapped(), &frame, sizeof frame);
+  ctx.note_transfer(sizeof frame, 0);
   stats.upload_bytes = static_cast<double>(2 * pos_bytes + idx_bytes + sizeof frame);
 
   const vk::SubmitResult sr = ctx.submit(
@@ -520,6 +522,8 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
       ++hits;
     }
   stats.readback_seconds = std::chrono::duration<double>(clock::now() - t1).count();
+  // The four readback targets were read through their mapping.
+  ctx.note_transfer(0, static_cast<std::size_t>(bw) * bh * (2 * sizeof(glm::vec4) + sizeof(glm::ivec2) + sizeof(glm::vec2)));
   stats.hits = hits;
   std::size_t held = state->positions.size() + state->normals.size() + state->indices.size() + state->frame.size();
   for (const auto& t : state->targets) held += t->bytes();
@@ -552,6 +556,6 @@ render::GBuffer produce_gbuffer(render::FrameContext& fc, int s, const char* pas
 
 }  // namespace
 
-void register_gbuffer_raster_passes() { render::register_gbuffer_pass_impls("vulkan", produce_gbuffer); }
+void register_gbuffer_raster_passes() { render::register_gbuffer_pass_impls(vulkan::kBackendName, produce_gbuffer); }
 
 }  // namespace softgi::backends

@@ -14,8 +14,8 @@
 layout(constant_id = 0) const uint N = 3;  // indirect order
 #define SHEXP_BASIS_BINDING kIndBindBasis
 #define SHEXP_BASIS_ORDER N
-#include "shexp_basis.glsl"
-#include "shexp_math.glsl"
+#include "sh_basis.glsl"
+#include "accum_math.glsl"
 #include "replacement_rule.glsl"
 layout(constant_id = 1) const uint RULE = kRuleContinuous;
 layout(constant_id = 2) const uint OP = kIndOpAveraged;
@@ -60,7 +60,7 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
   const float cb = d.z, sb = rho;
   // cos, sin of m (-phi) and m (-beta), the CPU's `multiples` with s = -sin.
   const float sp = -sphi, sbn = -sb;
-  float cmp[kShexpMaxOrder], smp[kShexpMaxOrder], cmb[kShexpMaxOrder], smb[kShexpMaxOrder];
+  float cmp[kAccumMaxOrder], smp[kAccumMaxOrder], cmb[kAccumMaxOrder], smb[kAccumMaxOrder];
   cmp[0] = 1.0;
   smp[0] = 0.0;
   cmb[0] = 1.0;
@@ -74,18 +74,18 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
   // N' = R N; H(N')_lm = hc_l y_lm(N') (H is zonal about N: R H(N) = H(R N)).
   const float x1 = cphi * Nrm.x + sphi * Nrm.y, y1 = -sphi * Nrm.x + cphi * Nrm.y, z1 = Nrm.z;
   const vec3 np = vec3(cb * x1 - sb * z1, y1, sb * x1 + cb * z1);
-  float hp[kShexpMaxCoeffs];
-  shexp_basis_eval(np, hp);
+  float hp[kAccumMaxCoeffs];
+  sh_basis_eval(np, hp);
   [[unroll]] for (uint l = 0; l < N; ++l) {
     [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) hp[q] *= hc(l);
   }
   // f = R L~ = Q Rz(-beta) Q^T Rz(-phi) L~, band by band; band l of Q at the running offset
   // (TableView::qoff, checked on the host).
-  vec3 f[kShexpMaxOrder * kShexpMaxOrder];
+  vec3 f[kAccumMaxOrder * kAccumMaxOrder];
   uint qo = 0;
   [[unroll]] for (uint l = 0; l < N; ++l) {
     const uint w = 2 * l + 1, base = l * l;
-    vec3 t[2 * kShexpMaxOrder - 1], g[2 * kShexpMaxOrder - 1];
+    vec3 t[2 * kAccumMaxOrder - 1], g[2 * kAccumMaxOrder - 1];
     [[unroll]] for (uint i = 0; i < w; ++i) t[i] = vec3(lt(base + i, 0), lt(base + i, 1), lt(base + i, 2));
     [[unroll]] for (uint m = 1; m <= l; ++m) {  // rotate_z(-phi): (A, B) = (f_lm, f_l,-m)
       const vec3 a = t[l + m], b = t[l - m];
@@ -153,7 +153,7 @@ void main() {
     if (cut && dist >= pc.eta * s.w) continue;  // outside the sphere of influence (section 4.1)
     ++inside;
     const float alpha = min(1.0, s.w / dist);  // eq. 1
-    const float u = shexp_asin01(alpha) * pc.scale;
+    const float u = accum_asin01(alpha) * pc.scale;
     const vec3 d = dv / dist;
     int k = min(int(min(u, float(pc.rows - 1))), int(pc.rows) - 2);
     k = max(k, 0);
@@ -166,7 +166,7 @@ void main() {
       continue;
     }
     // V . H(N) = sum_l F_l vh_l P_l(d . N) (addition theorem).
-    float F[kShexpMaxOrder];
+    float F[kAccumMaxOrder];
     [[unroll]] for (uint l = 0; l < N; ++l) F[l] = vis[row + 2 * l] + fr * vis[row + 2 * l + 1];
     const float t = clamp(dot(d, Nrm), -1.0, 1.0);
     float p0 = 1.0, p1 = t;
@@ -178,7 +178,7 @@ void main() {
       p1 = p2;
     }
     // Per-band factors: eq. 13 (-1)^l (L~ at -d), or eq. 15's interpolated D factors.
-    float fac[kShexpMaxOrder];
+    float fac[kAccumMaxOrder];
     if (OP == kIndOpPoint) {
       [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = (l & 1u) != 0u ? -1.0 : 1.0;
     } else {
@@ -186,9 +186,9 @@ void main() {
       [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = dfac[d0 + l] + fr * (dfac[d0 + N + l] - dfac[d0 + l]);
     }
     // B_l = sum_m y_lm(d) L~_lm per channel; kappa = sum_l fac_l B_l. Basis by the SHEXP recurrence.
-    float y[kShexpMaxCoeffs];
-    shexp_basis_eval(d, y);
-    vec3 B[kShexpMaxOrder];
+    float y[kAccumMaxCoeffs];
+    sh_basis_eval(d, y);
+    vec3 B[kAccumMaxOrder];
     [[unroll]] for (uint l = 0; l < N; ++l) {
       B[l] = vec3(0.0);
       [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) B[l] += y[q] * vec3(lt(q, 0), lt(q, 1), lt(q, 2));

@@ -1,5 +1,5 @@
 // Self-shadowing replacement rules (paper 004 section 6.2; the four readings are documented at
-// shexp::ReplacementRule in techniques/shexp/shexp_internal.hpp). A line-by-line port of the scalar
+// common::ReplacementRule in techniques/common/accumulation.hpp). A line-by-line port of the scalar
 // reference shexp::apply_replacement_rule (techniques/shexp/geometry.cpp), for shaders that need the
 // adjusted sphere itself (its centre and radius), not only the accumulate_log kernel's inline form.
 // Expects softgi_shared.h included (kRule* = the enum's values). Returns (centre, radius), radius 0 =

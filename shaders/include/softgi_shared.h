@@ -13,15 +13,15 @@ namespace softgi::gpu {
 
 // SHEXP (paper 004): the largest accumulation order a shader handles (shexp::kMaxAccOrder), and the
 // largest coefficient count n^2 (per-invocation arrays are sized by it).
-SOFTGI_CONST_UINT(kShexpMaxOrder, 8u)
-SOFTGI_CONST_UINT(kShexpMaxCoeffs, 64u)
+SOFTGI_CONST_UINT(kAccumMaxOrder, 8u)
+SOFTGI_CONST_UINT(kAccumMaxCoeffs, 64u)
 // Workgroup sizes (one invocation per receiver).
-SOFTGI_CONST_UINT(kShexpAccumulateGroup, 64u)
-SOFTGI_CONST_UINT(kShexpExpGroup, 64u)
-SOFTGI_CONST_UINT(kShexpShadeGroup, 64u)
+SOFTGI_CONST_UINT(kAccumulateGroup, 64u)
+SOFTGI_CONST_UINT(kExponentiateGroup, 64u)
+SOFTGI_CONST_UINT(kShadeGroup, 64u)
 
 // Layout of the SH basis-recurrence constant buffer (floats; the constants of the CPU kernel,
-// shexp::basis_recurrence_constants): Q_m^m, a1, A[l][m], B[l][m] (row-major, kShexpMaxOrder wide),
+// shexp::basis_recurrence_constants): Q_m^m, a1, A[l][m], B[l][m] (row-major, kAccumMaxOrder wide),
 // then the 8 coefficients of the asin polynomial (Abramowitz & Stegun 4.4.46).
 SOFTGI_CONST_UINT(kBasisQmm, 0u)
 SOFTGI_CONST_UINT(kBasisA1, 8u)

@@ -72,7 +72,7 @@ std::shared_ptr<const sh::ShTables> accumulation_tables(int order, int resolutio
   return std::make_shared<const sh::ShTables>(opt);
 }
 
-std::shared_ptr<const shexp::LightLobeTable> LightTableCache::get(int order, double window_h, bool& cached) {
+std::shared_ptr<const common::LightLobeTable> LightTableCache::get(int order, double window_h, bool& cached) {
   const auto key = std::make_pair(order, window_h);
   {
     std::lock_guard<std::mutex> lock(m_);
@@ -83,7 +83,7 @@ std::shared_ptr<const shexp::LightLobeTable> LightTableCache::get(int order, dou
     }
   }
   cached = false;
-  auto t = std::make_shared<const shexp::LightLobeTable>(shexp::make_light_lobe_table(order, kRowsTheta, kRowsF, window_h));
+  auto t = std::make_shared<const common::LightLobeTable>(common::make_light_lobe_table(order, kRowsTheta, kRowsF, window_h));
   std::lock_guard<std::mutex> lock(m_);
   tables_[key] = t;
   return t;
@@ -97,7 +97,7 @@ void LightTableCache::run_pass(int order, double window_h, render::FrameContext&
   rec.counters["lights"] = static_cast<double>(ctx.posed.lights.size());
   rec.counters["max_fit_error"] = t->max_fit_error;
   rec.bytes = t->bytes();
-  ctx.put<std::shared_ptr<const shexp::LightLobeTable>>(resource, std::move(t));
+  ctx.put<std::shared_ptr<const common::LightLobeTable>>(resource, std::move(t));
 }
 
 }  // namespace softgi::techniques::common

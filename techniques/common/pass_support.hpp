@@ -13,7 +13,7 @@
 
 #include <glm/glm.hpp>
 
-#include "../shexp/shexp_internal.hpp"
+#include "accumulation.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/scene/scene.hpp"
 #include "softgi/sh/tables.hpp"
@@ -67,20 +67,20 @@ class SharedCache {
 // interpolation-error measurement (a per-frame cost the passes do not need).
 std::shared_ptr<const sh::ShTables> accumulation_tables(int order, int resolution, double log_threshold);
 
-// Light-lobe tables of spherical lights (paper 004 section 7, shexp::make_light_lobe_table), built
+// Light-lobe tables of spherical lights (paper 004 section 7, common::make_light_lobe_table), built
 // once per (order, window_h) and shared across frames.
 class LightTableCache {
  public:
   static constexpr int kRowsTheta = 48;  // theta in [0, 90] degrees
   static constexpr int kRowsF = 96;      // f in [0, 180] degrees
-  std::shared_ptr<const shexp::LightLobeTable> get(int order, double window_h, bool& cached);
+  std::shared_ptr<const common::LightLobeTable> get(int order, double window_h, bool& cached);
   // The body of a "light_tables" pass: the table into `resource`, with counters cached, lights,
   // max_fit_error and bytes.
   void run_pass(int order, double window_h, render::FrameContext& ctx, const std::string& resource);
 
  private:
   std::mutex m_;
-  std::map<std::pair<int, double>, std::shared_ptr<const shexp::LightLobeTable>> tables_;
+  std::map<std::pair<int, double>, std::shared_ptr<const common::LightLobeTable>> tables_;
 };
 
 }  // namespace softgi::techniques::common

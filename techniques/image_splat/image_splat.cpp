@@ -18,10 +18,10 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "../common/device_kernels.hpp"
 #include "../common/pass_support.hpp"
+#include "../common/shared_params.hpp"
 #include "image_splat_internal.hpp"
-#include "image_splat_vulkan.hpp"
-#include "image_splat_vulkan_shading.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/gbuffer.hpp"
 
@@ -29,15 +29,15 @@ namespace softgi::techniques::image_splat {
 
 using render::FrameContext;
 using render::ParamDesc;
-using shexp::KernelIsa;
+using common::KernelIsa;
 
 // --- parameters ----------------------------------------------------------------------------------
 
 std::vector<ParamDesc> param_descs() {
   std::vector<ParamDesc> d;
-  d.push_back(ParamDesc::integer("order", 4, shexp::kMinOrder, shexp::kMaxOrder, "SH order n of shadows (log occlusion, O_p, L)"));
+  d.push_back(common::params::order(4, "shadows (log occlusion, O_p, L)"));
   d.push_back(ParamDesc::boolean("indirect", true, "accumulate indirect light re-radiated by the proxies (section 5)"));
-  d.push_back(ParamDesc::integer("indirect_order", 3, shexp::kMinOrder, shexp::kMaxOrder, "SH order of indirect accumulation (paper: 3)"));
+  d.push_back(ParamDesc::integer("indirect_order", 3, common::kMinOrder, common::kMaxOrder, "SH order of indirect accumulation (paper: 3)"));
   d.push_back(ParamDesc::choice("indirect_operator", "averaged_poly", {"averaged_poly", "averaged", "point", "exact"},
                                 "indirect operator: averaged eq. 15 with the polynomial D (paper, order 3) or with D by "
                                 "quadrature, point-sampled eq. 13, exact eqs. 16-17"));
@@ -53,14 +53,13 @@ std::vector<ParamDesc> param_descs() {
   d.push_back(ParamDesc::real("eta_shadow", 0.0, 0.0, 1000.0, "shadow expansion factor override (0 = from coverage, else > 1)"));
   d.push_back(ParamDesc::real("eta_indirect", 0.0, 0.0, 1000.0, "indirect expansion factor override (0 = from coverage, else > 1)"));
   d.push_back(ParamDesc::boolean("smooth_clamp", true, "re-weight the tables smoothly to 0 around 1/eta (off: hard cut at eta r)"));
-  d.push_back(ParamDesc::choice("exp", "hyb", {"hyb", "ol", "ps*", "exact"},
-                                "SH exponential of the accumulated log occlusion (paper 004 section 4; ps* = PS*-2)"));
-  d.push_back(ParamDesc::boolean("self_shadow_rules", true, "replacement rules for proxies near the receiver (paper 004 section 6.2)"));
-  d.push_back(ParamDesc::choice("replacement_rule", "continuous", {"continuous", "clamped", "printed"},
-                                "reading of the scale factor a (docs/techniques/shexp.md)"));
-  d.push_back(ParamDesc::real("window_h", -1.0, -1.0, 64.0, "cosine window size h (paper 004 section 7): -1 = 2n, 0 = no window"));
-  d.push_back(ParamDesc::integer("table_resolution", 256, 16, 4096, "samples in theta of the ZH tables"));
-  d.push_back(ParamDesc::real("log_threshold", 0.02, 0.001, 0.5, "eigenvalue clip of the SH log, times the largest (paper 004 eq. 32)"));
+  d.push_back(common::params::exp({"hyb", "ol", "ps*", "exact"},
+                                  "SH exponential of the accumulated log occlusion (paper 004 section 4; ps* = PS*-2)"));
+  d.push_back(common::params::self_shadow_rules());
+  d.push_back(common::params::replacement_rule());
+  d.push_back(common::params::window_h());
+  d.push_back(common::params::table_resolution());
+  d.push_back(common::params::log_threshold());
   d.push_back(ParamDesc::choice("upsample", "bilateral", {"bilateral", "bilinear"}, "upsampling to display resolution (section 4.2, eq. 11)"));
   d.push_back(ParamDesc::choice("fallback", "robust", {"robust", "shaded", "none"},
                                 "display pixels no coarse sample matches: shade from the full proxy list, interpolate "
@@ -69,8 +68,8 @@ std::vector<ParamDesc> param_descs() {
   d.push_back(ParamDesc::integer("normal_power", 32, 0, 256, "exponent of the normal weight (paper: 32)"));
   d.push_back(ParamDesc::real("miss_threshold", 0.05, 0.0, 1.0, "unnormalised eq. 11 weight below which a display pixel is a miss"));
   d.push_back(ParamDesc::integer("tile_size", 16, 4, 64, "receiver tile edge in coarse pixels for binning the proxies"));
-  d.push_back(ParamDesc::boolean("analytic_lights", true, "shade the scene's spherical lights (paper 004 section 7)"));
-  d.push_back(ParamDesc::choice("kernel", "auto", {"auto", "avx512", "avx2", "scalar"}, "accumulation kernel instruction set"));
+  d.push_back(common::params::analytic_lights());
+  d.push_back(common::params::kernel());
   return d;
 }
 
@@ -103,11 +102,8 @@ Settings read_settings(const render::ParamSet& p) {
   s.smooth_clamp = p.get_bool("smooth_clamp");
   const std::string& e = p.get_enum("exp");
   s.exp = e == "hyb" ? ExpMode::HYB : e == "ol" ? ExpMode::OL : e == "ps*" ? ExpMode::PSStar : ExpMode::Exact;
-  s.rule = p.get_bool("self_shadow_rules") ? shexp::parse_replacement_rule(p.get_enum("replacement_rule")) : shexp::ReplacementRule::Off;
-  const double h = p.get_float("window_h");
-  s.window_h = h < 0.0 ? 2.0 * s.order : h;  // paper 004 section 7: h = 2n works well
-  if (h > 0.0 && h < 1.0)
-    throw std::invalid_argument("parameter 'window_h': " + p.get_text("window_h") + " would zero every band above 0 (expected -1, 0 or >= 1)");
+  s.rule = common::params::read_replacement_rule(p);
+  s.window_h = common::params::read_window_h(p, s.order);
   s.table_resolution = p.get_int("table_resolution");
   s.log_threshold = p.get_float("log_threshold");
   s.upsample.mode = parse_upsample_mode(p.get_enum("upsample"));
@@ -117,11 +113,7 @@ Settings read_settings(const render::ParamSet& p) {
   s.upsample.miss_threshold = p.get_float("miss_threshold");
   s.tile_size = p.get_int("tile_size");
   s.lights = p.get_bool("analytic_lights");
-  const std::string& k = p.get_enum("kernel");
-  s.isa = k == "auto" ? shexp::best_kernel_isa() : k == "avx512" ? KernelIsa::Avx512 : k == "avx2" ? KernelIsa::Avx2 : KernelIsa::Scalar;
-  if (!shexp::kernel_isa_supported(s.isa))
-    throw std::invalid_argument("parameter 'kernel': this CPU cannot run '" + k + "' (it supports up to " +
-                                std::string(shexp::to_string(shexp::best_kernel_isa())) + ")");
+  s.isa = common::params::read_kernel(p);
   return s;
 }
 
@@ -222,7 +214,7 @@ void pass_tables(State& st, const Settings& s, FrameContext& ctx) {
         auto tab = std::make_shared<ShadowTables>();
         tab->order = s.order;
         tab->sh = common::accumulation_tables(s.order, s.table_resolution, s.log_threshold);
-        const shexp::ZhTable log = shexp::make_zh_table(tab->sh->cap_log(), s.order, true);
+        const common::ZhTable log = common::make_zh_table(tab->sh->cap_log(), s.order, true);
         tab->eta_shadow = eta_s;
         if (eta_s > 0.0 && s.smooth_clamp) {
           // Section 4.1, smooth clamping: rows near 1/eta weighted to 0, smaller angles forced to 0.
@@ -309,7 +301,7 @@ void pass_bin(const Settings& s, FrameContext& ctx) {
   check_proxies(ctx);
   const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
   const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
-  shexp::BlockerList all;
+  common::BlockerList all;
   ProxyList all_ind;
   const bool ind = ctx.has(kIndirectTables);
   flat_proxies(ctx.scene, ctx.posed, s.order, &all, ind ? &all_ind : nullptr);
@@ -364,7 +356,7 @@ void pass_accumulate_log(const Settings& s, FrameContext& ctx) {
   rec.counters["receivers"] = static_cast<double>(r.soa.size());
   rec.counters["pairs"] = pairs;
   rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
-  rec.counters["kernel_lanes"] = shexp::kernel_lanes(s.isa);
+  rec.counters["kernel_lanes"] = common::kernel_lanes(s.isa);
   rec.counters["hard_cut"] = t.hard_cut;
   rec.bytes = f->v.size() * sizeof(float);
   ctx.put<std::shared_ptr<const Field>>(kLogOcclusion, f);
@@ -535,7 +527,7 @@ void pass_robust(const Settings& s, FrameContext& ctx) {
   const std::size_t nm = rm->pixel.size();
   rm->soa.resize(nm);
   for (std::size_t k = 0; k < nm; ++k) rm->soa.set(k, fine.position[rm->pixel[k]], fine.normal[rm->pixel[k]]);
-  shexp::BlockerList all;
+  common::BlockerList all;
   ProxyList all_ind;
   flat_proxies(ctx.scene, ctx.posed, s.order, &all, ev ? &all_ind : nullptr);
   const int n2 = s.order * s.order;
@@ -572,6 +564,13 @@ glm::vec3 background(const DirectShader& d, const glm::vec3& dir) {
 
 }  // namespace
 
+common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
+  static common::DeviceKernelRegistry<DeviceKernels> r;
+  return r;
+}
+
+void register_device_kernels(const std::string& backend, DeviceKernels kernels) { device_kernels().add(backend, std::move(kernels)); }
+
 DirectKernels cpu_direct_kernels() {
   DirectKernels kern;
   kern.surface = [](const DirectShader& shader, const render::GBuffer& fine, const Upsampled& up, glm::vec3* e) {
@@ -581,7 +580,7 @@ DirectKernels cpu_direct_kernels() {
     const std::size_t n2 = static_cast<std::size_t>(shader.order) * shader.order;
     std::atomic<long long> clamped{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, up.surface.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
-      shexp::ReceiverSoA soa;
+      common::ReceiverSoA soa;
       soa.resize(br.size());
       std::vector<float> g(shadowed ? br.size() * n2 : 0, 0.0f);
       for (std::size_t k = br.begin(); k != br.end(); ++k) {
@@ -604,7 +603,7 @@ DirectKernels cpu_direct_kernels() {
     });
     return clamped.load();
   };
-  kern.receivers = [](const DirectShader& shader, const shexp::ReceiverSoA& rec, const float* g, glm::vec3* out) {
+  kern.receivers = [](const DirectShader& shader, const common::ReceiverSoA& rec, const float* g, glm::vec3* out) {
     std::atomic<long long> clamped{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rec.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
       clamped += shader.shade(rec, br.begin(), br.end(), g, out + br.begin());
@@ -616,12 +615,12 @@ DirectKernels cpu_direct_kernels() {
 
 namespace {
 
-// The kernels (k): DirectShader::shade on the CPU, shaders/shexp/shade.comp on Vulkan.
+// The kernels (k): DirectShader::shade on the CPU, shaders/common/shade.comp on Vulkan.
 void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const DirectKernels& k) {
   const auto& fine = ctx.get<render::GBuffer>(render::kGBuffer);
   const auto& up = *ctx.get<std::shared_ptr<const Upsampled>>(kUpsampled);
-  std::shared_ptr<const shexp::LightLobeTable> lt;
-  if (ctx.has(kLightTables)) lt = ctx.get<std::shared_ptr<const shexp::LightLobeTable>>(kLightTables);
+  std::shared_ptr<const common::LightLobeTable> lt;
+  if (ctx.has(kLightTables)) lt = ctx.get<std::shared_ptr<const common::LightLobeTable>>(kLightTables);
   std::shared_ptr<const RobustMisses> rm;
   if (ctx.has(kRobust)) rm = ctx.get<std::shared_ptr<const RobustMisses>>(kRobust);
   const bool shadowed = !up.coarse_visibility.empty();
@@ -740,28 +739,48 @@ class ImageSplat final : public render::Technique {
     if (!s.indirect) empty.insert(kIndirectEnabled);
 
     auto st = state_;
-    // Host passes: the same CPU function on both backends.
-    // Host passes run the same function on both backends; GPU passes have a Vulkan twin (image_splat_vulkan.cpp).
+    // Host passes run the same function on every backend; the GPU passes add each registered
+    // backend's kernels (a backend's exponential and indirect operator may cover only some methods:
+    // the others run the host pass there).
     const auto cpu = render::host_impl;
-    const auto both = render::cpu_vulkan_impl;
-    auto vk_accumulate = [s](FrameContext& c) {
-      const auto& t = *c.get<std::shared_ptr<const ShadowTables>>(kTables);
-      c.put<std::shared_ptr<const Field>>(kLogOcclusion, vulkan_accumulate_log(c, s, t, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
-                                                                              *c.get<std::shared_ptr<const ProxyBins>>(kBins)));
+    const auto kernels = device_kernels().all();
+    auto with_kernels = [&kernels, &cpu](render::PassFn host, const std::function<render::PassFn(const DeviceKernels&)>& make) {
+      std::map<std::string, render::PassFn> impl = cpu(std::move(host));
+      for (const auto& [backend, k] : kernels)
+        if (render::PassFn f = make(k)) impl[backend] = std::move(f);
+      return impl;
     };
-    // exponentiate: HYB, OL and PS* on the GPU; the exact exponential (eq. 28, a reference) on the host.
-    auto vk_exponentiate = [s](FrameContext& c) {
-      if (!vulkan_exp_supports(s.exp)) return pass_exponentiate(s, c);
-      c.put<std::shared_ptr<const Field>>(kOcclusion, vulkan_exponentiate(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables),
-                                                                          *c.get<std::shared_ptr<const Field>>(kLogOcclusion)));
+    auto dev_accumulate = [s](const DeviceKernels& k) -> render::PassFn {
+      if (!k.accumulate_log) return {};
+      return [s, f = k.accumulate_log](FrameContext& c) {
+        const auto& t = *c.get<std::shared_ptr<const ShadowTables>>(kTables);
+        c.put<std::shared_ptr<const Field>>(kLogOcclusion, f(c, s, t, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
+                                                             *c.get<std::shared_ptr<const ProxyBins>>(kBins)));
+      };
     };
-    // accumulate_indirect: point, averaged_poly and averaged on the GPU; exact on the host.
-    auto vk_accumulate_indirect = [](FrameContext& c) {
-      const auto& ev = *c.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
-      if (!vulkan_indirect_supported(ev.setup().op)) return pass_accumulate_indirect(c);
-      c.put<std::shared_ptr<const IndirectSums>>(kIndirectSums,
-                                                 vulkan_accumulate_indirect(c, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
-                                                                            *c.get<std::shared_ptr<const ProxyBins>>(kBins), ev));
+    auto dev_exponentiate = [s](const DeviceKernels& k) -> render::PassFn {
+      if (!k.exponentiate || !k.exp_supports || !k.exp_supports(s.exp)) return {};
+      return [s, f = k.exponentiate](FrameContext& c) {
+        c.put<std::shared_ptr<const Field>>(kOcclusion, f(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables),
+                                                          *c.get<std::shared_ptr<const Field>>(kLogOcclusion)));
+      };
+    };
+    auto dev_accumulate_indirect = [](const DeviceKernels& k) -> render::PassFn {
+      if (!k.accumulate_indirect || !k.indirect_supported) return {};
+      return [f = k.accumulate_indirect, ok = k.indirect_supported](FrameContext& c) {
+        const auto& ev = *c.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
+        if (!ok(ev.setup().op)) return pass_accumulate_indirect(c);
+        c.put<std::shared_ptr<const IndirectSums>>(kIndirectSums, f(c, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
+                                                                    *c.get<std::shared_ptr<const ProxyBins>>(kBins), ev));
+      };
+    };
+    auto dev_upsample = [s](const DeviceKernels& k) -> render::PassFn {
+      if (!k.upsample) return {};
+      return [s, f = k.upsample](FrameContext& c) { pass_upsample(s, c, f(c)); };
+    };
+    auto dev_shade_direct = [st, s](const DeviceKernels& k) -> render::PassFn {
+      if (!k.direct) return {};
+      return [st, s, f = k.direct](FrameContext& c) { pass_shade_direct(*st, s, c, f(c)); };
     };
     render::PassGraph g;
     g.add_input(render::kScene);
@@ -787,19 +806,18 @@ class ImageSplat final : public render::Technique {
            cpu([s](FrameContext& c) { pass_bin(s, c); })});
     g.add({"accumulate_log", {kReceivers, kTables, kBins}, {}, {kLogOcclusion},
            "sum of proxy log occlusion vectors per receiver (eq. 4; SHEXP kernel and replacement rules)",
-           both([s](FrameContext& c) { pass_accumulate_log(s, c); }, vk_accumulate)});
+           with_kernels([s](FrameContext& c) { pass_accumulate_log(s, c); }, dev_accumulate)});
     g.add({"exponentiate", {kTables, kLogOcclusion}, {}, {kOcclusion}, "O_p = exp of the accumulated log occlusion (eq. 4, HYB)",
-           both([s](FrameContext& c) { pass_exponentiate(s, c); }, vk_exponentiate)});
+           with_kernels([s](FrameContext& c) { pass_exponentiate(s, c); }, dev_exponentiate)});
     g.add({"accumulate_indirect", {kReceivers, kBins, kIndirectTables}, {}, {kIndirectSums},
            "sum of I_i . H(N_p) and omega_i per receiver (section 5, eqs. 13-17)",
-           both([](FrameContext& c) { pass_accumulate_indirect(c); }, vk_accumulate_indirect)});
+           with_kernels([](FrameContext& c) { pass_accumulate_indirect(c); }, dev_accumulate_indirect)});
     g.add({"normalize_indirect", {kIndirectSums}, {kOcclusion}, {kIndirectNorm}, "xi_p = (1 - O_p)_0 / (omega_p / sqrt(4 pi)) (eq. 12)",
            cpu([s](FrameContext& c) { pass_normalize_indirect(s, c); })});
     g.add({"upsample", {render::kGBuffer, render::kReceiverGBuffer, kReceivers}, {kOcclusion, kIndirectNorm}, {kUpsampled},
            s.upsample.mode == UpsampleMode::Bilateral ? "bilateral upsampling of O_p and the indirect shading (section 4.2, eq. 11)"
                                                       : "bilinear upsampling of O_p and the indirect shading (Figure 7)",
-           both([s](FrameContext& c) { pass_upsample(s, c, cpu_upsample_kernels()); },
-                [s](FrameContext& c) { pass_upsample(s, c, vulkan_upsample_kernels(c)); })});
+           with_kernels([s](FrameContext& c) { pass_upsample(s, c, cpu_upsample_kernels()); }, dev_upsample)});
     if (s.fallback == UpsampleFallback::Robust)
       g.add({"robust_misses", {render::kGBuffer, kUpsampled, kTables}, {kIndirectTables}, {kRobust},
              "display pixels no coarse sample matches, accumulated from the full proxy list (section 4.2)",
@@ -812,8 +830,7 @@ class ImageSplat final : public render::Technique {
     }
     g.add({"shade_direct", {render::kGBuffer, render::kReceiverGBuffer, kUpsampled}, opt_direct, {render::kDirect},
            "psi_p's first term O_p . L~(N_p) (eq. 10) and spherical lights, times the albedo",
-           both([st, s](FrameContext& c) { pass_shade_direct(*st, s, c, cpu_direct_kernels()); },
-                [st, s](FrameContext& c) { pass_shade_direct(*st, s, c, vulkan_direct_kernels(c)); })});
+           with_kernels([st, s](FrameContext& c) { pass_shade_direct(*st, s, c, cpu_direct_kernels()); }, dev_shade_direct)});
     g.add({"shade_indirect", {render::kGBuffer, render::kReceiverGBuffer, kUpsampled, kIndirectNorm}, opt_indirect, {render::kIndirect},
            "psi_p's second term I_p . H(N_p) (eq. 10), times the albedo", cpu([s](FrameContext& c) { pass_shade_indirect(s, c); })});
     render::add_compose_pass(g);

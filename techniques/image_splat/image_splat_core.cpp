@@ -12,8 +12,8 @@
 
 namespace softgi::techniques::image_splat {
 
-using shexp::BlockerList;
-using shexp::ReceiverSoA;
+using common::BlockerList;
+using common::ReceiverSoA;
 
 const char* to_string(Coverage c) {
   switch (c) {
@@ -32,7 +32,7 @@ std::size_t ShadowTables::bytes() const { return (sh ? sh->bytes() : 0) + log.by
 double clamped_support_alpha(int rows, double eta, int ramp_rows) {
   if (!(eta > 1.0) || !std::isfinite(eta) || rows < 2) return 0.0;
   // clamp_zh_table's weights depend on the table's sampling only (rows uniform in theta on [0, pi/2]).
-  shexp::ZhTable probe;
+  common::ZhTable probe;
   probe.order = 1;
   probe.rows = rows;
   probe.scale = static_cast<float>((rows - 1) / (sh::kPi / 2.0));
@@ -160,22 +160,22 @@ std::size_t ProxyBins::bytes() const {
 
 // --- accumulation --------------------------------------------------------------------------------
 
-float pair_cut_factor(const ShadowTables& t, shexp::ReplacementRule rule) {
+float pair_cut_factor(const ShadowTables& t, common::ReplacementRule rule) {
   // The SHEXP kernel has no per-pair cut; it serves every case where the table itself is zero outside
   // the sphere of influence. Two cases need the cut per pair, as splatting (Figure 3) does: a hard cut
   // (smooth_clamp = false, the unclamped table), and the printed replacement rule, whose scale factor
   // grows without bound and can give a far receiver a sphere larger than the proxy (shexp_internal.hpp).
-  if (!(t.eta_shadow > 0.0) || !(t.hard_cut || rule == shexp::ReplacementRule::Printed)) return 0.0f;
+  if (!(t.eta_shadow > 0.0) || !(t.hard_cut || rule == common::ReplacementRule::Printed)) return 0.0f;
   if (t.hard_cut) return static_cast<float>(t.eta_shadow);
   // influence_radius(r, alpha) / r; no support bound: nothing to cut.
   return t.support_alpha_shadow > 0.0 ? static_cast<float>(1.0 / t.support_alpha_shadow * (1.0 + kInfluenceMargin)) : 0.0f;
 }
 
-void accumulate_log_range(const ShadowTables& t, shexp::ReplacementRule rule, shexp::KernelIsa isa, const ReceiverSoA& rec,
+void accumulate_log_range(const ShadowTables& t, common::ReplacementRule rule, common::KernelIsa isa, const ReceiverSoA& rec,
                           std::size_t begin, std::size_t end, const BlockerList& list, float* out) {
   const float cut_factor = pair_cut_factor(t, rule);
   if (cut_factor == 0.0f) {
-    shexp::accumulate_log(isa, t.log, rule, rec, begin, end, list, out);
+    common::accumulate_log(isa, t.log, rule, rec, begin, end, list, out);
     return;
   }
   const int n2 = t.order * t.order;
@@ -186,15 +186,15 @@ void accumulate_log_range(const ShadowTables& t, shexp::ReplacementRule rule, sh
     for (std::size_t b = 0; b < list.size(); ++b) {
       const glm::vec3 c(list.cx[b], list.cy[b], list.cz[b]);
       if (!(glm::length(c - p) < cut_factor * list.r[b])) continue;
-      const shexp::AdjustedSphere a = shexp::apply_replacement_rule(rule, p, nrm, c, list.r[b]);
+      const common::AdjustedSphere a = common::apply_replacement_rule(rule, p, nrm, c, list.r[b]);
       if (!(a.radius > 0.0f)) continue;
-      shexp::sphere_zh_vector(t.log, p, a.center, a.radius, &list.w[b * list.order], v.data());
+      common::sphere_zh_vector(t.log, p, a.center, a.radius, &list.w[b * list.order], v.data());
       for (int k = 0; k < n2; ++k) o[k] += v[k];
     }
   }
 }
 
-void exponentiate(const ShadowTables& t, ExpMode mode, int ps_degree, shexp::KernelIsa isa, const float* f, float* g,
+void exponentiate(const ShadowTables& t, ExpMode mode, int ps_degree, common::KernelIsa isa, const float* f, float* g,
                   std::size_t count, std::size_t first) {
   sh::ExpOptions opt;
   opt.method = mode == ExpMode::HYB ? sh::ExpMethod::HYB
@@ -205,14 +205,14 @@ void exponentiate(const ShadowTables& t, ExpMode mode, int ps_degree, shexp::Ker
   opt.degree = ps_degree;
   sh::ExpStats stats;
   const int n = t.order, n2 = n * n;
-  if (shexp::exp_batch_supports(opt.method)) {
-    shexp::BatchExp be;
+  if (common::exp_batch_supports(opt.method)) {
+    common::BatchExp be;
     be.order = n;
     be.method = opt.method;
     be.degree = opt.degree;
     be.tables = t.sh.get();
-    be.plan = &shexp::ProductPlan::get(n);
-    shexp::exp_batch(isa, be, f, g, count, first, stats);
+    be.plan = &common::ProductPlan::get(n);
+    common::exp_batch(isa, be, f, g, count, first, stats);
   } else {
     for (std::size_t i = 0; i < count; ++i) sh::exp<float>(n, f + i * n2, g + i * n2, opt, t.sh.get(), &stats);
   }
@@ -232,8 +232,8 @@ float indirect_normalisation(float o0, float omega) {
 // --- shading -------------------------------------------------------------------------------------
 
 DirectShader make_direct_shader(const std::vector<glm::vec3>& env_sh, int order, double window_h,
-                                std::shared_ptr<const shexp::LightLobeTable> lt, const std::vector<scene::SphericalLight>& lights,
-                                shexp::KernelIsa isa) {
+                                std::shared_ptr<const common::LightLobeTable> lt, const std::vector<scene::SphericalLight>& lights,
+                                common::KernelIsa isa) {
   DirectShader d;
   d.order = order;
   const int n2 = order * order;
@@ -261,15 +261,15 @@ DirectShader make_direct_shader(const std::vector<glm::vec3>& env_sh, int order,
   return d;
 }
 
-shexp::BatchShade DirectShader::batch(const float* g) const {
-  return shexp::BatchShade::make(order, L.data(), hcoef.data(), gwin.data(), g);
+common::BatchShade DirectShader::batch(const float* g) const {
+  return common::BatchShade::make(order, L.data(), hcoef.data(), gwin.data(), g);
 }
 
 long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g, glm::vec3* out) const {
-  const shexp::BatchShade bs = batch(g);
+  const common::BatchShade bs = batch(g);
   // Eq. 10's first term: (H(N) * O) . L per channel = O . L~(N) by the triple-product identity.
-  shexp::shade_batch(isa, bs, rec, begin, end, out);
-  return shexp::add_lights_and_clamp(lights_table.get(), lights, order, gwin.data(), rec, begin, end, g, true, out);
+  common::shade_batch(isa, bs, rec, begin, end, out);
+  return common::add_lights_and_clamp(lights_table.get(), lights, order, gwin.data(), rec, begin, end, g, true, out);
 }
 
 std::vector<glm::vec3> irradiance_sh(const std::vector<glm::vec3>& env_sh, int order) {

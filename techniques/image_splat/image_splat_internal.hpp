@@ -14,15 +14,33 @@
 
 #include <glm/glm.hpp>
 
-#include "../shexp/shexp_internal.hpp"
+#include "../common/accumulation.hpp"
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/render/params.hpp"
 #include "softgi/scene/scene.hpp"
 #include "softgi/sh/tables.hpp"
 #include "splat_math.hpp"
-#include "upsample.hpp"
+#include "../common/upsample.hpp"
+
+namespace softgi::render {
+class FrameContext;
+}
 
 namespace softgi::techniques::image_splat {
+
+// Upsampling is the shared library's (paper 000 section 4.2; techniques/common/upsample.hpp).
+using common::cpu_upsample_kernels;
+using common::parse_upsample_fallback;
+using common::parse_upsample_mode;
+using common::PlaneView;
+using common::upsample_apply;
+using common::upsample_apply_bilinear;
+using common::upsample_weights;
+using common::UpsampleFallback;
+using common::UpsampleKernels;
+using common::UpsampleMode;
+using common::UpsampleOptions;
+using common::UpsampleWeights;
 
 // The paper's expansion factors (section 4.1): eta = 15 for order-4 shadows, 10 for order-3 indirect.
 inline constexpr double kPaperEtaShadow = 15.0;
@@ -50,7 +68,7 @@ struct Settings {
   bool smooth_clamp = true;
   ExpMode exp = ExpMode::HYB;
   int ps_degree = 2;
-  shexp::ReplacementRule rule = shexp::ReplacementRule::Continuous;
+  common::ReplacementRule rule = common::ReplacementRule::Continuous;
   double window_h = 0.0;        // resolved (-1 -> 2n); 0 = off
   int table_resolution = 256;
   double log_threshold = 0.02;
@@ -58,7 +76,7 @@ struct Settings {
   UpsampleFallback fallback = UpsampleFallback::Robust;
   int tile_size = 16;
   bool lights = true;
-  shexp::KernelIsa isa = shexp::KernelIsa::Scalar;
+  common::KernelIsa isa = common::KernelIsa::Scalar;
 };
 std::vector<render::ParamDesc> param_descs();
 Settings read_settings(const render::ParamSet& p);
@@ -67,7 +85,7 @@ Settings read_settings(const render::ParamSet& p);
 struct ShadowTables {
   int order = 0;
   std::shared_ptr<const sh::ShTables> sh;  // cap log / visibility and OL tables at the shadow order
-  shexp::ZhTable log;                      // log occlusion ZH, smoothly clamped at eta_shadow (or hard: see below)
+  common::ZhTable log;                      // log occlusion ZH, smoothly clamped at eta_shadow (or hard: see below)
   bool hard_cut = false;                   // smooth_clamp = false: log unclamped, pairs cut at eta r exactly
   double eta_shadow = 0.0;                 // 0 = no sphere of influence
   double eta_indirect = 0.0;
@@ -89,7 +107,7 @@ struct ReceiverTile {
 };
 struct ReceiverBuffer {
   int width = 0, height = 0, scale = 1, tile_size = 16, tiles_x = 0, tiles_y = 0;
-  shexp::ReceiverSoA soa;                // tile order
+  common::ReceiverSoA soa;                // tile order
   std::vector<std::int32_t> pixel;       // receiver -> coarse pixel index
   std::vector<std::int32_t> receiver;    // coarse pixel -> receiver, -1 = background
   std::vector<ReceiverTile> tiles;       // only tiles with receivers
@@ -104,7 +122,7 @@ ReceiverBuffer make_receivers(const render::GBuffer& coarse, int tile_size);
 // receivers for which the table is non-zero; binning to tiles selects a superset, and the extra
 // pairs read exactly 0 from the clamped table, so both give the same sums.
 struct ProxyBins {
-  std::vector<shexp::BlockerList> shadow;  // per tile (index as ReceiverBuffer::tiles)
+  std::vector<common::BlockerList> shadow;  // per tile (index as ReceiverBuffer::tiles)
   std::vector<ProxyList> indirect;         // per tile; empty when indirect light is off
   double pairs_tested = 0.0;               // tile-proxy tests
   double shadow_tile_pairs = 0.0, indirect_tile_pairs = 0.0;
@@ -117,24 +135,24 @@ inline constexpr double kInfluenceMargin = 1e-4;
 float influence_radius(float r, double support_alpha);
 bool sphere_meets_box(const glm::vec3& c, float radius, const glm::vec3& lo, const glm::vec3& hi);
 // All proxy spheres of the posed scene, flat, with the albedo of their set (scene.proxies[s].albedo).
-void flat_proxies(const scene::Scene& scene, const scene::PosedScene& posed, int order, shexp::BlockerList* shadow,
+void flat_proxies(const scene::Scene& scene, const scene::PosedScene& posed, int order, common::BlockerList* shadow,
                   ProxyList* indirect);
-ProxyBins bin_proxies(const ReceiverBuffer& rec, const shexp::BlockerList& all_shadow, double alpha_shadow,
+ProxyBins bin_proxies(const ReceiverBuffer& rec, const common::BlockerList& all_shadow, double alpha_shadow,
                       const ProxyList* all_indirect, double alpha_indirect);
 
 // --- accumulation --------------------------------------------------------------------------------
 // Sum of log occlusion vectors (eq. 4, exponent) for receivers [begin, end) over `list`. The clamped
-// table goes through shexp::accumulate_log (the SHEXP kernel, self-shadowing rules included); with
+// table goes through common::accumulate_log (the SHEXP kernel, self-shadowing rules included); with
 // hard_cut, pairs with |c - p| >= eta r are skipped first (scalar path: rule, then eq. 34 per pair).
 // The per-pair cut of accumulate_log_range: a pair counts only where |c - p| < factor r; 0 when the
 // clamped table alone confines each proxy (then the SHEXP kernel runs unchanged). Shared with the
 // Vulkan pass, whose shader applies the same cut.
-float pair_cut_factor(const ShadowTables& t, shexp::ReplacementRule rule);
-void accumulate_log_range(const ShadowTables& t, shexp::ReplacementRule rule, shexp::KernelIsa isa,
-                          const shexp::ReceiverSoA& rec, std::size_t begin, std::size_t end,
-                          const shexp::BlockerList& list, float* out);
+float pair_cut_factor(const ShadowTables& t, common::ReplacementRule rule);
+void accumulate_log_range(const ShadowTables& t, common::ReplacementRule rule, common::KernelIsa isa,
+                          const common::ReceiverSoA& rec, std::size_t begin, std::size_t end,
+                          const common::BlockerList& list, float* out);
 // O_p = exp(log) for `count` receivers (order^2 floats each).
-void exponentiate(const ShadowTables& t, ExpMode mode, int ps_degree, shexp::KernelIsa isa, const float* f, float* g,
+void exponentiate(const ShadowTables& t, ExpMode mode, int ps_degree, common::KernelIsa isa, const float* f, float* g,
                   std::size_t count, std::size_t first);
 
 // Eq. 12: xi_p = (1 - O_p)_0 / (omega_p / sqrt(4 pi)), (1 - O_p)_0 = sqrt(4 pi) - O_p,0: the solid angle
@@ -154,19 +172,19 @@ struct DirectShader {
   std::vector<float> L;      // 3 x n^2, channel-major (windowed when window_h > 0)
   std::vector<float> hcoef;  // n^2: H(N)_lm = hcoef y_lm(N)
   std::vector<float> gwin;   // n^2: window on the visibility
-  std::shared_ptr<const shexp::LightLobeTable> lights_table;  // null: no spherical light shading
+  std::shared_ptr<const common::LightLobeTable> lights_table;  // null: no spherical light shading
   std::vector<scene::SphericalLight> lights;
-  shexp::KernelIsa isa = shexp::KernelIsa::Scalar;
+  common::KernelIsa isa = common::KernelIsa::Scalar;
   // out[i - begin] for receivers [begin, end) of rec; g: visibility of receiver i at g + i n^2 (null:
   // unshadowed). A receiver with a zero normal (no surface) gets 0. Returns the receivers clamped at 0.
-  long long shade(const shexp::ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
+  long long shade(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
                   glm::vec3* out) const;
   // SHEXP's batch-shading constants over this shader's floats (g: visibility, n^2 per receiver).
-  shexp::BatchShade batch(const float* g) const;
+  common::BatchShade batch(const float* g) const;
 };
 DirectShader make_direct_shader(const std::vector<glm::vec3>& env_sh, int order, double window_h,
-                                std::shared_ptr<const shexp::LightLobeTable> lt, const std::vector<scene::SphericalLight>& lights,
-                                shexp::KernelIsa isa);
+                                std::shared_ptr<const common::LightLobeTable> lt, const std::vector<scene::SphericalLight>& lights,
+                                common::KernelIsa isa);
 // L~ (irradiance SH of the windowed environment, per channel) at `order` for the indirect evaluator.
 std::vector<glm::vec3> irradiance_sh(const std::vector<glm::vec3>& env_sh, int order);
 
@@ -190,7 +208,7 @@ struct Upsampled {  // display resolution
   std::size_t bytes() const;
 };
 // The kernels of shade_direct (eq. 10's first term): the pass body is one (image_splat.cpp
-// pass_shade_direct); the kernels are DirectShader::shade on the CPU and shaders/shexp/shade.comp on
+// pass_shade_direct); the kernels are DirectShader::shade on the CPU and shaders/common/shade.comp on
 // Vulkan (vulkan_direct_kernels, image_splat_vulkan.hpp).
 struct DirectKernels {
   // out[k] for the display surface pixels up.surface[k] of `fine`: O_p interpolated with the eq. 11
@@ -198,16 +216,36 @@ struct DirectKernels {
   // Returns the pixels clamped at 0.
   std::function<long long(const DirectShader& d, const render::GBuffer& fine, const Upsampled& up, glm::vec3* out)> surface;
   // out[i] for every receiver of rec, visibility g (n^2 per receiver; null: unshadowed).
-  std::function<long long(const DirectShader& d, const shexp::ReceiverSoA& rec, const float* g, glm::vec3* out)> receivers;
+  std::function<long long(const DirectShader& d, const common::ReceiverSoA& rec, const float* g, glm::vec3* out)> receivers;
 };
 DirectKernels cpu_direct_kernels();
 
 // For fallback = robust: the misses shaded from the full proxy list.
 struct RobustMisses {
   std::vector<std::int32_t> pixel;  // display pixel of each miss
-  shexp::ReceiverSoA soa;
+  common::ReceiverSoA soa;
   std::vector<float> visibility;    // n^2 per miss (empty without proxies)
   std::vector<float> indirect;      // 3 per miss (empty without indirect)
 };
+
+
+// A backend's implementations of image_splat's GPU passes (image_splat_vulkan.hpp), reading and
+// writing the same frame resources as the host passes. exp_supports / indirect_supported: the
+// methods and operators the backend runs (the others run the host pass there).
+struct DeviceKernels {
+  std::function<std::shared_ptr<Field>(render::FrameContext&, const Settings&, const ShadowTables&, const ReceiverBuffer&,
+                                       const ProxyBins&)>
+      accumulate_log;
+  std::function<bool(ExpMode)> exp_supports;
+  std::function<std::shared_ptr<Field>(render::FrameContext&, const Settings&, const ShadowTables&, const Field&)> exponentiate;
+  std::function<bool(IndirectOperator)> indirect_supported;
+  std::function<std::shared_ptr<IndirectSums>(render::FrameContext&, const ReceiverBuffer&, const ProxyBins&,
+                                              const IndirectEvaluator&)>
+      accumulate_indirect;
+  std::function<UpsampleKernels(render::FrameContext&)> upsample;
+  std::function<DirectKernels(render::FrameContext&)> direct;
+};
+// Registers (or replaces) `backend`'s kernels; plan() adds them to every graph it builds after.
+void register_device_kernels(const std::string& backend, DeviceKernels kernels);
 
 }  // namespace softgi::techniques::image_splat

@@ -1,8 +1,8 @@
 // Image-space proxy accumulation (paper 000) on the Vulkan backend: the GPU passes of image_splat,
 // reading the same host-side frame resources as the CPU passes (image_splat_internal.hpp) and
 // producing the same structures, so that the backends can be compared pass by pass. The per-tile
-// blocker lists are SHEXP's (shexp::BlockerList) and the log table a (clamped) shexp::ZhTable, so the
-// accumulation and the exponential reuse SHEXP's shaders (shaders/shexp/*.comp); only the host
+// blocker lists are SHEXP's (common::BlockerList) and the log table a (clamped) common::ZhTable, so the
+// accumulation and the exponential reuse SHEXP's shaders (shaders/common/*.comp); only the host
 // dispatch for image_splat's resources lives here. Tables are the CPU's own floats, uploaded once per
 // device and kept in the vulkan::Context's cache. Not installed; include by path.
 #pragma once
@@ -22,32 +22,18 @@ namespace softgi::techniques::image_splat {
 std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t,
                                              const ReceiverBuffer& r, const ProxyBins& bins);
 
-// exponentiate on the GPU: HYB, OL and PS* (paper 004 section 4, as shexp::exp_batch); the exact
+// exponentiate on the GPU: HYB, OL and PS* (paper 004 section 4, as common::exp_batch); the exact
 // exponential (eq. 28, the reference) runs the CPU pass under "vulkan" too.
 bool vulkan_exp_supports(ExpMode m);
 std::shared_ptr<Field> vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const Field& log);
 
-// The two kernels of the upsample pass (section 4.2): the eq. 11 weights and their application to a
-// coarse field. The pass body (image_splat.cpp pass_upsample) is one; the kernels are upsample.cpp's
-// on the CPU and compute shaders on Vulkan.
-struct UpsampleKernels {
-  std::function<UpsampleWeights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt)> weights;
-  std::function<void(const UpsampleWeights& w, const float* in, int channels, float* out)> apply;
-};
-UpsampleKernels cpu_upsample_kernels();
-UpsampleKernels vulkan_upsample_kernels(render::FrameContext& ctx);
-// upsample_weights on the GPU (shaders/image_splat/upsample_weights.comp): the same checks and
-// result as upsample.cpp, in float (the CPU works in double). `measure` (optional): per display
-// pixel the unnormalised eq. 11 weight the miss decision compared with the threshold.
-UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneView& coarse, const PlaneView& fine,
-                                        const UpsampleOptions& opt, std::vector<float>* measure = nullptr);
-// upsample_apply on the GPU (shaders/image_splat/upsample_apply.comp); the weights stay on the
-// device when they are the ones vulkan_upsample_weights computed last.
-void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, const float* in, int channels, float* out);
 
-// shade_direct's kernels on the GPU (shaders/shexp/shade.comp): the surface pixels gather O_p with
+// shade_direct's kernels on the GPU (shaders/common/shade.comp): the surface pixels gather O_p with
 // the eq. 11 weights and are shaded (product, spherical lights, clamp) in one dispatch; the robust
 // misses and the shaded fallback's coarse receivers with their own visibility in another.
 DirectKernels vulkan_direct_kernels(render::FrameContext& ctx);
+
+// Registers the kernels above for the Vulkan backend (register_device_kernels).
+void register_vulkan_kernels();
 
 }  // namespace softgi::techniques::image_splat

@@ -12,21 +12,20 @@
 #include <string>
 #include <vector>
 
-#include "../shexp/shexp_passes.hpp"
-#include "../shexp/shexp_vulkan_common.hpp"
+#include "../common/accumulation_vulkan.hpp"
 #include "image_splat_indirect_shared.h"
 #include "softgi/backends/vulkan/context.hpp"
 #include "softgi/sh/sh.hpp"
 #include "softgi_shared.h"
 
 namespace spv {
-#include "softgi/shaders/accumulate_indirect_comp.h"
+#include "softgi/shaders/image_splat/accumulate_indirect_comp.h"
 }  // namespace spv
 
 namespace softgi::techniques::image_splat {
 
 namespace vk = backends::vulkan;
-using namespace shexp::vulkan_common;
+using namespace common::gpu_passes;
 
 namespace {
 
@@ -89,7 +88,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
                            std::to_string(static_cast<int>(setup.op)));
   const IndirectEvaluator::TableView tv = ev.tables();
   const int n = tv.order;
-  if (n < 1 || n > static_cast<int>(gpu::kShexpMaxOrder) || tv.rows < 2)
+  if (n < 1 || n > static_cast<int>(gpu::kAccumMaxOrder) || tv.rows < 2)
     throw std::logic_error("image_splat accumulate_indirect on vulkan: tables of order " + std::to_string(n) + " with " +
                            std::to_string(tv.rows) + " rows");
   const bool exact = setup.op == IndirectOperator::Exact;
@@ -111,9 +110,9 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   for (const auto& l : bins.indirect) total += l.size();
   const std::string pass = "image_splat accumulate_indirect";
   const std::string advice = "use fewer proxy spheres, a larger receiver_scale, or --backend cpu";
-  shexp::vulkan_common::check_fits(dev, total * 4 * sizeof(float), std::to_string(total) + " tile-proxy pairs (binned spheres)", pass, advice);
-  shexp::vulkan_common::check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", pass, advice);
-  shexp::vulkan_common::check_fits(dev, count * 4 * sizeof(float), "the indirect sums of " + std::to_string(count) + " receivers", pass, advice);
+  common::gpu_passes::check_fits(dev, total * 4 * sizeof(float), std::to_string(total) + " tile-proxy pairs (binned spheres)", pass, advice);
+  common::gpu_passes::check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", pass, advice);
+  common::gpu_passes::check_fits(dev, count * 4 * sizeof(float), "the indirect sums of " + std::to_string(count) + " receivers", pass, advice);
 
   // The tiles' proxy lists concatenated; each receiver reads the list of its tile. Albedo / pi is
   // folded on the host in the CPU's order (a * inv_pi, then times the pair's value).
@@ -145,7 +144,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   consts.insert(consts.end(), tv.vh.begin(), tv.vh.end());
   consts.insert(consts.end(), tv.hc.begin(), tv.hc.end());
   upload_if_changed(dev, g.consts, g.consts_host, consts, "image_splat indirect L~ and band factors");
-  if (!g.basis) g.basis = dev.upload_vector(shexp::basis_recurrence_constants(), kStorage, "image_splat indirect basis constants");
+  if (!g.basis) g.basis = dev.upload_vector(common::basis_recurrence_constants(), kStorage, "image_splat indirect basis constants");
   upload_receivers(dev, g.receivers, r.soa, "image_splat indirect receivers");
   put(dev, g.rlist, rlist, "image_splat indirect receiver tiles");
   put(dev, g.ranges, ranges, "image_splat indirect tile list ranges");
@@ -160,7 +159,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   vk::ComputePipeline& p = pipeline(dev, g.pipelines,
                                     "image_splat.accumulate_indirect.n" + std::to_string(n) + ".rule" + std::to_string(static_cast<int>(setup.rule)) +
                                         ".op" + std::to_string(op),
-                                    words(spv::accumulate_indirect_comp),
+                                    words(spv::image_splat_accumulate_indirect_comp),
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(setup.rule)}, {2, op}});
   struct Push {
     std::uint32_t count, first, end, rows;

@@ -18,7 +18,7 @@ namespace softgi::techniques::image_splat {
 
 namespace {
 using sh::kPi;
-constexpr int kMaxN = shexp::kMaxOrder;  // 6
+constexpr int kMaxN = common::kMaxOrder;  // 6
 constexpr int kMaxN2 = kMaxN * kMaxN;
 constexpr int kRampRows = 4;  // section 4.1: "the 4 table entries around 1/eta"
 
@@ -30,7 +30,7 @@ struct IndirectEvaluator::Impl {
   int n = 0, n2 = 0, rows = 0;
   float scale = 0.0f;         // theta -> row coordinate (the ZhTable's)
   float lt[kMaxN2 * 3] = {};  // L~, coefficient-major: lt[3 k + c]
-  shexp::ZhTable vis;         // F_l = sqrt(4pi/(2l+1)) V_l of the proxy's own visibility (clamped if asked)
+  common::ZhTable vis;         // F_l = sqrt(4pi/(2l+1)) V_l of the proxy's own visibility (clamped if asked)
   // V . H(N) = sum_l F_l vh_l P_l(d . N) (addition theorem: sum_m y_lm(d) y_lm(N) = (2l+1)/(4pi) P_l),
   // vh_l = (g_cos,l / pi) sqrt((2l+1)/(4pi)).
   float vh[kMaxN] = {};
@@ -177,9 +177,9 @@ IndirectEvaluator::IndirectEvaluator(const IndirectSetup& setup, const std::vect
   Impl& im = *impl_;
   im.setup = setup;
   const int n = setup.order;
-  if (n < shexp::kMinOrder || n > shexp::kMaxOrder)
-    fail("order " + std::to_string(n) + " is outside " + std::to_string(shexp::kMinOrder) + ".." +
-         std::to_string(shexp::kMaxOrder));
+  if (n < common::kMinOrder || n > common::kMaxOrder)
+    fail("order " + std::to_string(n) + " is outside " + std::to_string(common::kMinOrder) + ".." +
+         std::to_string(common::kMaxOrder));
   if (setup.op == IndirectOperator::AveragedPolynomial && n != 3)
     fail("the paper's polynomial D (averaged_poly) exists for order 3 only, got order " + std::to_string(n));
   if (setup.table_resolution < 16 || setup.table_resolution > 65536)
@@ -210,7 +210,7 @@ IndirectEvaluator::IndirectEvaluator(const IndirectSetup& setup, const std::vect
     vt.data.push_back(sh::kSqrt4Pi - g[0]);
     for (int l = 1; l < n; ++l) vt.data.push_back(-g[l]);
   }
-  shexp::ZhTable raw = shexp::make_zh_table(vt, n, true);  // row 0: empty cap, exactly 0
+  common::ZhTable raw = common::make_zh_table(vt, n, true);  // row 0: empty cap, exactly 0
   im.scale = raw.scale;
   const bool clamp = setup.smooth_clamp && setup.eta > 1.0 && std::isfinite(setup.eta);
   im.vis = clamp ? clamp_zh_table(raw, setup.eta, kRampRows) : raw;
@@ -270,7 +270,7 @@ IndirectEvaluator::IndirectEvaluator(const IndirectSetup& setup, const std::vect
 
 const IndirectSetup& IndirectEvaluator::setup() const { return impl_->setup; }
 
-long long IndirectEvaluator::accumulate(const shexp::ReceiverSoA& rec, std::size_t begin, std::size_t end,
+long long IndirectEvaluator::accumulate(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end,
                                         const ProxyList& list, float* rgb, float* omega) const {
   const Impl& im = *impl_;
   if (begin > end || end > rec.size())
@@ -296,8 +296,8 @@ long long IndirectEvaluator::accumulate(const shexp::ReceiverSoA& rec, std::size
     float acc[3] = {0, 0, 0}, om = 0.0f;
     for (std::size_t j = 0; j < np; ++j) {
       // Self-shadowing replacement rules (paper 004 section 6.2), as in the shadow pass.
-      const shexp::AdjustedSphere s =
-          shexp::apply_replacement_rule(im.setup.rule, p, N, glm::vec3{list.cx[j], list.cy[j], list.cz[j]}, list.r[j]);
+      const common::AdjustedSphere s =
+          common::apply_replacement_rule(im.setup.rule, p, N, glm::vec3{list.cx[j], list.cy[j], list.cz[j]}, list.r[j]);
       if (!(s.radius > 0.0f)) continue;
       const glm::vec3 dv = s.center - p;
       const float dist = std::sqrt(dv.x * dv.x + dv.y * dv.y + dv.z * dv.z);

@@ -373,7 +373,7 @@ double indirect_difference(int order, double theta, const std::vector<glm::vec3>
 // --- Smooth clamping ------------------------------------------------------------------------------
 
 namespace {
-void check_clamp_args(const shexp::ZhTable& t, double eta, int ramp_rows, const char* where) {
+void check_clamp_args(const common::ZhTable& t, double eta, int ramp_rows, const char* where) {
   if (t.order < 1 || t.rows < 2 || !(t.scale > 0.0f) ||
       t.data.size() != static_cast<std::size_t>(t.rows) * 2 * t.order || t.band.size() != t.data.size())
     fail(where, "malformed ZhTable (order " + std::to_string(t.order) + ", rows " + std::to_string(t.rows) + ")");
@@ -383,7 +383,7 @@ void check_clamp_args(const shexp::ZhTable& t, double eta, int ramp_rows, const 
 double smoothstep(double x) { return x * x * (3.0 - 2.0 * x); }
 }  // namespace
 
-double clamp_row_weight(const shexp::ZhTable& table, double eta, int ramp_rows, int row) {
+double clamp_row_weight(const common::ZhTable& table, double eta, int ramp_rows, int row) {
   check_clamp_args(table, eta, ramp_rows, "clamp_row_weight");
   if (row < 0 || row >= table.rows) fail("clamp_row_weight", "row " + std::to_string(row) + " is outside the table");
   if (!(eta > 1.0) || std::isinf(eta)) return 1.0;
@@ -399,9 +399,9 @@ double clamp_row_weight(const shexp::ZhTable& table, double eta, int ramp_rows, 
   return smoothstep(static_cast<double>(j) / (ramp_rows + 1));
 }
 
-shexp::ZhTable clamp_zh_table(const shexp::ZhTable& table, double eta, int ramp_rows) {
+common::ZhTable clamp_zh_table(const common::ZhTable& table, double eta, int ramp_rows) {
   check_clamp_args(table, eta, ramp_rows, "clamp_zh_table");
-  shexp::ZhTable t = table;
+  common::ZhTable t = table;
   if (!(eta > 1.0) || std::isinf(eta)) return t;
   const int n = t.order;
   std::vector<float> vals(static_cast<std::size_t>(t.rows) * n);
@@ -411,7 +411,7 @@ shexp::ZhTable clamp_zh_table(const shexp::ZhTable& table, double eta, int ramp_
       vals[static_cast<std::size_t>(k) * n + l] =
           static_cast<float>(w * table.data[static_cast<std::size_t>(k) * 2 * n + 2 * l]);
   }
-  // Slopes from the clamped values, the layout of shexp::make_zh_table (last row: slope 0).
+  // Slopes from the clamped values, the layout of common::make_zh_table (last row: slope 0).
   for (int k = 0; k < t.rows; ++k)
     for (int l = 0; l < n; ++l) {
       const float v = vals[static_cast<std::size_t>(k) * n + l];

@@ -12,7 +12,7 @@
 
 #include <glm/glm.hpp>
 
-#include "../shexp/shexp_internal.hpp"
+#include "../common/accumulation.hpp"
 #include "softgi/sh/tables.hpp"
 
 namespace softgi::techniques::image_splat {
@@ -63,9 +63,9 @@ double indirect_difference(int order, double theta, const std::vector<glm::vec3>
 // interpolated lookup is exactly 0 for every theta <= asin(1/eta)) and whose next `ramp_rows` rows (the paper's
 // "4 table entries around 1/eta") are weighted smoothly from 0 to 1, so that a proxy's contribution
 // goes to 0 continuously as a receiver leaves its sphere of influence. eta <= 1 or infinite: copy.
-shexp::ZhTable clamp_zh_table(const shexp::ZhTable& table, double eta, int ramp_rows = 4);
+common::ZhTable clamp_zh_table(const common::ZhTable& table, double eta, int ramp_rows = 4);
 // The weight clamp_zh_table applied to row k (for reports and tests).
-double clamp_row_weight(const shexp::ZhTable& table, double eta, int ramp_rows, int row);
+double clamp_row_weight(const common::ZhTable& table, double eta, int ramp_rows, int row);
 
 // --- Indirect operators (section 5) ---------------------------------------------------------
 enum class IndirectOperator {
@@ -111,7 +111,7 @@ struct IndirectSetup {
   double eta = 10.0;            // sphere of influence (<= 0: none)
   bool smooth_clamp = true;     // false: hard cut at eta (for comparison)
   int table_resolution = 256;   // rows in theta of V, D and M
-  shexp::ReplacementRule rule = shexp::ReplacementRule::Continuous;
+  common::ReplacementRule rule = common::ReplacementRule::Continuous;
 };
 class IndirectEvaluator {
  public:
@@ -124,7 +124,7 @@ class IndirectEvaluator {
   // omega[i] += sum_p omega_p, over the proxies of `list` (i is the receiver's index in rec, not
   // i - begin). Throws for a bad range or a proxy with a non-finite centre, radius or albedo. Returns the receiver-proxy pairs inside
   // the sphere of influence.
-  long long accumulate(const shexp::ReceiverSoA& rec, std::size_t begin, std::size_t end, const ProxyList& list,
+  long long accumulate(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const ProxyList& list,
                        float* rgb, float* omega) const;
   std::size_t bytes() const;
   // The evaluator's own floats, read-only, for backends that upload them (the Vulkan

@@ -20,7 +20,9 @@
 
 #include "shexp_internal.hpp"
 #include "shexp_passes.hpp"
+#include "../common/device_kernels.hpp"
 #include "../common/pass_support.hpp"
+#include "../common/shared_params.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/render/vertex_image.hpp"
@@ -48,20 +50,13 @@ Settings read_settings(const render::ParamSet& p) {
     throw std::invalid_argument("parameter 'theta_min_deg': " + p.get_text("theta_min_deg") +
                                 " must be below theta_max_deg = " + p.get_text("theta_max_deg"));
   s.clusters = p.get_int("receiver_clusters");
-  const double h = p.get_float("window_h");
-  s.window_h = h < 0.0 ? 2.0 * s.order : h;  // section 7: h = 2n works well
-  if (h > 0.0 && h < 1.0)
-    throw std::invalid_argument("parameter 'window_h': " + p.get_text("window_h") + " would zero every band above 0 (expected -1, 0 or >= 1)");
+  s.window_h = common::params::read_window_h(p, s.order);
   s.window_visibility = p.get_bool("window_visibility");
-  s.rule = p.get_bool("self_shadow_rules") ? parse_replacement_rule(p.get_enum("replacement_rule")) : ReplacementRule::Off;
+  s.rule = common::params::read_replacement_rule(p);
   s.table_resolution = p.get_int("table_resolution");
   s.log_threshold = p.get_float("log_threshold");
   s.lights = p.get_bool("analytic_lights");
-  const std::string& k = p.get_enum("kernel");
-  s.isa = k == "auto" ? best_kernel_isa() : k == "avx512" ? KernelIsa::Avx512 : k == "avx2" ? KernelIsa::Avx2 : KernelIsa::Scalar;
-  if (!kernel_isa_supported(s.isa))
-    throw std::invalid_argument("parameter 'kernel': this CPU cannot run '" + k + "' (it supports up to " +
-                                std::string(to_string(best_kernel_isa())) + ")");
+  s.isa = common::params::read_kernel(p);
   return s;
 }
 
@@ -532,14 +527,17 @@ void pass_projected(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const Field>>(kVisibility, g);
 }
 
-// gpu: the shading of the receivers -- (H(N) * g) . L, the analytic lights and the clamp -- runs on
-// the Vulkan backend's device (shexp_vulkan.cpp, shaders/shexp/shade.comp); the light and the
-// per-vertex results around it are the same host code.
-void pass_shade(State& st, const Settings& s, FrameContext& ctx, bool gpu = false) {
+// kernel: a backend's shading of the receivers -- (H(N) * g) . L, the analytic lights and the clamp
+// (common::vulkan_shade, shaders/common/shade.comp); null: the host's. The light and the per-vertex
+// results around it are the same host code.
+void pass_shade(State& st, const Settings& s, FrameContext& ctx, const common::ShadeKernel* kernel = nullptr) {
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
   const int n = s.order, n2 = n * n;
+  // A device kernel reads the visibility where the GPU exponential left it: no host copy is made.
+  const bool shadowed = ctx.has(kVisibility);
+  const bool vis_on_device = kernel && shadowed && ctx.is_deferred(kVisibility);
   std::shared_ptr<const Field> vis;
-  if (ctx.has(kVisibility)) vis = ctx.get<std::shared_ptr<const Field>>(kVisibility);
+  if (shadowed && !vis_on_device) vis = ctx.get<std::shared_ptr<const Field>>(kVisibility);
   std::shared_ptr<const LightLobeTable> lt;
   if (ctx.has(kLightTables)) lt = ctx.get<std::shared_ptr<const LightLobeTable>>(kLightTables);
 
@@ -567,15 +565,17 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, bool gpu = fals
     for (int m = -l; m <= l; ++m) {
       const int k = sh::index(l, m);
       hcoef[k] = static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
-      if (vis && s.window_visibility && s.window_h > 0.0) gwin[k] = static_cast<float>(sh::window_factor(l, s.window_h));
+      if (shadowed && s.window_visibility && s.window_h > 0.0) gwin[k] = static_cast<float>(sh::window_factor(l, s.window_h));
     }
   for (int c = 0; c < 3; ++c) std::copy(L[c].begin(), L[c].end(), Lflat.begin() + c * n2);
   const BatchShade bs = BatchShade::make(n, Lflat.data(), hcoef.data(), gwin.data(), vis ? vis->v.data() : nullptr);
   std::vector<glm::vec3> shade(r.soa.size());
   long long clamped = 0;
-  if (gpu) {
-    // The whole shading on the device: product, spherical lights and the clamp (shade.comp).
-    clamped = vulkan_shade(ctx, GpuShade{&bs, lt.get(), &ctx.posed.lights, false, nullptr}, r.soa, shade.data());
+  if (kernel) {
+    // The whole shading on the device: product, spherical lights and the clamp.
+    GpuShade in{&bs, lt.get(), &ctx.posed.lights, false, nullptr};
+    if (vis_on_device) in.visibility_resource = kVisibility;
+    clamped = (*kernel)(ctx, in, r.soa, shade.data());
   } else {
     std::atomic<long long> cl{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
@@ -602,7 +602,7 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, bool gpu = fals
   ctx.result.vertex_radiance = std::move(radiance);
   auto& rec = ctx.record();
   rec.counters["receivers"] = static_cast<double>(r.soa.size());
-  rec.counters["shadowed"] = vis ? 1.0 : 0.0;
+  rec.counters["shadowed"] = shadowed ? 1.0 : 0.0;
   rec.counters["lights"] = lt ? static_cast<double>(ctx.posed.lights.size()) : 0.0;
   rec.counters["vertices_clamped"] = static_cast<double>(clamped);
   rec.bytes = r.soa.size() * 2 * sizeof(glm::vec3);
@@ -640,6 +640,21 @@ void pass_to_image(FrameContext& ctx) {
 
 // --- The technique ----------------------------------------------------------------------------
 
+common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
+  static common::DeviceKernelRegistry<DeviceKernels> r;
+  return r;
+}
+
+// impl (the host implementation) plus, per registered backend, the PassFn make() builds from its
+// kernels (none when it returns an empty one).
+std::map<std::string, render::PassFn> with_kernels(std::map<std::string, render::PassFn> impl,
+                                                   const std::vector<std::pair<std::string, DeviceKernels>>& kernels,
+                                                   const std::function<render::PassFn(const DeviceKernels&)>& make) {
+  for (const auto& [backend, k] : kernels)
+    if (render::PassFn f = make(k)) impl[backend] = std::move(f);
+  return impl;
+}
+
 class Shexp final : public render::Technique {
  public:
   std::string name() const override { return "shexp"; }
@@ -649,14 +664,14 @@ class Shexp final : public render::Technique {
   }
   std::vector<ParamDesc> params() const override {
     std::vector<ParamDesc> d;
-    d.push_back(ParamDesc::integer("order", 4, kMinOrder, kMaxOrder, "SH order n of lighting, visibility and shading"));
+    d.push_back(common::params::order(4, "lighting, visibility and shading"));
     d.push_back(ParamDesc::integer("accumulation_order", 0, 0, kMaxAccOrder,
                                    "order at which blockers are accumulated and exponentiated before truncation to "
                                    "`order` (0 = order; Figure 7e: 6 with order 4)"));
-    d.push_back(ParamDesc::choice("exp", "hyb", {"hyb", "ol", "ps*", "ps", "exact", "product", "projected"},
-                                  "SH exponential (section 4.3; exact = eq. 28, slow), or product = product-space "
-                                  "accumulation of Zhou et al. (eq. 6, the baseline), or projected = order-n projection "
-                                  "of the exact sphere visibility (quadrature, for error analysis)"));
+    d.push_back(common::params::exp({"hyb", "ol", "ps*", "ps", "exact", "product", "projected"},
+                                    "SH exponential (section 4.3; exact = eq. 28, slow), or product = product-space "
+                                    "accumulation of Zhou et al. 2005 (eq. 6, the baseline), or projected = order-n "
+                                    "projection of the exact sphere visibility (quadrature, for error analysis)"));
     d.push_back(ParamDesc::integer("ps_degree", 2, 1, 30, "series degree p of ps* and ps (PS*-2, PS-21 in Figure 9)"));
     d.push_back(ParamDesc::boolean("hierarchy", true, "sphere hierarchy cuts per receiver cluster (section 6.3); product ignores it"));
     d.push_back(ParamDesc::real("theta_max_deg", 25.0, 1.0, 60.0, "eq. 36 angular threshold of the cut (paper: 20-30)"));
@@ -665,15 +680,14 @@ class Shexp final : public render::Technique {
     d.push_back(ParamDesc::boolean("ratio_vectors", true, "eq. 37 ratio vectors on cut nodes (off: Figure 6b)"));
     d.push_back(ParamDesc::integer("receiver_clusters", 0, 0, 1 << 20,
                                    "Lloyd receiver clusters (0 = one per ~300 vertices, section 6.3)"));
-    d.push_back(ParamDesc::real("window_h", -1.0, -1.0, 64.0, "cosine window size h (section 7): -1 = 2n, 0 = no window"));
+    d.push_back(common::params::window_h());
     d.push_back(ParamDesc::boolean("window_visibility", true, "window the visibility vector too (section 7), not only the light"));
-    d.push_back(ParamDesc::boolean("self_shadow_rules", true, "replacement rules for spheres near the receiver (section 6.2)"));
-    d.push_back(ParamDesc::choice("replacement_rule", "continuous", {"continuous", "clamped", "printed"},
-                                  "reading of the scale factor a (docs/techniques/shexp.md)"));
-    d.push_back(ParamDesc::integer("table_resolution", 256, 16, 4096, "samples in theta of the log-visibility table (paper: 256)"));
-    d.push_back(ParamDesc::real("log_threshold", 0.02, 0.001, 0.5, "eigenvalue clip of the SH log, times the largest (eq. 32)"));
-    d.push_back(ParamDesc::boolean("analytic_lights", true, "shade the scene's spherical lights (section 7, Analytic Lights)"));
-    d.push_back(ParamDesc::choice("kernel", "auto", {"auto", "avx512", "avx2", "scalar"}, "accumulation kernel instruction set"));
+    d.push_back(common::params::self_shadow_rules());
+    d.push_back(common::params::replacement_rule());
+    d.push_back(common::params::table_resolution());
+    d.push_back(common::params::log_threshold());
+    d.push_back(common::params::analytic_lights());
+    d.push_back(common::params::kernel());
     return d;
   }
 
@@ -686,11 +700,10 @@ class Shexp final : public render::Technique {
     if (scene.lights.empty() || !s.lights) empty.insert(kSphericalLights);
 
     auto st = state_;
-    // Host passes: the same function on the CPU and the Vulkan backend (tables, receivers,
-    // hierarchy, cuts and image composition are host work on both).
-    // Host passes run the same function on both backends; GPU passes have a Vulkan twin (shexp_vulkan.cpp).
+    // Host passes run the same function on every backend (tables, receivers, hierarchy, cuts and
+    // image composition); the GPU passes add each registered backend's kernels.
     const auto cpu = render::host_impl;
-    const auto both = render::cpu_vulkan_impl;
+    const auto kernels = device_kernels().all();
     render::PassGraph g;
     g.add_input(render::kScene);
     g.add_input(render::kMovingObjects);
@@ -732,16 +745,28 @@ class Shexp final : public render::Technique {
     } else {
       g.add({"accumulate_log", {kReceivers, kTables, kCuts}, {}, {kLogVisibility},
              "sum of blocker log vectors per receiver (eqs. 8, 34, 38; rules of section 6.2)",
-             both([s](FrameContext& c) { pass_accumulate(s, c); }, [s](FrameContext& c) { vulkan_accumulate(s, c); })});
-      // The Vulkan exponential covers HYB, OL, PS* and PS; the exact exponential (eq. 28) runs the host pass.
-      render::PassFn exp_cpu = [s](FrameContext& c) { pass_exponentiate(s, c); };
+             with_kernels(cpu([s](FrameContext& c) { pass_accumulate(s, c); }), kernels,
+                          [s](const DeviceKernels& k) -> render::PassFn {
+                            if (!k.accumulate) return {};
+                            return [s, f = k.accumulate](FrameContext& c) { f(s, c); };
+                          })});
+      // A backend's exponential may cover only some methods (Vulkan: not the exact one, eq. 28):
+      // the others run the host pass there.
       g.add({"exponentiate", {kReceivers, kTables, kLogVisibility}, {}, {kVisibility},
              "SH exponential per receiver (section 4), truncated to the shading order",
-             vulkan_exp_supports(s.mode) ? both(exp_cpu, [s](FrameContext& c) { vulkan_exponentiate(s, c); }) : cpu(exp_cpu)});
+             with_kernels(cpu([s](FrameContext& c) { pass_exponentiate(s, c); }), kernels,
+                          [s](const DeviceKernels& k) -> render::PassFn {
+                            if (!k.exponentiate || !k.exp_supports || !k.exp_supports(s.mode)) return {};
+                            return [s, f = k.exponentiate](FrameContext& c) { f(s, c); };
+                          })});
     }
     g.add({"shade", {kReceivers}, {kVisibility, kLightTables}, {kShading},
            "L_H(N) . g per vertex, environment and spherical lights (section 7)",
-           both([st, s](FrameContext& c) { pass_shade(*st, s, c); }, [st, s](FrameContext& c) { pass_shade(*st, s, c, true); })});
+           with_kernels(cpu([st, s](FrameContext& c) { pass_shade(*st, s, c); }), kernels,
+                        [st, s](const DeviceKernels& k) -> render::PassFn {
+                          if (!k.shade) return {};
+                          return [st, s, f = k.shade](FrameContext& c) { pass_shade(*st, s, c, &f); };
+                        })});
     g.add({"to_image", {render::kGBuffer, kShading}, {}, {render::kDirect}, "per-vertex radiance through the G-buffer",
            cpu([](FrameContext& c) { pass_to_image(c); })});
     render::add_compose_pass(g);
@@ -755,5 +780,7 @@ class Shexp final : public render::Technique {
 }  // namespace
 
 std::unique_ptr<render::Technique> create() { return std::make_unique<Shexp>(); }
+
+void register_device_kernels(const std::string& backend, DeviceKernels kernels) { device_kernels().add(backend, std::move(kernels)); }
 
 }  // namespace softgi::techniques::shexp

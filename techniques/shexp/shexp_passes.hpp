@@ -5,6 +5,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -102,41 +103,26 @@ struct Shading {
 // Counters of the accumulation passes: receivers, receiver-blocker pairs, blockers per receiver.
 void blocker_counters(render::PassRecord& rec, const Receivers& r, const Cuts& cuts, double& pairs);
 
-// The SH basis-recurrence constants and asin coefficients of the CPU kernel (kernel.cpp), laid out
-// as softgi_shared.h's kBasis* offsets: the Vulkan shaders evaluate the basis with the same floats.
-std::vector<float> basis_recurrence_constants();
+// --- Backend kernels ---------------------------------------------------------------------------
+// A backend's implementations of SHEXP's GPU passes, reading and writing the same frame resources
+// as the host passes. accumulate: eqs. 8, 34, 38 with the replacement rules of section 6.2;
+// exponentiate for the methods exp_supports accepts (the others run the host pass); shade: the
+// shade pass's kernel (common::ShadeKernel).
+struct DeviceKernels {
+  std::function<void(const Settings&, render::FrameContext&)> accumulate;
+  std::function<bool(Mode)> exp_supports;
+  std::function<void(const Settings&, render::FrameContext&)> exponentiate;
+  common::ShadeKernel shade;
+};
+// Registers (or replaces) `backend`'s kernels; plan() adds them to every graph it builds after.
+void register_device_kernels(const std::string& backend, DeviceKernels kernels);
 
-// --- Vulkan implementations (shexp_vulkan.cpp) -----------------------------------------------
-// The same passes on the GPU, reading and writing the same frame resources as the CPU passes.
-// accumulate_log: eqs. 8, 34, 38 with the replacement rules of section 6.2, one invocation per receiver.
+// The Vulkan kernels (shexp_vulkan.cpp, in softgi::techniques_vulkan). accumulate_log: one
+// invocation per receiver; exponentiate: HYB, OL, PS* and PS (the exact exponential, eq. 28, is the
+// host pass's).
 void vulkan_accumulate(const Settings& s, render::FrameContext& ctx);
-// exponentiate for the HYB, OL, PS* and PS methods (section 4); the exact exponential (eq. 28, the
-// reference) runs the host pass.
 bool vulkan_exp_supports(Mode m);
 void vulkan_exponentiate(const Settings& s, render::FrameContext& ctx);
-// The diffuse shading of receivers on the GPU (shaders/shexp/shade.comp): what shade_batch followed
-// by add_lights_and_clamp computes on the CPU, out[i] = max(0, (H(N_i) * g_i) . L + lights), for
-// SHEXP's shade pass and image_splat's shade_direct.
-struct GpuShade {
-  const BatchShade* b = nullptr;  // order, L, hcoef, gwin; b->g: n^2 per receiver (null: unshadowed, or `gather`)
-  const LightLobeTable* lights_table = nullptr;  // null: no spherical light shading
-  const std::vector<scene::SphericalLight>* lights = nullptr;
-  bool zero_normal_empty = false;  // add_lights_and_clamp's flag
-  // Paper 000 eq. 11 (image_splat): the visibility of receiver i interpolated from a coarse field,
-  // g_i = sum_t weight[pixel[i]][t] coarse[index[pixel[i]][t]] (taps packed to the front, -1 unused;
-  // no tap: unshadowed), in place of b->g.
-  struct Gather {
-    const std::int32_t* pixel = nullptr;               // per receiver
-    const std::array<std::int32_t, 4>* index = nullptr;  // per display pixel
-    const std::array<float, 4>* weight = nullptr;        // per display pixel
-    std::size_t pixels = 0;                              // display pixels
-    const float* coarse = nullptr;                       // n^2 per coarse sample
-    std::size_t coarse_count = 0;
-  };
-  const Gather* gather = nullptr;
-};
-// Shades every receiver of rec into out[0, rec.size()); returns the receivers clamped at 0 and sets
-// the pass record's kernel_gpu_seconds.
-long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA& rec, glm::vec3* out);
+void register_vulkan_kernels();
 
 }  // namespace softgi::techniques::shexp

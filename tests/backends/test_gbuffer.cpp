@@ -34,7 +34,7 @@ constexpr int kMinPixelsOfEachKind = 200;
 
 render::GBuffer run_gbuffer(const scene::Scene& sc, render::FrameResult& result, double t = 0.0) {
   backends::CpuBackend backend;  // registers the CPU shared passes
-  const render::PassFn* fn = render::find_shared_pass_impl("gbuffer", "cpu");
+  const render::PassFn* fn = render::find_shared_pass_impl("gbuffer", backends::cpu::kBackendName);
   EXPECT_NE(fn, nullptr);
   scene::PosedScene posed = scene::evaluate(sc, t);
   render::ParamSet params;

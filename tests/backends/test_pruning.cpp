@@ -36,13 +36,13 @@ class TinyTechnique : public render::Technique {
     g.add_input(render::kReradiatingProxies);
     Ran* ran = ran_;
     render::PassDesc update{"proxy_update", {render::kScene, render::kMovingObjects}, {}, {"proxies"}, "move proxies", {}};
-    update.impl["cpu"] = [ran](render::FrameContext& ctx) {
+    update.impl[render::kHostImpl] = [ran](render::FrameContext& ctx) {
       ++ran->proxy_update;
       ctx.put<int>("proxies", 1);
     };
     g.add(std::move(update));
     render::PassDesc shadow{"shadow", {render::kGBuffer}, {"proxies"}, {render::kDirect}, "albedo * gain", {}};
-    shadow.impl["cpu"] = [ran](render::FrameContext& ctx) {
+    shadow.impl[render::kHostImpl] = [ran](render::FrameContext& ctx) {
       ++ran->shadow;
       const auto& gb = ctx.get<render::GBuffer>(render::kGBuffer);
       Image img(gb.width, gb.height);
@@ -53,7 +53,7 @@ class TinyTechnique : public render::Technique {
     };
     g.add(std::move(shadow));
     render::PassDesc indirect{"indirect", {render::kGBuffer, render::kReradiatingProxies}, {}, {render::kIndirect}, "", {}};
-    indirect.impl["cpu"] = [ran](render::FrameContext& ctx) {
+    indirect.impl[render::kHostImpl] = [ran](render::FrameContext& ctx) {
       ++ran->indirect;
       const auto& gb = ctx.get<render::GBuffer>(render::kGBuffer);
       ctx.put<Image>(render::kIndirect, Image(gb.width, gb.height, glm::vec3(0.25f)));

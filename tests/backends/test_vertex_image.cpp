@@ -30,7 +30,7 @@ struct Frame {
     render::ParamSet params;
     render::FrameContext ctx(scene, posed, params, scene.camera.width, scene.camera.height, result);
     result.passes.push_back(render::PassRecord{"gbuffer"});
-    (*render::find_shared_pass_impl("gbuffer", "cpu"))(ctx);
+    (*render::find_shared_pass_impl("gbuffer", backends::cpu::kBackendName))(ctx);
     gb = ctx.get<render::GBuffer>(render::kGBuffer);
   }
   std::vector<std::vector<glm::vec3>> per_vertex() const {

@@ -44,10 +44,10 @@ render::GBuffer wavy_buffer(int w, int h, float extent) {
 }
 
 // Random proxies above (and a few straddling) the ground, radii 0.05..0.3.
-void random_proxies(unsigned seed, int count, float extent, shexp::BlockerList& shadow, ProxyList& ind, int order) {
+void random_proxies(unsigned seed, int count, float extent, techniques::common::BlockerList& shadow, ProxyList& ind, int order) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  shadow = shexp::BlockerList{order, {}, {}, {}, {}, {}};
+  shadow = techniques::common::BlockerList{order, {}, {}, {}, {}, {}};
   ind = ProxyList{};
   for (int k = 0; k < count; ++k) {
     const glm::vec3 c(extent * (u(rng) - 0.5f), 0.6f * u(rng) - 0.05f, extent * (u(rng) - 0.5f));
@@ -74,7 +74,7 @@ ShadowTables make_tables(double eta, bool smooth) {
   ShadowTables t;
   t.order = order;
   t.sh = order4_tables();
-  const shexp::ZhTable log = shexp::make_zh_table(t.sh->cap_log(), order, true);
+  const techniques::common::ZhTable log = techniques::common::make_zh_table(t.sh->cap_log(), order, true);
   t.eta_shadow = eta;
   if (smooth) {
     t.log = clamp_zh_table(log, eta, kClampRampRows);
@@ -143,11 +143,11 @@ TEST(ImageSplatBinning, TileBinningEqualsTheFullProxyList) {
   constexpr float kRelTol = 1e-6f;
   const render::GBuffer gb = wavy_buffer(48, 40, 8.0f);
   const ReceiverBuffer r = make_receivers(gb, 16);
-  shexp::BlockerList all;
+  techniques::common::BlockerList all;
   ProxyList all_ind;
   random_proxies(11, 60, 8.0f, all, all_ind, 4);
   for (bool smooth : {true, false})
-    for (auto rule : {shexp::ReplacementRule::Continuous, shexp::ReplacementRule::Printed, shexp::ReplacementRule::Off}) {
+    for (auto rule : {techniques::common::ReplacementRule::Continuous, techniques::common::ReplacementRule::Printed, techniques::common::ReplacementRule::Off}) {
       const ShadowTables t = make_tables(8.0, smooth);
       const double alpha_ind = clamped_support_alpha(256, 6.0, kClampRampRows);
       const ProxyBins bins = bin_proxies(r, all, t.support_alpha_shadow, &all_ind, alpha_ind);
@@ -157,21 +157,21 @@ TEST(ImageSplatBinning, TileBinningEqualsTheFullProxyList) {
       const int n2 = 16;
       std::vector<float> binned(r.soa.size() * n2, 0.0f), full(r.soa.size() * n2, 0.0f);
       for (std::size_t k = 0; k < r.tiles.size(); ++k) {
-        accumulate_log_range(t, rule, shexp::best_kernel_isa(), r.soa, r.tiles[k].begin, r.tiles[k].end, bins.shadow[k], binned.data());
-        accumulate_log_range(t, rule, shexp::best_kernel_isa(), r.soa, r.tiles[k].begin, r.tiles[k].end, all, full.data());
+        accumulate_log_range(t, rule, techniques::common::best_kernel_isa(), r.soa, r.tiles[k].begin, r.tiles[k].end, bins.shadow[k], binned.data());
+        accumulate_log_range(t, rule, techniques::common::best_kernel_isa(), r.soa, r.tiles[k].begin, r.tiles[k].end, all, full.data());
       }
       float scale = 0.0f;
       for (float v : full) scale = std::max(scale, std::abs(v));
       ASSERT_GT(scale, 0.1f);
       for (std::size_t i = 0; i < full.size(); ++i)
-        ASSERT_NEAR(binned[i], full[i], kRelTol * scale) << "smooth " << smooth << " rule " << shexp::to_string(rule) << " at " << i;
+        ASSERT_NEAR(binned[i], full[i], kRelTol * scale) << "smooth " << smooth << " rule " << techniques::common::to_string(rule) << " at " << i;
 
       IndirectSetup setup;
       setup.order = 3;
       setup.op = IndirectOperator::Exact;
       setup.eta = 6.0;
       setup.smooth_clamp = smooth;
-      setup.rule = rule == shexp::ReplacementRule::Printed ? shexp::ReplacementRule::Continuous : rule;
+      setup.rule = rule == techniques::common::ReplacementRule::Printed ? techniques::common::ReplacementRule::Continuous : rule;
       std::vector<glm::vec3> ltilde(9, glm::vec3(0.0f));
       ltilde[0] = glm::vec3(3.0f, 2.5f, 2.0f);
       ltilde[2] = glm::vec3(1.5f);

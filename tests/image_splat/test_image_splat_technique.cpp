@@ -71,7 +71,7 @@ float check_image(const Image& img, const std::string& what) {
 // The display G-buffer of a scene (the shared pass on the CPU backend).
 render::GBuffer gbuffer_of(const scene::Scene& sc, int w, int h) {
   backends::CpuBackend backend;
-  const render::PassFn* fn = render::find_shared_pass_impl("gbuffer", "cpu");
+  const render::PassFn* fn = render::find_shared_pass_impl("gbuffer", backends::cpu::kBackendName);
   scene::PosedScene posed = scene::evaluate(sc, 0.0);
   render::ParamSet params;
   render::FrameResult result;
@@ -296,7 +296,7 @@ TEST(ImageSplatRender, FullResolutionReceiversMatchPerPixelBruteForce) {
     glm::dvec3 ind(0.0);
     double omega = 0.0;
     for (const auto& sp : posed.proxies[0]) {
-      const auto a = techniques::shexp::apply_replacement_rule(techniques::shexp::ReplacementRule::Continuous, p, N, sp.center, sp.radius);
+      const auto a = techniques::common::apply_replacement_rule(techniques::common::ReplacementRule::Continuous, p, N, sp.center, sp.radius);
       if (!(a.radius > 0.0f)) continue;
       const glm::dvec3 dv = glm::dvec3(a.center) - glm::dvec3(p);
       const double d = glm::length(dv);

@@ -34,7 +34,7 @@ struct Frame {
   }
   void run(const char* pass) {
     backends::CpuBackend backend;  // registers the CPU shared passes
-    const render::PassFn* fn = render::find_shared_pass_impl(pass, "cpu");
+    const render::PassFn* fn = render::find_shared_pass_impl(pass, backends::cpu::kBackendName);
     ASSERT_NE(fn, nullptr) << pass;
     result.passes.push_back(render::PassRecord{pass});
     (*fn)(*ctx);

@@ -21,7 +21,6 @@ namespace {
 
 using namespace softgi;
 using namespace softgi::techniques::image_splat;
-namespace shexp = softgi::techniques::shexp;
 using V3 = sh::Vec3<double>;
 constexpr double kPi = sh::kPi;
 constexpr double kThreshold = 1.0 / 256.0;  // the paper's 8-bit shading difference
@@ -242,7 +241,7 @@ TEST(CoverageOracle, RejectsBadArguments) {
 
 // --- Smooth clamping ----------------------------------------------------------------------------
 
-shexp::ZhTable proxy_vis_table(int n, int rows) {
+techniques::common::ZhTable proxy_vis_table(int n, int rows) {
   sh::Table1D t;
   t.param = sh::TableParam::Theta;
   t.width = n;
@@ -251,14 +250,14 @@ shexp::ZhTable proxy_vis_table(int n, int rows) {
     t.x.push_back(th);
     for (double v : proxy_zh(n, th)) t.data.push_back(v);
   }
-  return shexp::make_zh_table(t, n, true);
+  return techniques::common::make_zh_table(t, n, true);
 }
 
 TEST(SmoothClamp, ZeroAtAndInsideBoundaryUnchangedBeyondRamp) {
   const int n = 4, rows = 256, ramp = 4;
-  const shexp::ZhTable raw = proxy_vis_table(n, rows);
+  const techniques::common::ZhTable raw = proxy_vis_table(n, rows);
   for (double eta : {10.0, 15.0, 28.0}) {
-    const shexp::ZhTable c = clamp_zh_table(raw, eta, ramp);
+    const techniques::common::ZhTable c = clamp_zh_table(raw, eta, ramp);
     const double tb = std::asin(1.0 / eta);
     std::array<float, 8> out{};
     for (int i = 0; i <= 400; ++i) {
@@ -317,8 +316,8 @@ TEST(SmoothClamp, ContributionIsContinuousAcrossTheBoundaryOfInfluence) {
   lt[2] = glm::vec3(1.0f, 0.5f, 0.25f);  // plus a linear term along z
   ProxyList list;
   list.push(glm::vec3(0.0f, 0.0f, 1.0f), 0.1f, glm::vec3(1.0f));
-  const shexp::ZhTable raw = proxy_vis_table(n, 256);
-  const shexp::ZhTable clamped = clamp_zh_table(raw, eta, 4);
+  const techniques::common::ZhTable raw = proxy_vis_table(n, 256);
+  const techniques::common::ZhTable clamped = clamp_zh_table(raw, eta, 4);
   std::vector<double> lip(n, 0.0);
   for (int l = 0; l < n; ++l)
     for (int k = 0; k < clamped.rows; ++k)
@@ -342,7 +341,7 @@ TEST(SmoothClamp, ContributionIsContinuousAcrossTheBoundaryOfInfluence) {
     const IndirectEvaluator ev(s, lt);
     // Receiver below the proxy at distance from 0.6 eta r to 1.4 eta r, normal towards it.
     const int steps = 400;
-    shexp::ReceiverSoA rec;
+    techniques::common::ReceiverSoA rec;
     rec.resize(steps + 1);
     std::vector<double> theta(steps + 1);
     for (int i = 0; i <= steps; ++i) {
@@ -561,7 +560,7 @@ std::vector<PairCase> random_pairs(std::mt19937& rng, int count) {
 }
 
 std::array<float, 4> eval_one(const IndirectEvaluator& ev, const PairCase& pc, const glm::vec3& albedo) {
-  shexp::ReceiverSoA rec;
+  techniques::common::ReceiverSoA rec;
   rec.resize(1);
   rec.set(0, to_glm(pc.p), to_glm(pc.N));
   ProxyList list;
@@ -668,7 +667,7 @@ TEST(IndirectEvaluator, RangeInfluenceAndEliminatedProxies) {
   s.op = IndirectOperator::AveragedExact;
   s.eta = 10.0;
   const IndirectEvaluator ev(s, lt);
-  shexp::ReceiverSoA rec;
+  techniques::common::ReceiverSoA rec;
   rec.resize(4);
   for (int i = 0; i < 4; ++i) rec.set(i, glm::vec3(0.0f, 0.0f, -0.6f * i), glm::vec3(0.0f, 0.0f, 1.0f));
   ProxyList list;
@@ -702,7 +701,7 @@ TEST(IndirectEvaluator, RejectsBadInput) {
   bad[4].x = INFINITY;
   EXPECT_THROW(IndirectEvaluator(s, bad), std::invalid_argument);
   const IndirectEvaluator ev(s, lt3);
-  shexp::ReceiverSoA rec;
+  techniques::common::ReceiverSoA rec;
   rec.resize(2);
   ProxyList list;
   list.push(glm::vec3(std::nanf("")), 1.0f, glm::vec3(1.0f));

@@ -15,7 +15,7 @@ namespace {
 
 // Linear precision of MVC holds exactly for closed meshes; what is left is double rounding over a
 // few thousand triangles, amplified near the surface (measured <= 4e-12 down to 1e-8 from a face; a
-// transcription of Ju et al.'s asin/half-angle pseudo-code missed by 1e-6 at 1e-6 from a face). In
+// transcription of Ju, Schaefer and Warren 2005's asin/half-angle pseudo-code missed by 1e-6 at 1e-6 from a face). In
 // mesh units.
 constexpr double kReproduceTol = 1e-9;
 constexpr double kSumTol = 1e-9;

@@ -1,5 +1,5 @@
 // SH exponential (every method of paper 004 section 4) and logarithm (section 5), against the
-// exact eigen reference (eq. 28), over the cap sweeps of the issue, plus stiff and invalid inputs.
+// exact eigen reference (eq. 28), over the cap sweeps of exp_sweep.hpp, plus stiff and invalid inputs.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -18,7 +18,7 @@ namespace {
 // PS-p with p = 60 converges to exp(M_f) 1 (eq. 28) for ||f|| <= 3: the remainder 3^61/61! < 1e-54, so
 // only rounding is left.
 constexpr double kSeriesVsExactTol = 1e-10;
-// Mean visibility must stay in [0, 1] up to this much (issue requirement).
+// Mean visibility must stay in [0, 1] up to this much (a visibility is a fraction of the sphere).
 constexpr double kMeanSlack = 1e-3;
 // float against double for the same method: float epsilon 1.2e-7 amplified by the up to ~10
 // squarings of stiff inputs (each squaring doubles the relative error): 1e-3 of a unit-range result.
@@ -144,7 +144,7 @@ TEST(ExpMethods, SweepsAgainstExactReference) {
   }
 }
 
-TEST(ExpMethods, IssueTargetHybUnder002OnCapsTo50DegAtOrder4) {
+TEST(ExpMethods, HybUnder002OnCapsTo50DegAtOrder4) {
   auto singles = single_cap_sweep(4, 0.5);
   std::vector<double> g(16), ex(16);
   for (const auto& in : singles) {

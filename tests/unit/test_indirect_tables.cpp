@@ -172,7 +172,7 @@ TEST(IndirectTables, DLimits) {
       EXPECT_NEAR(d1[l], y_l0(l, -1.0), kExactTol) << "order " << order << " l " << l;
     }
   }
-  // The named limits of the brief.
+  // Closed-form limits of D at alpha = 0 (paper 000 section 5).
   EXPECT_NEAR(indirect_D_quadrature(3, 0.0)[0], 1.0 / (2.0 * std::sqrt(kPi)), kExactTol);
   EXPECT_NEAR(indirect_D_quadrature(3, 0.0)[1], -2.0 / 3.0 * std::sqrt(3.0 / (4.0 * kPi)), kExactTol);
   // Continuity: D is smooth in alpha at 0 (|dD/dalpha| < 1), so alpha = 1e-7 is within 1e-6 of the limit.

@@ -19,9 +19,9 @@
 #endif
 
 namespace spv {
-#include "softgi/shaders/reflect_mix_comp.h"
-#include "softgi/shaders/saxpy_comp.h"
-#include "softgi/shaders/spin_comp.h"
+#include "softgi/shaders/test/reflect_mix_comp.h"
+#include "softgi/shaders/test/saxpy_comp.h"
+#include "softgi/shaders/test/spin_comp.h"
 }  // namespace spv
 
 using namespace softgi;
@@ -83,7 +83,7 @@ TEST(VulkanDevices, ContextRejectsAnUnknownDevice) {
 }
 
 TEST(SpirvReflection, ReadsBindingsPushConstantsAndLocalSizeFromTheShader) {
-  const ShaderReflection r = reflect_spirv(words(spv::reflect_mix_comp));
+  const ShaderReflection r = reflect_spirv(words(spv::test_reflect_mix_comp));
   EXPECT_EQ(r.stage, VK_SHADER_STAGE_COMPUTE_BIT);
   EXPECT_EQ(r.entry_point, "main");
   EXPECT_EQ(r.local_size[0], 8u);
@@ -106,7 +106,7 @@ TEST(SpirvReflection, ReadsBindingsPushConstantsAndLocalSizeFromTheShader) {
     EXPECT_EQ(r.bindings[i].type, want[i].type) << i;
     EXPECT_EQ(r.bindings[i].count, want[i].count) << i;
   }
-  const ShaderReflection s = reflect_spirv(words(spv::saxpy_comp));
+  const ShaderReflection s = reflect_spirv(words(spv::test_saxpy_comp));
   EXPECT_EQ(s.push_constant_size, 8u);
   EXPECT_EQ(s.local_size[0], 64u);
   ASSERT_EQ(s.bindings.size(), 2u);
@@ -117,7 +117,7 @@ TEST(SpirvReflection, ReadsBindingsPushConstantsAndLocalSizeFromTheShader) {
 TEST(SpirvReflection, RejectsWhatIsNotSpirv) {
   const std::vector<std::uint32_t> junk = {1, 2, 3, 4, 5, 6};
   EXPECT_THROW(reflect_spirv(junk), std::invalid_argument);
-  std::vector<std::uint32_t> truncated(spv::saxpy_comp, spv::saxpy_comp + 12);
+  std::vector<std::uint32_t> truncated(spv::test_saxpy_comp, spv::test_saxpy_comp + 12);
   truncated.back() = 0xffff0000u | 17u;  // claims 65535 words
   EXPECT_THROW(reflect_spirv(truncated), std::invalid_argument);
 }
@@ -131,7 +131,7 @@ TEST_F(ValidatedTest, ComputeRoundTripMatchesTheClosedForm) {
     y[i] = std::sin(0.1f * i);
   }
   const float a = 1.75f;
-  ComputePipeline p(ctx(), words(spv::saxpy_comp), "saxpy");
+  ComputePipeline p(ctx(), words(spv::test_saxpy_comp), "saxpy");
   for (MemoryKind kind : {MemoryKind::Device, MemoryKind::Host}) {
     Buffer bx = ctx().create_buffer(n * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, kind, "x");
     Buffer by = ctx().create_buffer(n * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, kind, "y");
@@ -165,7 +165,7 @@ TEST_F(ValidatedTest, ComputeRoundTripMatchesTheClosedForm) {
 }
 
 TEST_F(ValidatedTest, DispatchChecksBindingsAndPushConstantsAgainstTheShader) {
-  ComputePipeline p(ctx(), words(spv::saxpy_comp), "saxpy");
+  ComputePipeline p(ctx(), words(spv::test_saxpy_comp), "saxpy");
   Buffer b = ctx().create_buffer(256, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryKind::Device, "b");
   struct {
     std::uint32_t n;
@@ -210,12 +210,12 @@ TEST(VulkanValidation, NoLeakedObjectsAfterNormalUse) {
   {
     auto ctx = softgi::testing::validated_context();
     log = ctx->validation_log();
-    ComputePipeline p(*ctx, words(spv::saxpy_comp), "saxpy");
+    ComputePipeline p(*ctx, words(spv::test_saxpy_comp), "saxpy");
     Buffer x = ctx->create_buffer(64 * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryKind::Device, "x");
     Buffer y = ctx->create_buffer(64 * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryKind::Host, "y");
-    Image im = ctx->create_image(8, 8, VK_FORMAT_R32G32B32A32_SFLOAT, VK_IMAGE_USAGE_STORAGE_BIT, VK_IMAGE_ASPECT_COLOR_BIT, "im");
+    backends::vulkan::Image im = ctx->create_image(8, 8, VK_FORMAT_R32G32B32A32_SFLOAT, VK_IMAGE_USAGE_STORAGE_BIT, VK_IMAGE_ASPECT_COLOR_BIT, "im");
     // Objects kept in the context's cache are destroyed with it, before the device.
-    ctx->cached<ComputePipeline>("saxpy", [&] { return std::make_shared<ComputePipeline>(*ctx, words(spv::saxpy_comp), "cached"); });
+    ctx->cached<ComputePipeline>("saxpy", [&] { return std::make_shared<ComputePipeline>(*ctx, words(spv::test_saxpy_comp), "cached"); });
     ctx->cached<Buffer>("buf", [&] {
       return std::make_shared<Buffer>(ctx->create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryKind::Device, "cached"));
     });
@@ -274,7 +274,7 @@ TEST(VulkanSubmit, AHangBecomesAnErrorAfterTheFenceTimeout) {
   auto ctx = softgi::testing::validated_context(kTimeoutSeconds);
   std::shared_ptr<ValidationLog> log = ctx->validation_log();
   {
-    ComputePipeline p(*ctx, words(spv::spin_comp), "spin");
+    ComputePipeline p(*ctx, words(spv::test_spin_comp), "spin");
     // Loop iterations in all: 4e9 on a CPU device (about 0.2 s on lavapipe with 2 cores), 1e12 on a
     // GPU (about a second on a large one): at least 10x the timeout either way.
     const bool gpu = ctx->device_info().is_gpu();

@@ -66,8 +66,7 @@ constexpr int kWidth = 40, kHeight = 30;
 class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatParity> {
  protected:
   static void SetUpTestSuite() {
-    static backends::CpuBackend registers_cpu_shared_passes;  // the Embree G-buffer passes under "cpu"
-    (void)registers_cpu_shared_passes;
+    backends::register_cpu_backend();  // the Embree G-buffer passes
     ValidatedParamSuite::SetUpTestSuite();
     tech_ = is::create();  // one instance for all scenes: its tables are cached by order
   }
@@ -90,22 +89,21 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
     render::PassGraph graph = tech_->plan(sc, params, empty);
     const render::CompiledGraph cg = graph.compile({render::kFinal}, empty);
     render::FrameResult result;
-    render::FrameContext ctx(sc, posed, params, kWidth, kHeight, result);
-    ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+    render::FrameContext ctx(sc, posed, params, kWidth, kHeight, result, ctx_.get());
     Run out;
     for (int idx : cg.order) {
       const render::PassDesc& pass = graph.passes()[idx];
       result.passes.push_back(render::PassRecord{pass.name});
       if (pass.impl.empty()) {  // shared passes (G-buffers): the CPU implementation feeds both
-        const render::PassFn* fn = render::find_shared_pass_impl(pass.name, "cpu");
+        const render::PassFn* fn = render::find_shared_pass_impl(pass.name, backends::cpu::kBackendName);
         EXPECT_NE(fn, nullptr) << pass.name;
         if (!fn) return out;
         (*fn)(ctx);
         continue;
       }
-      EXPECT_TRUE(pass.impl.count("cpu") && pass.impl.count("vulkan")) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
-      if (!pass.impl.count("cpu") || !pass.impl.count("vulkan")) return out;
-      pass.impl.at("cpu")(ctx);
+      EXPECT_TRUE(pass.impl.count(render::kHostImpl)) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
+      if (!pass.impl.count(render::kHostImpl)) return out;
+      pass.impl.at(render::kHostImpl)(ctx);
       if (pass.name == "upsample") {
         compare_upsample(ctx, params, pass, result, scene_name, label);
         ++out.compared;
@@ -120,7 +118,7 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
       const std::string res = pass.writes.at(0);
       auto cpu_res = ctx.get<std::shared_ptr<const is::Field>>(res);
       result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
-      pass.impl.at("vulkan")(ctx);
+      softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
       auto gpu_res = ctx.get<std::shared_ptr<const is::Field>>(res);
       EXPECT_NE(cpu_res, gpu_res);
       EXPECT_EQ(cpu_res->channels, gpu_res->channels);
@@ -165,7 +163,7 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
     const std::string res = pass.writes.at(0);
     auto cpu = ctx.get<std::shared_ptr<const is::Upsampled>>(res);
     result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
-    pass.impl.at("vulkan")(ctx);
+    softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
     auto gpu = ctx.get<std::shared_ptr<const is::Upsampled>>(res);
     ASSERT_NE(cpu, gpu);
     EXPECT_EQ(cpu->surface, gpu->surface);
@@ -174,7 +172,7 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
     // The GPU's own miss measure, for the pixels where the decisions differ.
     const is::Settings st = is::read_settings(params);
     std::vector<float> measure;
-    is::vulkan_upsample_weights(ctx, plane(ctx.get<render::GBuffer>(render::kReceiverGBuffer)), plane(ctx.get<render::GBuffer>(render::kGBuffer)),
+    softgi::techniques::common::vulkan_upsample_weights(ctx, plane(ctx.get<render::GBuffer>(render::kReceiverGBuffer)), plane(ctx.get<render::GBuffer>(render::kGBuffer)),
                                 st.upsample, &measure);
     const double thr = st.upsample.miss_threshold;
     double worst_w = 0.0;
@@ -228,7 +226,7 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
     const Image cpu = ctx.get<Image>(res);
     const double cpu_clamped = result.passes.back().counters["pixels_clamped"];
     result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
-    pass.impl.at("vulkan")(ctx);
+    softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
     const Image& gpu = ctx.get<Image>(res);
     ASSERT_EQ(cpu.rgb.size(), gpu.rgb.size());
     const auto flat = [](const Image& im) {
@@ -331,19 +329,18 @@ TEST_F(ImageSplatParity, UpsampleOnVulkanRejectsBadInput) {
   const scene::PosedScene posed = scene::evaluate(sc, 0.0);
   const render::ParamSet params = params_for(4);
   render::FrameResult result;
-  render::FrameContext ctx(sc, posed, params, 4, 4, result);
-  ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+  render::FrameContext ctx(sc, posed, params, 4, 4, result, ctx_.get());
   result.passes.push_back(render::PassRecord{"upsample"});
   // A 4x4 display buffer over a 2x2 receiver buffer, all facing the camera at depth 2.
   std::vector<float> fdepth(16, 2.0f), cdepth(4, 2.0f);
   std::vector<glm::vec3> fnormal(16, glm::vec3(0, 0, 1)), cnormal(4, glm::vec3(0, 0, 1));
   is::PlaneView fine{4, 4, 1, fdepth.data(), fnormal.data()}, coarse{2, 2, 2, cdepth.data(), cnormal.data()};
   const is::UpsampleOptions opt;
-  const is::UpsampleWeights ok = is::vulkan_upsample_weights(ctx, coarse, fine, opt);
+  const is::UpsampleWeights ok = softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, opt);
   EXPECT_EQ(ok.misses, 0u);
   const auto expect_error = [&](const std::string& needle) {
     try {
-      is::vulkan_upsample_weights(ctx, coarse, fine, opt);
+      softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, opt);
       ADD_FAILURE() << "no error; expected one mentioning '" << needle << "'";
     } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
@@ -358,7 +355,7 @@ TEST_F(ImageSplatParity, UpsampleOnVulkanRejectsBadInput) {
   fine.width = 7;  // 7 display pixels do not fit 2 receiver pixels of scale 2
   expect_error("do not cover the same display area");
   fine.width = 4;
-  EXPECT_EQ(is::vulkan_upsample_weights(ctx, coarse, fine, opt).misses, 0u) << "the context is usable after the errors";
+  EXPECT_EQ(softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, opt).misses, 0u) << "the context is usable after the errors";
 }
 
 }  // namespace

@@ -31,7 +31,6 @@
 
 using namespace softgi;
 namespace is = softgi::techniques::image_splat;
-namespace shexp = softgi::techniques::shexp;
 
 namespace {
 
@@ -74,8 +73,7 @@ double compare_rows(const std::vector<float>& cpu, const std::vector<float>& gpu
 class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
  protected:
   static void SetUpTestSuite() {
-    static backends::CpuBackend registers_cpu_shared_passes;  // the Embree G-buffer passes under "cpu"
-    (void)registers_cpu_shared_passes;
+    backends::register_cpu_backend();  // the Embree G-buffer passes
     ctx_ = softgi::testing::validated_context();
     log_ = ctx_->validation_log();
     tech_ = is::create();
@@ -100,27 +98,26 @@ class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
     render::PassGraph graph = tech_->plan(sc, params, empty);
     const render::CompiledGraph cg = graph.compile({render::kFinal}, empty);
     render::FrameResult result;
-    render::FrameContext ctx(sc, posed, params, kWidth, kHeight, result);
-    ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+    render::FrameContext ctx(sc, posed, params, kWidth, kHeight, result, ctx_.get());
     Run out;
     for (int idx : cg.order) {
       const render::PassDesc& pass = graph.passes()[idx];
       result.passes.push_back(render::PassRecord{pass.name});
       if (pass.impl.empty()) {
-        const render::PassFn* fn = render::find_shared_pass_impl(pass.name, "cpu");
+        const render::PassFn* fn = render::find_shared_pass_impl(pass.name, backends::cpu::kBackendName);
         EXPECT_NE(fn, nullptr) << pass.name;
         if (!fn) return out;
         (*fn)(ctx);
         continue;
       }
-      EXPECT_TRUE(pass.impl.count("cpu") && pass.impl.count("vulkan")) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
-      if (!pass.impl.count("cpu") || !pass.impl.count("vulkan")) return out;
-      pass.impl.at("cpu")(ctx);
+      EXPECT_TRUE(pass.impl.count(render::kHostImpl)) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
+      if (!pass.impl.count(render::kHostImpl)) return out;
+      pass.impl.at(render::kHostImpl)(ctx);
       if (pass.name != "accumulate_indirect") continue;
       const double cpu_inside = result.passes.back().counters["pairs_inside_influence"];
       auto cpu_res = ctx.get<std::shared_ptr<const is::IndirectSums>>(pass.writes.at(0));
       result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
-      pass.impl.at("vulkan")(ctx);
+      softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
       auto gpu_res = ctx.get<std::shared_ptr<const is::IndirectSums>>(pass.writes.at(0));
       EXPECT_NE(cpu_res, gpu_res);
       EXPECT_GT(cpu_res->omega.size(), 0u) << "the parity frame has no receivers";
@@ -220,7 +217,7 @@ TEST_F(ImageSplatParity2, ExactTablesAreExposedForTheUpload) {
   }
 }
 
-// Every replacement rule (the shared GLSL port of shexp::apply_replacement_rule), every operator
+// Every replacement rule (the shared GLSL port of techniques::common::apply_replacement_rule), every operator
 // and indirect orders 3 and 6, on random receivers around random proxies in one tile: receivers
 // inside proxies, proxies straddling and behind the tangent plane, with and without a sphere of
 // influence (smooth and hard cut).
@@ -249,18 +246,17 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
   const scene::PosedScene posed = scene::evaluate(sc, 0.0);
   const render::ParamSet params = render::default_params(*tech_);
   render::FrameResult result;
-  render::FrameContext ctx(sc, posed, params, 4, 4, result);
-  ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+  render::FrameContext ctx(sc, posed, params, 4, 4, result, ctx_.get());
   result.passes.push_back(render::PassRecord{"accumulate_indirect"});
   int cases = 0;
   std::map<std::string, std::pair<double, double>> worst;  // per operator: rgb, omega
-  for (auto rule : {shexp::ReplacementRule::Off, shexp::ReplacementRule::Continuous, shexp::ReplacementRule::Clamped, shexp::ReplacementRule::Printed})
+  for (auto rule : {techniques::common::ReplacementRule::Off, techniques::common::ReplacementRule::Continuous, techniques::common::ReplacementRule::Clamped, techniques::common::ReplacementRule::Printed})
     for (auto op : {is::IndirectOperator::PointSampled, is::IndirectOperator::AveragedExact, is::IndirectOperator::AveragedPolynomial,
                     is::IndirectOperator::Exact})
       for (int n : {3, 6}) {  // 4 is in the scene test; each order is a pipeline to compile
         if (op == is::IndirectOperator::AveragedPolynomial && n != 3) continue;
         for (const auto& [eta, smooth] : {std::pair<double, bool>{0.0, true}, {4.0, true}, {4.0, false}}) {
-          const std::string label = std::string(shexp::to_string(rule)) + " " + is::to_string(op) + " n" + std::to_string(n) + " eta " +
+          const std::string label = std::string(techniques::common::to_string(rule)) + " " + is::to_string(op) + " n" + std::to_string(n) + " eta " +
                                     std::to_string(eta) + (smooth ? "" : " hard");
           SCOPED_TRACE(label);
           is::IndirectSetup setup;
@@ -280,7 +276,7 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
                     kPairCountRelTol * static_cast<double>(inside) + 2.0);
           if (wr > 1e-4 || wo > 1e-4) std::printf("[parity2] %-40s worst rgb %.3g omega %.3g\n", label.c_str(), wr, wo);
           // Rule off separately: no rule-adjusted tangent spheres, so no ill-conditioned asin.
-          for (const std::string& key : {std::string(is::to_string(op)) + (rule == shexp::ReplacementRule::Off ? ", rule off" : ""),
+          for (const std::string& key : {std::string(is::to_string(op)) + (rule == techniques::common::ReplacementRule::Off ? ", rule off" : ""),
                                          std::string(is::to_string(op))}) {
             auto& w = worst[key];
             w = {std::max(w.first, wr), std::max(w.second, wo)};
@@ -299,8 +295,7 @@ TEST_F(ImageSplatParity2, AccumulateIndirectOnVulkanRejectsBadInput) {
   const scene::PosedScene posed = scene::evaluate(sc, 0.0);
   const render::ParamSet params = render::default_params(*tech_);
   render::FrameResult result;
-  render::FrameContext ctx(sc, posed, params, 4, 4, result);
-  ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+  render::FrameContext ctx(sc, posed, params, 4, 4, result, ctx_.get());
   result.passes.push_back(render::PassRecord{"accumulate_indirect"});
   is::ReceiverBuffer r;
   r.soa.resize(1);

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "../../techniques/common/accumulation_vulkan.hpp"
 #include "../../techniques/shexp/shexp_passes.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/backends/vulkan/context.hpp"
@@ -72,13 +73,12 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
     render::PassGraph graph = tech->plan(sc, params, empty);
     const render::CompiledGraph cg = graph.compile({"shexp.vertex_shading"}, empty);
     render::FrameResult result;
-    render::FrameContext ctx(sc, posed, params, 8, 8, result);
-    ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+    render::FrameContext ctx(sc, posed, params, 8, 8, result, ctx_.get());
     for (int idx : cg.order) {
       const render::PassDesc& pass = graph.passes()[idx];
-      ASSERT_TRUE(pass.impl.count("cpu") && pass.impl.count("vulkan")) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
+      ASSERT_TRUE(pass.impl.count(render::kHostImpl)) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
       result.passes.push_back(render::PassRecord{pass.name});
-      pass.impl.at("cpu")(ctx);
+      pass.impl.at(render::kHostImpl)(ctx);
       const std::string out = pass.writes.at(0);
       if (pass.name != "accumulate_log" && pass.name != "exponentiate" && pass.name != "shade") continue;
       // The same pass on Vulkan, from the same inputs; then the CPU output goes back so that the
@@ -89,7 +89,7 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
       if (pass.name == "shade") {
         auto cpu_res = ctx.get<std::shared_ptr<const sx::Shading>>(out);
         result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
-        pass.impl.at("vulkan")(ctx);
+        softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
         auto gpu_res = ctx.get<std::shared_ptr<const sx::Shading>>(out);
         ASSERT_NE(cpu_res, gpu_res);
         cpu = flatten(cpu_res->irradiance);
@@ -100,7 +100,7 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
       } else {
         auto cpu_res = ctx.get<std::shared_ptr<const sx::Field>>(out);
         result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
-        pass.impl.at("vulkan")(ctx);
+        softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
         auto gpu_res = ctx.get<std::shared_ptr<const sx::Field>>(out);
         ASSERT_NE(cpu_res, gpu_res);
         EXPECT_EQ(cpu_res->order, gpu_res->order);
@@ -147,8 +147,7 @@ TEST_F(ShexpParity, ShadingWithSphericalLightsMatchesTheCpuOnRandomInput) {
   const scene::PosedScene posed = scene::evaluate(sc, 0.0);
   render::ParamSet params;
   render::FrameResult result;
-  render::FrameContext ctx(sc, posed, params, 4, 4, result);
-  ctx.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+  render::FrameContext ctx(sc, posed, params, 4, 4, result, ctx_.get());
   std::mt19937 rng(20261201);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f), u01(0.0f, 1.0f);
   const auto unit = [&] {
@@ -194,7 +193,7 @@ TEST_F(ShexpParity, ShadingWithSphericalLightsMatchesTheCpuOnRandomInput) {
       sx::shade_batch(sx::KernelIsa::Scalar, bs, soa, 0, count, cpu.data());
       const long long cpu_clamped = sx::add_lights_and_clamp(&lt, lights, order, gwin.data(), soa, 0, count, bs.g, true, cpu.data());
       result.passes.push_back(render::PassRecord{"shade@vulkan"});
-      const long long gpu_clamped = sx::vulkan_shade(ctx, sx::GpuShade{&bs, &lt, &lights, true, nullptr}, soa, gpu.data());
+      const long long gpu_clamped = techniques::common::vulkan_shade(ctx, sx::GpuShade{&bs, &lt, &lights, true, nullptr}, soa, gpu.data());
       std::vector<float> a, b;
       for (std::size_t i = 0; i < count; ++i) {
         a.insert(a.end(), {cpu[i].x, cpu[i].y, cpu[i].z});

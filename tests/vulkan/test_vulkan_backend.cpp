@@ -40,7 +40,7 @@ TEST(VulkanBackend, RendersAShexpFrameLikeTheCpuBackendWithGpuTimes) {
   {
     backends::VulkanBackend vk(ctx);
     backends::CpuBackend cpu;
-    EXPECT_EQ(vk.name(), "vulkan");
+    EXPECT_EQ(vk.name(), backends::vulkan::kBackendName);
     EXPECT_EQ(vk.device_record().at("name"), ctx->device_info().name);
     const scene::Scene sc = scene::make_builtin("spheres");
     auto tech = sx::create();
@@ -50,7 +50,7 @@ TEST(VulkanBackend, RendersAShexpFrameLikeTheCpuBackendWithGpuTimes) {
     req.height = 36;
     const render::FrameResult a = vk.render(*tech, sc, params, req);
     const render::FrameResult b = cpu.render(*tech, sc, params, req);
-    EXPECT_EQ(a.backend, "vulkan");
+    EXPECT_EQ(a.backend, backends::vulkan::kBackendName);
     ASSERT_EQ(a.passes.size(), b.passes.size());
     const std::set<std::string> gpu_passes = {"gbuffer", "accumulate_log", "exponentiate", "shade"};
     for (std::size_t i = 0; i < a.passes.size(); ++i) {
@@ -74,6 +74,70 @@ TEST(VulkanBackend, RendersAShexpFrameLikeTheCpuBackendWithGpuTimes) {
       }
     ASSERT_GT(peak, 0.0);
     EXPECT_LE(diff, kFrameRelTol * peak);
+  }
+  ctx.reset();
+  EXPECT_EQ(log->problems(), 0u) << log->summary();
+}
+
+// Device-resident frames: on Vulkan, SHEXP's log vectors and visibility stay in device memory from
+// accumulate_log through exponentiate to shade (no pass downloads them), inputs that did not change
+// since the last frame are not uploaded again, and an intermediate asked for explicitly is read back
+// after the last pass and matches the CPU backend's.
+TEST(VulkanBackend, ShexpIntermediatesStayOnTheDeviceUnlessRequested) {
+  auto ctx = softgi::testing::validated_context();
+  auto log = ctx->validation_log();
+  {
+    backends::VulkanBackend vk(ctx);
+    backends::CpuBackend cpu;
+    const scene::Scene sc = scene::make_builtin("spheres");  // static: nothing moves between frames
+    auto tech = sx::create();
+    const render::ParamSet params = render::default_params(*tech);
+    render::RenderRequest req;
+    req.width = 48;
+    req.height = 36;
+    vk.render(*tech, sc, params, req);  // uploads tables, receivers and blockers
+    const render::FrameResult second = vk.render(*tech, sc, params, req);
+    std::map<std::string, render::TransferBytes> by_pass;
+    render::TransferBytes sum;
+    for (const auto& p : second.passes) {
+      by_pass[p.name] = p.transfer;
+      sum += p.transfer;
+    }
+    ASSERT_TRUE(by_pass.count("accumulate_log") && by_pass.count("exponentiate") && by_pass.count("shade"));
+    const auto& rec = second.passes;
+    std::size_t receivers = 0;
+    for (const auto& p : rec)
+      if (p.name == "shade") receivers = static_cast<std::size_t>(p.counters.at("receivers"));
+    ASSERT_GT(receivers, 0u);
+    const std::size_t field_bytes = receivers * 16 * sizeof(float);  // one order-4 SH vector per receiver
+    // Nothing of the accumulation crosses the bus: the receivers, cuts and tables are on the device
+    // already, and the log vectors stay there.
+    EXPECT_EQ(by_pass["accumulate_log"].upload, 0u);
+    EXPECT_EQ(by_pass["accumulate_log"].download, 0u);
+    // exponentiate reads only its status words back (4 uint32), never the visibility.
+    EXPECT_EQ(by_pass["exponentiate"].download, 4 * sizeof(std::uint32_t));
+    // shade reads back its result (4 floats per receiver) and its clamp count, not the visibility.
+    EXPECT_LT(by_pass["shade"].download, field_bytes);
+    EXPECT_EQ(second.transfer.upload, sum.upload);
+    EXPECT_EQ(second.transfer.download, sum.download);
+
+    // The visibility asked for explicitly: read back once, after the last pass.
+    render::RenderRequest with_vis = req;
+    with_vis.outputs = {"final", "shexp.visibility"};
+    const render::FrameResult v = vk.render(*tech, sc, params, with_vis);
+    const render::FrameResult c = cpu.render(*tech, sc, params, with_vis);
+    render::TransferBytes vsum;
+    for (const auto& p : v.passes) vsum += p.transfer;
+    EXPECT_EQ(v.transfer.download - vsum.download, field_bytes) << "the requested visibility is read back after the passes";
+    ASSERT_TRUE(v.resources.count("shexp.visibility") && c.resources.count("shexp.visibility"));
+    const auto& gv = *std::any_cast<std::shared_ptr<const sx::Field>>(v.resources.at("shexp.visibility"));
+    const auto& cv = *std::any_cast<std::shared_ptr<const sx::Field>>(c.resources.at("shexp.visibility"));
+    ASSERT_EQ(gv.v.size(), cv.v.size());
+    ASSERT_EQ(gv.v.size(), receivers * 16);
+    // The per-pass parity tolerances of accumulate_log and exponentiate (vulkan_test_util.hpp) added, per
+    // receiver: both ran on the device one after the other, so their differences add.
+    const softgi::testing::Compared cmp = softgi::testing::compare_rows(cv.v, gv.v, 16);
+    EXPECT_LE(cmp.worst, softgi::testing::kAccumulateRelTol + softgi::testing::kExpRelTol) << "receiver " << cmp.worst_index;
   }
   ctx.reset();
   EXPECT_EQ(log->problems(), 0u) << log->summary();
@@ -137,17 +201,28 @@ TEST(VulkanBackend, RendersAnImageSplatFrameLikeTheCpuBackend) {
   EXPECT_EQ(log->problems(), 0u) << log->summary();
 }
 
-TEST(VulkanBackend, EveryShexpPassHasBothImplementationsInEveryMode) {
+// Every pass runs on Vulkan: its own implementation for the GPU passes (accumulate_log, the
+// exponentials the shader has, shade), the host one for the rest; the shared G-buffer is the
+// backend's.
+TEST(VulkanBackend, EveryShexpPassHasAnImplementationOnVulkanInEveryMode) {
   auto tech = sx::create();
   const scene::Scene sc = scene::make_builtin("cornell");  // has a spherical light: every pass present
+  const std::string vk = backends::vulkan::kBackendName;
   for (const char* exp : {"hyb", "ol", "ps*", "ps", "exact", "product", "projected"}) {
     render::ParamSet params = render::default_params(*tech);
     params.set("exp", exp);
     std::set<std::string> empty;
     const render::PassGraph g = tech->plan(sc, params, empty);
+    const std::string e = exp;
+    const std::set<std::string> gpu = {"accumulate_log", "shade"};
     for (const auto& p : g.passes()) {
-      if (p.name == "gbuffer") continue;  // shared: registered by the backend libraries
-      EXPECT_TRUE(p.impl.count("cpu") && p.impl.count("vulkan")) << "exp=" << exp << ": pass '" << p.name << "'";
+      if (p.name == "gbuffer") {
+        EXPECT_NE(render::find_shared_pass_impl(p.name, vk), nullptr);
+        continue;
+      }
+      EXPECT_TRUE(p.impl.count(render::kHostImpl)) << "exp=" << exp << ": pass '" << p.name << "' has no host implementation";
+      const bool device = gpu.count(p.name) || (p.name == "exponentiate" && e != "exact");
+      EXPECT_EQ(p.impl.count(vk), device ? 1u : 0u) << "exp=" << exp << ": pass '" << p.name << "'";
     }
   }
 }
@@ -165,11 +240,10 @@ TEST(VulkanBackend, MoreBlockersThanTheDeviceBufferHoldsIsAClearError) {
     const render::PassGraph graph = tech->plan(sc, params, empty);
     const render::CompiledGraph cg = graph.compile({"shexp.cuts"}, empty);
     render::FrameResult result;
-    render::FrameContext fc(sc, posed, params, 8, 8, result);
-    fc.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx);
+    render::FrameContext fc(sc, posed, params, 8, 8, result, ctx.get());
     for (int idx : cg.order) {
       result.passes.push_back(render::PassRecord{graph.passes()[idx].name});
-      graph.passes()[idx].impl.at("cpu")(fc);
+      graph.passes()[idx].impl.at(render::kHostImpl)(fc);
     }
     // One cut holding more spheres (16 bytes each on the device) than maxStorageBufferRange allows.
     const std::size_t n = ctx->device_info().limits.maxStorageBufferRange / 16 + 1;
@@ -191,7 +265,7 @@ TEST(VulkanBackend, MoreBlockersThanTheDeviceBufferHoldsIsAClearError) {
     ASSERT_NE(acc, nullptr);
     result.passes.push_back(render::PassRecord{"accumulate_log"});
     try {
-      acc->impl.at("vulkan")(fc);
+      acc->impl.at(backends::vulkan::kBackendName)(fc);
       ADD_FAILURE() << "no error for " << n << " blockers";
     } catch (const std::invalid_argument& e) {
       const std::string what = e.what();

@@ -80,8 +80,8 @@ class VulkanGBuffer : public ValidatedTest {
  protected:
   void SetUp() override {
     ValidatedTest::SetUp();
-    cpu_ = std::make_unique<backends::CpuBackend>();                // registers the CPU shared passes
-    vulkan_ = std::make_unique<backends::VulkanBackend>(ctx_);       // registers the Vulkan ones
+    cpu_ = std::make_unique<backends::CpuBackend>();
+    vulkan_ = std::make_unique<backends::VulkanBackend>(ctx_);
   }
   void TearDown() override {
     vulkan_.reset();
@@ -99,8 +99,7 @@ class VulkanGBuffer : public ValidatedTest {
     render::ParamSet params({render::ParamDesc::integer("receiver_scale", 1, 1, 64, "receiver buffer scale")});
     params.set("receiver_scale", std::to_string(scale));
     render::FrameResult result;
-    render::FrameContext fc(sc, posed, params, w, h, result);
-    fc.put<std::shared_ptr<backends::vulkan::Context>>(backends::vulkan::kFrameContextResource, ctx_);
+    render::FrameContext fc(sc, posed, params, w, h, result, ctx_.get());
     result.passes.push_back(render::PassRecord{pass});
     (*fn)(fc);
     if (rec) *rec = result.passes.back();
@@ -134,8 +133,8 @@ TEST_F(VulkanGBuffer, MatchesTheRayCastGBufferOnEveryBuiltinScene) {
     for (const int scale : {1, kReceiverScale}) {
       SCOPED_TRACE(info.name + " at scale " + std::to_string(scale));
       render::PassRecord rec;
-      const render::GBuffer ref = run(sc, posed, "cpu", scale, w, h);
-      const render::GBuffer gb = run(sc, posed, "vulkan", scale, w, h, &rec);
+      const render::GBuffer ref = run(sc, posed, backends::cpu::kBackendName, scale, w, h);
+      const render::GBuffer gb = run(sc, posed, backends::vulkan::kBackendName, scale, w, h, &rec);
       ASSERT_EQ(gb.width, (w + scale - 1) / scale);
       ASSERT_EQ(gb.height, (h + scale - 1) / scale);
       ASSERT_EQ(gb.width, ref.width);
@@ -223,7 +222,7 @@ TEST_F(VulkanGBuffer, BadGeometryIsAnErrorNamingTheMesh) {
     ASSERT_GE(k, 0);
     posed.objects[k].positions[1].y = std::numeric_limits<float>::quiet_NaN();
     try {
-      run(sc, posed, "vulkan", 1, 32, 24);
+      run(sc, posed, backends::vulkan::kBackendName, 1, 32, 24);
       ADD_FAILURE() << "non-finite vertex accepted";
     } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find("mesh '" + mesh + "'"), std::string::npos) << e.what();
@@ -233,7 +232,7 @@ TEST_F(VulkanGBuffer, BadGeometryIsAnErrorNamingTheMesh) {
   sc.meshes[0].triangles.push_back({0, 1, 999999});
   const scene::PosedScene posed = scene::evaluate(sc, 0.0);
   try {
-    run(sc, posed, "vulkan", kReceiverScale, 32, 24);
+    run(sc, posed, backends::vulkan::kBackendName, kReceiverScale, 32, 24);
     ADD_FAILURE() << "out-of-range vertex index accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("mesh '" + mesh + "'"), std::string::npos) << e.what();

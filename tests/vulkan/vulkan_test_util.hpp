@@ -11,9 +11,17 @@
 #include <string>
 #include <vector>
 
+#include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/render/pass_graph.hpp"
 
 namespace softgi::testing {
+
+// What `backend` runs for pass `p`: its own implementation, else the host one.
+inline const render::PassFn& impl_on(const render::PassDesc& p, const std::string& backend) {
+  auto it = p.impl.find(backend);
+  return it != p.impl.end() ? it->second : p.impl.at(render::kHostImpl);
+}
 
 inline std::shared_ptr<backends::vulkan::Context> validated_context(double fence_timeout_seconds = 120.0) {
   backends::vulkan::ContextOptions o;

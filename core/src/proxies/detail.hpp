@@ -13,7 +13,7 @@ struct PowellResult {
   double f = 0.0;
   int evaluations = 0;
 };
-// Powell's direction-set method with Brent line minimisation (Press et al., Numerical Recipes,
+// Powell's direction-set method with Brent line minimisation (Press et al. 1992, Numerical Recipes in C, 2nd ed.,
 // section 10.5), as paper 004 section 6.2/6.3 prescribe for the sphere centres. `step` is the initial
 // length of the three coordinate directions; line minimisations stop at a relative bracket width
 // line_tol (in units of the current direction's length); the method stops when a sweep reduces f by

@@ -118,7 +118,7 @@ inline vec3 offset_origin(const vec3& p, const vec3& ng) {
 // ---------------------------------------------------------------------------------------------
 // BRDF: (1 - g) * albedo / pi + g * albedo * (ns + 2) / (2 pi) * max(0, R.wi)^ns, R the mirror of wo
 // about N. The glossy lobe is the normalised Phong lobe (Lafortune and Willems 1994, the "modified
-// Phong" normalisation), the local Phong model of paper 002 section 3.2; its reflectance at normal
+// Phong" normalisation), the local Phong model of paper 002 section 3.3 (eq. 6); its reflectance at normal
 // incidence is exactly 1, so albedo bounds the material's reflectance. Both lobes are tinted by the
 // albedo (the scene model has a single colour per material).
 struct Brdf {

@@ -8,6 +8,7 @@
 
 #include "softgi/render/backend.hpp"
 #include "softgi/render/common_passes.hpp"
+#include "softgi/render/gbuffer.hpp"
 #include "softgi/render/technique.hpp"
 
 namespace softgi::render {
@@ -70,6 +71,7 @@ ParamSet default_params(const Technique& t) { return ParamSet(t.params()); }
 FrameResult Backend::render(Technique& technique, const scene::Scene& scene, const ParamSet& params,
                             const RenderRequest& request) {
   auto t0 = std::chrono::steady_clock::now();
+  const TransferBytes moved0 = transfer_total();
   FrameResult result;
   result.technique = technique.name();
   result.backend = name();
@@ -82,24 +84,33 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
   PassGraph graph = technique.plan(scene, params, empty);
   CompiledGraph compiled = graph.compile(request.outputs, empty);
   result.pruned = compiled.pruned;
-  FrameContext ctx(scene, posed, params, w, h, result);
+  FrameContext ctx(scene, posed, params, w, h, result, device());
   for (int i : compiled.order) {
     const PassDesc& pass = graph.passes()[i];
     result.passes.push_back(PassRecord{pass.name});
     auto p0 = std::chrono::steady_clock::now();
+    const TransferBytes before = transfer_total();
     execute_pass(pass, ctx);
+    const TransferBytes after = transfer_total();
+    result.passes.back().transfer = {after.upload - before.upload, after.download - before.download};
     result.passes.back().wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - p0).count();
   }
   // The frame's output images, unless a pass filled the result itself.
   for (auto [resource, field] : {std::pair<const char*, Image*>{kDirect, &result.direct},
                                  {kIndirect, &result.indirect}, {kFinal, &result.final_image}})
     if (field->empty() && ctx.has(resource)) *field = std::move(ctx.get<Image>(resource));
+  for (const auto& o : request.outputs)
+    if (o != kDirect && o != kIndirect && o != kFinal && ctx.has(o)) result.resources[o] = ctx.get_any(o);
+  const TransferBytes moved1 = transfer_total();
+  result.transfer = {moved1.upload - moved0.upload, moved1.download - moved0.download};
   result.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.peak_rss_bytes = peak_rss_bytes();
   return result;
 }
 
 void Backend::execute_pass(const PassDesc& pass, FrameContext& ctx) {
+  // The backend's own implementation, then the backend's implementation of a shared pass, then the
+  // host code every backend can run.
   auto it = pass.impl.find(name());
   if (it != pass.impl.end()) {
     it->second(ctx);
@@ -109,9 +120,113 @@ void Backend::execute_pass(const PassDesc& pass, FrameContext& ctx) {
     (*shared)(ctx);
     return;
   }
+  it = pass.impl.find(kHostImpl);
+  if (it != pass.impl.end()) {
+    it->second(ctx);
+    return;
+  }
   throw std::logic_error("pass '" + pass.name + "' has no implementation for the " + name() + " backend");
 }
 
 void NullBackend::execute_pass(const PassDesc& pass, FrameContext&) { executed.push_back(pass.name); }
+
+// --- The backend registry ---------------------------------------------------------------------
+
+namespace {
+std::mutex& backend_mutex() {
+  static std::mutex m;
+  return m;
+}
+std::vector<BackendInfo>& backend_registry() {
+  static std::vector<BackendInfo> r;
+  return r;
+}
+std::string known_backends() {
+  std::string known;
+  for (const auto& b : backend_registry()) known += (known.empty() ? "" : ", ") + b.name;
+  return known.empty() ? "none" : known;
+}
+}  // namespace
+
+void register_backend(BackendInfo info) {
+  std::lock_guard<std::mutex> lock(backend_mutex());
+  if (info.name.empty() || info.name == kHostImpl)
+    throw std::logic_error("register_backend: invalid backend name '" + info.name + "'");
+  if (!info.create) throw std::logic_error("register_backend: backend '" + info.name + "' has no factory");
+  for (const auto& b : backend_registry())
+    if (b.name == info.name) throw std::logic_error("backend '" + info.name + "' registered twice");
+  backend_registry().push_back(std::move(info));
+}
+
+std::vector<std::string> backend_names() {
+  std::lock_guard<std::mutex> lock(backend_mutex());
+  std::vector<std::string> names;
+  for (const auto& b : backend_registry()) names.push_back(b.name);
+  return names;
+}
+
+const BackendInfo& backend_info(const std::string& name) {
+  std::lock_guard<std::mutex> lock(backend_mutex());
+  for (const auto& b : backend_registry())
+    if (b.name == name) return b;  // entries are never removed: the reference stays valid
+  throw std::invalid_argument("unknown backend '" + name + "' (available: " + known_backends() + ")");
+}
+
+std::string reference_backend_name() {
+  std::lock_guard<std::mutex> lock(backend_mutex());
+  if (backend_registry().empty()) throw std::logic_error("no backend is registered");
+  return backend_registry().front().name;
+}
+
+std::unique_ptr<Backend> create_backend(const std::string& name, const BackendOptions& options) {
+  const BackendInfo& info = backend_info(name);
+  if (!options.device.empty() && !info.selects_device)
+    throw std::invalid_argument("--device '" + options.device + "': the " + name + " backend selects no device");
+  if (info.unavailable) {
+    const std::string why = info.unavailable();
+    if (!why.empty()) throw std::invalid_argument("backend '" + name + "' is unavailable here: " + why);
+  }
+  return info.create(options);
+}
+
+// --- Rendering ----------------------------------------------------------------------------------
+
+FrameResult render_frame(Backend& backend, const std::string& technique, const scene::Scene& scene, const ParamSet* params,
+                         const RenderRequest& request) {
+  std::unique_ptr<Technique> t = create_technique(technique);
+  const ParamSet defaults = default_params(*t);
+  return backend.render(*t, scene, params ? *params : defaults, request);
+}
+
+namespace {
+// The shared G-buffer pass and a host pass that hands its result out of the frame.
+class GBufferOnly final : public Technique {
+ public:
+  explicit GBufferOnly(GBuffer* out) : out_(out) {}
+  std::string name() const override { return "gbuffer"; }
+  std::string description() const override { return "the shared display G-buffer"; }
+  std::vector<ParamDesc> params() const override { return {}; }
+  PassGraph plan(const scene::Scene&, const ParamSet&, std::set<std::string>&) override {
+    PassGraph g;
+    add_gbuffer_pass(g);
+    GBuffer* out = out_;
+    g.add({"gbuffer_output", {kGBuffer}, {}, {"gbuffer_output"}, "the G-buffer handed to the caller",
+           host_impl([out](FrameContext& c) { *out = std::move(c.get<GBuffer>(kGBuffer)); })});
+    return g;
+  }
+
+ private:
+  GBuffer* out_;
+};
+}  // namespace
+
+GBufferFrame render_gbuffer(Backend& backend, const scene::Scene& scene, const RenderRequest& request) {
+  GBufferFrame f;
+  GBufferOnly t(&f.gbuffer);
+  RenderRequest r = request;
+  r.outputs = {"gbuffer_output"};
+  f.frame = backend.render(t, scene, ParamSet(), r);
+  return f;
+}
 
 }  // namespace softgi::render

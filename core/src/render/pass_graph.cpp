@@ -5,11 +5,7 @@
 
 namespace softgi::render {
 
-std::map<std::string, PassFn> host_impl(PassFn fn) { return {{"cpu", fn}, {"vulkan", fn}}; }
-
-std::map<std::string, PassFn> cpu_vulkan_impl(PassFn on_cpu, PassFn on_vulkan) {
-  return {{"cpu", std::move(on_cpu)}, {"vulkan", std::move(on_vulkan)}};
-}
+std::map<std::string, PassFn> host_impl(PassFn fn) { return {{kHostImpl, std::move(fn)}}; }
 
 int PassGraph::add(PassDesc pass) {
   for (const auto& p : passes_)

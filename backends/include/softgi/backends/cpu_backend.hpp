@@ -1,18 +1,23 @@
-// The CPU reference backend: runs each pass's "cpu" implementation; the shared G-buffer pass traces
-// primary rays with Embree. Passes parallelise with TBB over both cores.
+// The CPU reference backend: runs each pass's host implementation; the shared G-buffer passes
+// trace primary rays with Embree. Passes parallelise with TBB over every core.
 #pragma once
 
 #include "softgi/render/backend.hpp"
 
 namespace softgi::backends {
 
+namespace cpu {
+// The backend's name in the registry, in PassDesc::impl and in run records.
+inline constexpr const char* kBackendName = "cpu";
+}  // namespace cpu
+
 class CpuBackend : public render::Backend {
  public:
-  CpuBackend();  // registers the CPU implementations of the shared passes (once per process)
-  std::string name() const override { return "cpu"; }
+  std::string name() const override { return cpu::kBackendName; }
 };
 
-// Implemented in backends/cpu/gbuffer_embree.cpp.
-void register_cpu_shared_passes();
+// Registers the backend (render::register_backend; always available) and its Embree
+// implementations of the shared "gbuffer" and "receiver_gbuffer" passes. Idempotent.
+void register_cpu_backend();
 
 }  // namespace softgi::backends

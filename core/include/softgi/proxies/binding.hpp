@@ -10,7 +10,7 @@
 namespace softgi::proxies {
 
 // Mean value coordinates of point x with respect to a closed triangle mesh (Ju, Schaefer, Warren
-// 2005 / Floater et al.): weights per vertex, summing to 1, reproducing x exactly.
+// 2005 / Floater et al. 2005): weights per vertex, summing to 1, reproducing x exactly.
 std::vector<double> mean_value_coordinates(const glm::vec3& x, const std::vector<glm::vec3>& positions,
                                            const std::vector<glm::uvec3>& triangles);
 

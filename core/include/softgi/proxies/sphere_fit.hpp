@@ -20,7 +20,7 @@ TriMesh trimesh_of(const scene::Mesh& mesh);
 // give a positive volume.
 double mesh_volume(const TriMesh& mesh);
 // V(S - T): volume of the sphere outside the mesh (paper 004 eq. 35 term), by the signed
-// outside-volume sum over triangles of Wang et al. or an equivalent exact-to-tolerance method.
+// outside-volume sum over triangles of Wang et al. 2006 or an equivalent exact-to-tolerance method.
 double sphere_outside_volume(const scene::Sphere& s, const TriMesh& mesh);
 // E = sum_i V(S_i - T) / V(T) (paper 004 Figure 4 caption).
 double outside_volume_ratio(const std::vector<scene::Sphere>& spheres, const TriMesh& mesh);

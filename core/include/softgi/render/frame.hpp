@@ -3,6 +3,7 @@
 
 #include <any>
 #include <cstddef>
+#include <functional>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -15,12 +16,23 @@
 
 namespace softgi::render {
 
+// Bytes moved between host memory and a backend's device memory (zero on the CPU backend).
+struct TransferBytes {
+  std::size_t upload = 0, download = 0;
+  TransferBytes& operator+=(const TransferBytes& o) {
+    upload += o.upload;
+    download += o.download;
+    return *this;
+  }
+};
+
 struct PassRecord {
   std::string name;
   double wall_seconds = 0.0;
   double gpu_seconds = -1.0;                 // GPU timestamps where the backend has them
   std::map<std::string, double> counters;    // receivers, blockers accumulated, ...
   std::size_t bytes = 0;                     // tables and buffers this pass allocated or holds
+  TransferBytes transfer;                    // host <-> device bytes this pass moved
 };
 
 struct FrameResult {
@@ -32,6 +44,12 @@ struct FrameResult {
   std::vector<PrunedPass> pruned;       // left-out passes and why
   double total_seconds = 0.0;
   std::size_t peak_rss_bytes = 0;       // process peak resident memory after the frame
+  // Requested outputs other than the three images (RenderRequest::outputs may name any resource of
+  // the technique's graph, e.g. an intermediate for a parity test), as the graph's passes hold them.
+  std::map<std::string, std::any> resources;
+  // Host <-> device bytes of the frame: the passes' plus what the backend moved outside any pass
+  // (requested outputs read back after the last pass).
+  TransferBytes transfer;
   std::size_t bytes() const;            // sum over passes
 };
 
@@ -41,38 +59,84 @@ struct RenderRequest {
   std::vector<std::string> outputs = {"final"};
 };
 
+// The device a backend runs its passes on (the Vulkan backend's vulkan::Context). A pass's
+// backend-specific implementation gets it from FrameContext::device and casts it to its own type;
+// host passes never touch it. Null on the CPU backend.
+class Device {
+ public:
+  virtual ~Device() = default;
+  virtual std::string backend_name() const = 0;
+};
+
 // Typed blackboard of a frame's resources plus what passes report.
 class FrameContext {
  public:
   FrameContext(const scene::Scene& scene, const scene::PosedScene& posed, const ParamSet& params, int width,
-               int height, FrameResult& result)
-      : scene(scene), posed(posed), params(params), width(width), height(height), result(result) {}
+               int height, FrameResult& result, Device* device = nullptr)
+      : scene(scene), posed(posed), params(params), width(width), height(height), result(result), device(device) {}
 
   const scene::Scene& scene;
   const scene::PosedScene& posed;
   const ParamSet& params;
   const int width, height;
   FrameResult& result;
+  Device* const device;  // the executing backend's device; null for host-only backends
 
   template <class T>
   T& put(const std::string& name, T value) {
+    deferred_.erase(name);
+    device_.erase(name);  // a host value replaces whatever a device pass left
     resources_[name] = std::move(value);
     return std::any_cast<T&>(resources_[name]);
   }
+  // A resource whose host copy is made only when a pass (or the caller) first asks for it with
+  // get(): a device backend's pass leaves its result in device memory and says how to read it back,
+  // so that the next device pass reads it there and nothing crosses the bus unless a host pass
+  // needs it. is_deferred() tells the two apart without reading back.
+  template <class T>
+  void put_deferred(const std::string& name, std::function<T()> make) {
+    resources_.erase(name);
+    deferred_[name] = [this, name, make = std::move(make)]() { resources_[name] = make(); };
+  }
+  bool is_deferred(const std::string& name) const { return deferred_.count(name) != 0; }
+  // The device copy of a resource (a backend's buffer handle type D), kept beside its host value or
+  // deferred read-back until a host put() replaces the resource; null when there is none.
+  template <class D>
+  void put_device(const std::string& name, D copy) {
+    device_[name] = std::move(copy);
+  }
+  template <class D>
+  const D* device_copy(const std::string& name) const {
+    auto it = device_.find(name);
+    return it == device_.end() ? nullptr : std::any_cast<D>(&it->second);
+  }
   template <class T>
   T& get(const std::string& name) {
-    auto it = resources_.find(name);
-    if (it == resources_.end()) throw std::logic_error("frame resource '" + name + "' was never produced");
-    T* p = std::any_cast<T>(&it->second);
+    T* p = std::any_cast<T>(&get_any(name));
     if (!p) throw std::logic_error("frame resource '" + name + "' has another type");
     return *p;
   }
-  bool has(const std::string& name) const { return resources_.count(name) != 0; }
+  // The resource whatever its type (a deferred one is read back first).
+  std::any& get_any(const std::string& name) {
+    auto it = resources_.find(name);
+    if (it == resources_.end()) {
+      auto d = deferred_.find(name);
+      if (d == deferred_.end()) throw std::logic_error("frame resource '" + name + "' was never produced");
+      std::function<void()> make = std::move(d->second);
+      deferred_.erase(d);
+      make();
+      it = resources_.find(name);
+    }
+    return it->second;
+  }
+  bool has(const std::string& name) const { return resources_.count(name) != 0 || deferred_.count(name) != 0; }
   // The record of the pass being executed (counters, bytes).
   PassRecord& record() { return result.passes.back(); }
 
  private:
   std::map<std::string, std::any> resources_;
+  std::map<std::string, std::function<void()>> deferred_;
+  std::map<std::string, std::any> device_;
 };
 
 // Peak resident set size of this process (VmHWM), 0 where unavailable.

@@ -20,7 +20,7 @@ struct ParamDesc {
   double min = 0.0, max = 0.0;           // Int and Float: inclusive range
   std::vector<std::string> choices;      // Enum
   std::string help;
-  // Sweeps: Int/Float sweep between sweep_min and sweep_max (defaults to min/max); log-spaced when set.
+  // Sweeps (ParamSet::sweep_values): Int/Float values span [min, max], log-spaced when set.
   bool sweep_log = false;
 
   static ParamDesc integer(std::string name, int def, int lo, int hi, std::string help);

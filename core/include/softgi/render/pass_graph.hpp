@@ -20,15 +20,17 @@ struct PassDesc {
   std::vector<std::string> optional_reads;  // used when present (an empty one reads as zero)
   std::vector<std::string> writes;
   std::string help;
-  // Implementations keyed by backend name ("cpu", "vulkan"); the null backend runs none.
+  // Implementations keyed by backend name (render::backend_names()), plus kHostImpl: host code that
+  // runs on any backend without an implementation of its own (the CPU backend runs nothing else).
+  // The null backend runs none.
   std::map<std::string, PassFn> impl;
 };
 
-// PassDesc::impl for a pass that is host work on every backend: the same function under "cpu" and
-// "vulkan".
+// The key of PassDesc::impl for host code: the CPU reference implementation of a pass, run by every
+// backend that has no implementation of its own for it.
+inline constexpr const char* kHostImpl = "host";
+// PassDesc::impl with only the host implementation.
 std::map<std::string, PassFn> host_impl(PassFn fn);
-// PassDesc::impl for a pass with a CPU and a Vulkan implementation.
-std::map<std::string, PassFn> cpu_vulkan_impl(PassFn on_cpu, PassFn on_vulkan);
 
 struct PrunedPass {
   std::string name, reason;

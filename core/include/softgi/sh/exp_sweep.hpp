@@ -28,7 +28,7 @@ std::vector<LogVisInput> cap_sum_sweep(int order, const std::vector<int>& counts
                                        int repeats, std::uint32_t seed = 2);
 
 // Max over a fixed dense set of directions of |a~(s) - b~(s)|: the reconstruction error the
-// issue's targets are stated in.
+// accuracy targets of docs/sh.md are stated in.
 double reconstruction_error(int order, const double* a, const double* b);
 // Mean value of the reconstructed function: DC / sqrt(4 pi).
 inline double mean_value(const double* g) { return g[0] / kSqrt4Pi; }

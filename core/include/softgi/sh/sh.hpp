@@ -1,6 +1,6 @@
 // softgi SH core: conventions, indexing and basis evaluation.
 //
-// Conventions (docs/sh_conventions.md states them in full; every module keeps them):
+// Conventions (docs/sh.md, "Conventions", states them in full; every module keeps them):
 //  - Real spherical harmonics, orthonormal over the unit sphere, order n = bands 0..n-1, n*n coefficients.
 //  - Single index i = l*l + l + m, m = -l..l.
 //  - No Condon-Shortley phase: y_{1,-1} = c*y, y_{1,0} = c*z, y_{1,1} = c*x with c = sqrt(3/(4 pi)).

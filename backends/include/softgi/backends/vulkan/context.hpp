@@ -27,6 +27,8 @@
 #include <utility>
 #include <vector>
 
+#include "softgi/render/frame.hpp"
+
 namespace softgi::render {
 class FrameContext;
 }
@@ -342,10 +344,11 @@ struct SubmitResult {
 };
 
 // ---------------------------------------------------------------------------------------------
-class Context {
+class Context : public render::Device {
  public:
   explicit Context(const ContextOptions& options = {});
-  ~Context();
+  ~Context() override;
+  std::string backend_name() const override;
   Context(const Context&) = delete;
   Context& operator=(const Context&) = delete;
 
@@ -389,6 +392,13 @@ class Context {
   double wait_seconds_total() const { return wait_total_; }  // sum of SubmitResult::wait_seconds
   std::uint64_t submissions() const { return submissions_; }
   std::size_t allocated_bytes() const { return allocated_; }  // buffers alive
+  // Bytes moved between host and device memory: every upload() and download(), and what callers
+  // that write or read mapped memory themselves report through note_transfer().
+  render::TransferBytes transfer_bytes() const { return transfer_; }
+  void note_transfer(std::size_t upload_bytes, std::size_t download_bytes) {
+    transfer_.upload += upload_bytes;
+    transfer_.download += download_bytes;
+  }
 
   // Per-context cache of GPU objects kept across frames (pipelines, uploaded tables), keyed by
   // name; destroyed with the Context, before its device.
@@ -445,6 +455,7 @@ class Context {
   double gpu_total_ = 0.0, wait_total_ = 0.0;
   std::uint64_t submissions_ = 0;
   std::size_t allocated_ = 0;  // buffer bytes alive
+  render::TransferBytes transfer_;
   bool lost_ = false;          // a submission timed out: no further submissions
   bool pending_ = false;       // ... and may still be executing
   std::mutex submit_mutex_;
@@ -453,9 +464,8 @@ class Context {
   std::vector<VkBuffer> leaked_for_test_;
 };
 
-// The Context of the Vulkan backend executing this frame (VulkanBackend puts it into the frame's
-// resources before each pass). Throws std::logic_error when the frame is not run by it.
+// The Context of the Vulkan backend executing this frame (FrameContext::device). Throws
+// std::logic_error when the frame is not run by it.
 Context& context_of(render::FrameContext& frame);
-inline constexpr const char* kFrameContextResource = "vulkan.context";
 
 }  // namespace softgi::backends::vulkan

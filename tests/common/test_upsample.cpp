@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "../../techniques/image_splat/upsample.hpp"
+#include "../../techniques/common/upsample.hpp"
 
-using namespace softgi::techniques::image_splat;
+using namespace softgi::techniques::common;
 
 namespace {
 

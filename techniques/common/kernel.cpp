@@ -17,12 +17,11 @@
 #include <stdexcept>
 #include <string>
 
-#include "shexp_internal.hpp"
-#include "shexp_passes.hpp"
+#include "accumulation.hpp"
 #include "softgi_shared.h"
 #include "softgi/sh/product.hpp"
 
-namespace softgi::techniques::shexp {
+namespace softgi::techniques::common {
 
 namespace {
 
@@ -86,7 +85,7 @@ constexpr float kAsin[8] = {1.5707963050f, -0.2145988016f, 0.0889789874f, -0.050
 std::vector<float> basis_recurrence_constants() {
   const BasisConsts& c = basis_consts();
   std::vector<float> v(gpu::kBasisFloats, 0.0f);
-  static_assert(kMaxAccOrder == static_cast<int>(gpu::kShexpMaxOrder), "softgi_shared.h and shexp_internal.hpp disagree");
+  static_assert(kMaxAccOrder == static_cast<int>(gpu::kAccumMaxOrder), "softgi_shared.h and accumulation.hpp disagree");
   for (int m = 0; m < kMaxAccOrder; ++m) {
     v[gpu::kBasisQmm + m] = c.qmm[m];
     v[gpu::kBasisA1 + m] = c.a1[m];
@@ -335,14 +334,14 @@ void accumulate_log(KernelIsa isa, const ZhTable& table, ReplacementRule rule, c
                     std::size_t end, const BlockerList& blockers, float* out) {
   const int order = table.order;
   if (order < 3 || order > kMaxAccOrder)
-    throw std::invalid_argument("shexp accumulate_log: table order " + std::to_string(order) + " outside [3, 8]");
+    throw std::invalid_argument("accumulate_log: table order " + std::to_string(order) + " outside [3, 8]");
   if (blockers.order != order)
-    throw std::invalid_argument("shexp accumulate_log: blocker weights of order " + std::to_string(blockers.order) +
+    throw std::invalid_argument("accumulate_log: blocker weights of order " + std::to_string(blockers.order) +
                                 " used with a table of order " + std::to_string(order));
-  if (table.rows < 2) throw std::invalid_argument("shexp accumulate_log: table has fewer than 2 rows");
-  if (end > rec.size() || begin > end) throw std::invalid_argument("shexp accumulate_log: receiver range outside the receivers");
+  if (table.rows < 2) throw std::invalid_argument("accumulate_log: table has fewer than 2 rows");
+  if (end > rec.size() || begin > end) throw std::invalid_argument("accumulate_log: receiver range outside the receivers");
   if (!kernel_isa_supported(isa))
-    throw std::invalid_argument(std::string("shexp accumulate_log: this CPU cannot run the ") + to_string(isa) + " kernel");
+    throw std::invalid_argument(std::string("accumulate_log: this CPU cannot run the ") + to_string(isa) + " kernel");
   FlushDenormals ftz;
   switch (isa) {
     case KernelIsa::Scalar: kscalar::kernel_dispatch(order, table, rule, rec, begin, end, blockers, out); return;
@@ -355,11 +354,11 @@ long long accumulate_product_batch(KernelIsa isa, const ZhTable& vis_table, Repl
                                    std::size_t begin, std::size_t end, const BlockerList& blockers, float* out) {
   const int order = vis_table.order;
   if (order < 3 || order > kMaxAccOrder)
-    throw std::invalid_argument("shexp accumulate_product_batch: table order " + std::to_string(order) + " outside [3, 8]");
-  if (vis_table.rows < 2) throw std::invalid_argument("shexp accumulate_product_batch: table has fewer than 2 rows");
-  if (end > rec.size() || begin > end) throw std::invalid_argument("shexp accumulate_product_batch: receiver range outside the receivers");
+    throw std::invalid_argument("accumulate_product_batch: table order " + std::to_string(order) + " outside [3, 8]");
+  if (vis_table.rows < 2) throw std::invalid_argument("accumulate_product_batch: table has fewer than 2 rows");
+  if (end > rec.size() || begin > end) throw std::invalid_argument("accumulate_product_batch: receiver range outside the receivers");
   if (!kernel_isa_supported(isa))
-    throw std::invalid_argument(std::string("shexp accumulate_product_batch: this CPU cannot run ") + to_string(isa));
+    throw std::invalid_argument(std::string("accumulate_product_batch: this CPU cannot run ") + to_string(isa));
   const ProductPlan& plan = ProductPlan::get(order);
   FlushDenormals ftz;
   switch (isa) {
@@ -376,14 +375,14 @@ bool exp_batch_supports(sh::ExpMethod m) {
 
 void exp_batch(KernelIsa isa, const BatchExp& e, const float* f, float* g, std::size_t count, std::size_t first,
                sh::ExpStats& stats) {
-  if (!exp_batch_supports(e.method)) throw std::invalid_argument(std::string("shexp exp_batch: method ") + sh::to_string(e.method) + " is not batched");
-  if (!e.plan || e.plan->order != e.order) throw std::invalid_argument("shexp exp_batch: product plan missing or of another order");
+  if (!exp_batch_supports(e.method)) throw std::invalid_argument(std::string("exp_batch: method ") + sh::to_string(e.method) + " is not batched");
+  if (!e.plan || e.plan->order != e.order) throw std::invalid_argument("exp_batch: product plan missing or of another order");
   if ((e.method == sh::ExpMethod::HYB || e.method == sh::ExpMethod::OL) && (!e.tables || e.tables->order() != e.order))
-    throw std::invalid_argument("shexp exp_batch: OL tables missing or of another order");
+    throw std::invalid_argument("exp_batch: OL tables missing or of another order");
   if ((e.method == sh::ExpMethod::PSStar || e.method == sh::ExpMethod::PS) && (e.degree < 1 || e.degree > 200))
-    throw std::invalid_argument("shexp exp_batch: series degree " + std::to_string(e.degree) + " outside [1, 200]");
+    throw std::invalid_argument("exp_batch: series degree " + std::to_string(e.degree) + " outside [1, 200]");
   if (count == 0) return;
-  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("shexp exp_batch: this CPU cannot run ") + to_string(isa));
+  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("exp_batch: this CPU cannot run ") + to_string(isa));
   FlushDenormals ftz;
   switch (isa) {
     case KernelIsa::Scalar: kscalar::exp_dispatch(e, f, count, g, first, stats); return;
@@ -405,10 +404,10 @@ BatchShade BatchShade::make(int order, const float* L, const float* hcoef, const
 
 void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out) {
   if (!b.plan || b.plan->order != b.order || !b.L || !b.hcoef || !b.gwin)
-    throw std::invalid_argument("shexp shade_batch: incomplete shading inputs");
-  if (end > rec.size() || begin > end) throw std::invalid_argument("shexp shade_batch: receiver range outside the receivers");
+    throw std::invalid_argument("shade_batch: incomplete shading inputs");
+  if (end > rec.size() || begin > end) throw std::invalid_argument("shade_batch: receiver range outside the receivers");
   if (begin == end) return;
-  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("shexp shade_batch: this CPU cannot run ") + to_string(isa));
+  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("shade_batch: this CPU cannot run ") + to_string(isa));
   FlushDenormals ftz;
   switch (isa) {
     case KernelIsa::Scalar: kscalar::shade_dispatch(b, rec, begin, end, out); return;
@@ -491,4 +490,4 @@ double kernel_flops_per_pair(int order, ReplacementRule rule, bool straddling) {
   return kcount::g_flops / kBlockers;
 }
 
-}  // namespace softgi::techniques::shexp
+}  // namespace softgi::techniques::common

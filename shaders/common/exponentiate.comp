@@ -1,6 +1,6 @@
 #version 450
 // SHEXP exponential of the accumulated log vector (paper 004 section 4), one invocation per
-// receiver, with the rules of the CPU's exp_batch (techniques/shexp/batch_body.hpp exp_block):
+// receiver, with the rules of the CPU's exp_batch (techniques/common/batch_body.hpp exp_block):
 // - HYB: optimal linear approximation of the scaled vector, then squarings (eqs. 21-23); OL: the
 //   same without squaring. DC isolation, squaring count s = paper_squarings(||f^||) (||f^||/2^s in
 //   [1/8, 1/4)), the DC factor applied before the squarings, OL a, b from the core's table by
@@ -17,7 +17,7 @@
 layout(constant_id = 0) const uint N = 4;       // accumulation order
 layout(constant_id = 1) const uint NOUT = 4;    // shading order (the result is truncated to it)
 layout(constant_id = 2) const uint METHOD = kExpHyb;
-layout(local_size_x = kShexpExpGroup) in;
+layout(local_size_x = kExponentiateGroup) in;
 
 layout(std430, set = 0, binding = kExpBindIn) readonly buffer In { float f_in[]; };
 layout(std430, set = 0, binding = kExpBindOut) writeonly buffer Out { float g_out[]; };
@@ -37,10 +37,10 @@ layout(push_constant) uniform Push {
 
 const float kSqrt4Pi = 3.5449077018110318;
 
-float g[kShexpMaxCoeffs], t[kShexpMaxCoeffs];
+float g[kAccumMaxCoeffs], t[kAccumMaxCoeffs];
 
 // o = a * a (eq. 3 with f = g = a).
-void square(in float a[kShexpMaxCoeffs], out float o[kShexpMaxCoeffs]) {
+void square(in float a[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) {
   for (uint i = 0; i < N * N; ++i) {
     float acc = 0.0;
     for (uint q = sq_begin[i]; q < sq_begin[i + 1]; ++q) {
@@ -52,7 +52,7 @@ void square(in float a[kShexpMaxCoeffs], out float o[kShexpMaxCoeffs]) {
 }
 
 // o = a * b (eq. 3): off-diagonal terms v (a_j b_k + a_k b_j), then diagonal v a_j b_j.
-void product(in float a[kShexpMaxCoeffs], in float b[kShexpMaxCoeffs], out float o[kShexpMaxCoeffs]) {
+void product(in float a[kAccumMaxCoeffs], in float b[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) {
   for (uint i = 0; i < N * N; ++i) {
     const uvec2 rg = pr_range[i];
     const uint end = pr_range[i + 1].x;
@@ -136,7 +136,7 @@ void main() {
     for (uint k = 1; k < n2; ++k) g[k] = (b * (f_in[base + k] * scale)) * dc;
   } else if (METHOD == kExpPsStar) {
     // Eq. 22 on x = f^/2^s: even = 1 + sum_even h_k x^k, odd = 1 + sum_odd h_k x^(k-1).
-    float x[kShexpMaxCoeffs], x2[kShexpMaxCoeffs], pw[kShexpMaxCoeffs], odd[kShexpMaxCoeffs];
+    float x[kAccumMaxCoeffs], x2[kAccumMaxCoeffs], pw[kAccumMaxCoeffs], odd[kAccumMaxCoeffs];
     for (uint k = 0; k < n2; ++k) {
       x[k] = k == 0 ? 0.0 : f_in[base + k] * scale;
       g[k] = odd[k] = k == 0 ? kSqrt4Pi : 0.0;  // g holds the even part
@@ -169,7 +169,7 @@ void main() {
     for (uint c = 0; c < n2; ++c) g[c] *= dc;
   } else {
     // PS: g = 1 + f + sum_(k >= 2) f^k / k! on the whole f, powers left to right.
-    float x[kShexpMaxCoeffs], term[kShexpMaxCoeffs];
+    float x[kAccumMaxCoeffs], term[kAccumMaxCoeffs];
     for (uint k = 0; k < n2; ++k) {
       x[k] = term[k] = f_in[base + k];
       g[k] = (k == 0 ? kSqrt4Pi : 0.0) + x[k];

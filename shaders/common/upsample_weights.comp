@@ -3,11 +3,11 @@
 // coarse block of bilinear weights w_b, times w_z = 1 / (eps + |z_p - z_i|) (as eps w_z =
 // 1 / (1 + |z_p - z_i| / eps), eps = epsilon_rel z_p) and w_N = max(0, N_p . N_i)^power, renormalised;
 // a miss where the unnormalised sum is below the threshold. Step by step the arithmetic of
-// techniques/image_splat/upsample.cpp (upsample_pixel), in float where the CPU uses double: the block
+// techniques/common/upsample.cpp (upsample_pixel), in float where the CPU uses double: the block
 // (indices, taps dropped for w_b = 0) is exact in both for power-of-two scale ratios; the weights
 // differ by float rounding (tests/vulkan/test_image_splat_parity.cpp bounds it).
 #extension GL_GOOGLE_include_directive : require
-#include "image_splat_shared.h"
+#include "upsample_shared.h"
 
 layout(local_size_x = kUpsampleGroupX, local_size_y = kUpsampleGroupY) in;
 

@@ -1,6 +1,6 @@
 #version 450
 // Diffuse shading of receivers (paper 004 eq. 9 and section 7; paper 000 eq. 10's first term), the
-// CPU's shade_batch followed by add_lights_and_clamp (techniques/shexp/lights.cpp), per receiver:
+// CPU's shade_batch followed by add_lights_and_clamp (techniques/common/lights.cpp), per receiver:
 //   E = max(0, (H(N) * g) . L + sum_lights L_H(theta, f) . g)  per colour channel,
 // H(N)_lm = hcoef_l y_lm(N) (clamped cosine / pi with the rotation factor folded in), g the
 // visibility windowed per coefficient, one SH product (shexp::ProductPlan) per receiver for the
@@ -17,11 +17,11 @@
 layout(constant_id = 0) const uint N = 4;  // shading order
 #define SHEXP_BASIS_BINDING kShadeBindBasis
 #define SHEXP_BASIS_ORDER N
-#include "shexp_basis.glsl"
-#include "shexp_math.glsl"
+#include "sh_basis.glsl"
+#include "accum_math.glsl"
 layout(constant_id = 1) const uint VIS = kShadeVisReceiver;
 layout(constant_id = 2) const uint LIGHTS = 0;
-layout(local_size_x = kShexpShadeGroup) in;
+layout(local_size_x = kShadeGroup) in;
 
 layout(std430, set = 0, binding = kShadeBindReceivers) readonly buffer Receivers { float rec[]; };
 layout(std430, set = 0, binding = kShadeBindVis) readonly buffer Vis { float vis[]; };
@@ -60,32 +60,32 @@ void table_coord(float x, float range, uint rows, out uint k0, out float w) {
 // Paper 004 section 7: L_H of a spherical light (centre c, radius R) at p with normal n, dotted with g
 // (shexp::light_lh_world + LightLobeTable::lookup, then the dot product of the CPU's light loop).
 // Returns false where the CPU skips the light (degenerate distance or radius).
-bool light_dot(vec3 p, vec3 n, vec3 c, float R, float g[kShexpMaxCoeffs], out float dsum) {
+bool light_dot(vec3 p, vec3 n, vec3 c, float R, float g[kAccumMaxCoeffs], out float dsum) {
   dsum = 0.0;
   const vec3 d = c - p;
   const float dist = length(d);
   if (!(dist > 0.0) || !(R > 0.0)) return false;
-  const float theta = dist > R ? shexp_asin01(R / dist) : kShexpHalfPi;
+  const float theta = dist > R ? accum_asin01(R / dist) : kAccumHalfPi;
   const vec3 dir = d / dist;
   const float cf = clamp(dot(dir, n), -1.0, 1.0);
-  const float f = shexp_acos(cf);
+  const float f = accum_acos(cf);
   uint i0, j0;
   float wi, wj;
-  table_coord(theta, kShexpHalfPi, pc.rows_theta, i0, wi);
-  table_coord(f, kShexpPi, pc.rows_f, j0, wj);
+  table_coord(theta, kAccumHalfPi, pc.rows_theta, i0, wi);
+  table_coord(f, kAccumPi, pc.rows_f, j0, wj);
   const float w[4] = float[4]((1.0 - wi) * (1.0 - wj), (1.0 - wi) * wj, wi * (1.0 - wj), wi * wj);
   const uint cells[4] = uint[4](i0 * pc.rows_f + j0, i0 * pc.rows_f + j0 + 1, (i0 + 1) * pc.rows_f + j0, (i0 + 1) * pc.rows_f + j0 + 1);
   const uint kbase = pc.rows_theta * pc.rows_f;  // k follows the psi plane
   float psi = 0.0;
-  float k[kShexpMaxOrder];
+  float k[kAccumMaxOrder];
   [[unroll]] for (uint l = 0; l < N; ++l) k[l] = 0.0;
   for (uint q = 0; q < 4; ++q) {
     psi += w[q] * ltab[cells[q]];
     [[unroll]] for (uint l = 0; l < N; ++l) k[l] += w[q] * ltab[kbase + cells[q] * N + l];
   }
   // k is stored per unit solid angle of the light: multiplied back by 4 pi sin^2(theta / 2).
-  const float sh = shexp_sincos_quarter(0.5 * max(theta, pc.theta_floor)).x;
-  const float omega = 4.0 * kShexpPi * sh * sh;
+  const float sh = accum_sincos_quarter(0.5 * max(theta, pc.theta_floor)).x;
+  const float omega = 4.0 * kAccumPi * sh * sh;
   // Canonical frame: N = z, light in the xz plane on the +x side; the lobe axis at psi from z.
   vec3 tang = dir - cf * n;
   const float tl = length(tang);
@@ -94,10 +94,10 @@ bool light_dot(vec3 p, vec3 n, vec3 c, float R, float g[kShexpMaxCoeffs], out fl
   } else {  // light on the normal: the lobe is on the normal too (psi = 0 or pi), any tangent will do
     tang = abs(n.x) < 0.9 ? normalize(cross(n, vec3(1, 0, 0))) : normalize(cross(n, vec3(0, 1, 0)));
   }
-  const vec2 sc = shexp_sincos_half(psi);
+  const vec2 sc = accum_sincos_half(psi);
   const vec3 axis = sc.y * n + sc.x * tang;
-  float Y[kShexpMaxCoeffs];
-  shexp_basis_eval(axis, Y);
+  float Y[kAccumMaxCoeffs];
+  sh_basis_eval(axis, Y);
   [[unroll]] for (uint l = 0; l < N; ++l) {
     const float kl = k[l] * omega;
     [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) dsum += (kl * Y[q]) * g[q];
@@ -115,8 +115,8 @@ void main() {
     outv[i] = vec4(0.0);
     return;
   }
-  float H[kShexpMaxCoeffs], g[kShexpMaxCoeffs];
-  shexp_basis_eval(s, H);
+  float H[kAccumMaxCoeffs], g[kAccumMaxCoeffs];
+  sh_basis_eval(s, H);
   [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = 0.0;
   bool unshadowed = VIS == kShadeVisNone;
   if (VIS == kShadeVisReceiver) {

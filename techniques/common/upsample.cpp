@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace softgi::techniques::image_splat {
+namespace softgi::techniques::common {
 
 const char* to_string(UpsampleMode m) {
   switch (m) {
@@ -326,4 +326,6 @@ void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, 
   });
 }
 
-}  // namespace softgi::techniques::image_splat
+UpsampleKernels cpu_upsample_kernels() { return {upsample_weights, upsample_apply}; }
+
+}  // namespace softgi::techniques::common

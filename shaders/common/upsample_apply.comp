@@ -3,7 +3,7 @@
 // interpolation of a coarse field to display resolution, one invocation per display pixel. Pixels
 // without a tap are left untouched.
 #extension GL_GOOGLE_include_directive : require
-#include "image_splat_shared.h"
+#include "upsample_shared.h"
 
 layout(constant_id = 0) const uint CHANNELS = 3;
 layout(local_size_x = kUpsampleGroupX * kUpsampleGroupY) in;

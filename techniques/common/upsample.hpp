@@ -2,6 +2,8 @@
 // Not installed; include by path.
 #pragma once
 
+#include <functional>
+
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -10,7 +12,11 @@
 
 #include <glm/glm.hpp>
 
-namespace softgi::techniques::image_splat {
+namespace softgi::render {
+class FrameContext;
+}
+
+namespace softgi::techniques::common {
 
 enum class UpsampleMode {
   Bilateral,  // eq. 11: bilinear x depth x normal^power weights, renormalised
@@ -75,4 +81,23 @@ void upsample_apply(const UpsampleWeights& w, const float* in, int channels, flo
 void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, const PlaneView& fine, const float* in,
                              int channels, float* out, const std::vector<std::uint8_t>* only = nullptr);
 
-}  // namespace softgi::techniques::image_splat
+// The two kernels of an upsample pass: the eq. 11 weights and their application to a coarse field.
+// The pass body is the technique's; the kernels are this file's on the CPU (cpu_upsample_kernels)
+// and compute shaders on Vulkan (vulkan_upsample_kernels, upsample_vulkan.cpp in
+// softgi::techniques_vulkan).
+struct UpsampleKernels {
+  std::function<UpsampleWeights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt)> weights;
+  std::function<void(const UpsampleWeights& w, const float* in, int channels, float* out)> apply;
+};
+UpsampleKernels cpu_upsample_kernels();
+// upsample_weights on the GPU (shaders/common/upsample_weights.comp): the same checks and result as
+// upsample_weights, in float (the CPU works in double). `measure` (optional): per display pixel the
+// unnormalised eq. 11 weight the miss decision compared with the threshold.
+UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneView& coarse, const PlaneView& fine,
+                                        const UpsampleOptions& opt, std::vector<float>* measure = nullptr);
+// upsample_apply on the GPU (shaders/common/upsample_apply.comp); the weights stay on the device
+// when they are the ones vulkan_upsample_weights computed last.
+void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, const float* in, int channels, float* out);
+UpsampleKernels vulkan_upsample_kernels(render::FrameContext& ctx);
+
+}  // namespace softgi::techniques::common

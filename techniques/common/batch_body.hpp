@@ -78,7 +78,7 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
     if (!std::isfinite(check) || !std::isfinite(src[0]))
       for (int i = 0; i < n2; ++i)
         if (!std::isfinite(src[i]))
-          throw std::invalid_argument("shexp exponentiate: receiver " + std::to_string(first + src_lane) + " has log coefficient " +
+          throw std::invalid_argument("exponentiate: receiver " + std::to_string(first + src_lane) + " has log coefficient " +
                                       std::to_string(i) + " = " + std::to_string(src[i]));
     const double norm = std::sqrt(norm2);
     s[l] = e.method == sh::ExpMethod::OL || e.method == sh::ExpMethod::PS ? 0 : sh::paper_squarings(norm);
@@ -86,7 +86,7 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
     sq[l] = static_cast<float>(s[l]);
     const double dc = std::exp(static_cast<double>(src[0]) / sh::kSqrt4Pi / std::ldexp(1.0, s[l]));
     if (!(dc <= static_cast<double>(std::numeric_limits<float>::max())))
-      throw std::overflow_error("shexp exponentiate: receiver " + std::to_string(first + src_lane) + ": DC coefficient " +
+      throw std::overflow_error("exponentiate: receiver " + std::to_string(first + src_lane) + ": DC coefficient " +
                                 std::to_string(src[0]) + " gives a mean log value whose exponential overflows");
     dcv[l] = static_cast<float>(dc);
     scv[l] = static_cast<float>(std::ldexp(1.0, -s[l]));
@@ -176,7 +176,7 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
     for (int i = 0; i < n2; ++i) {
       dst[i] = g[i * W + l];
       if (!std::isfinite(dst[i]))
-        throw std::overflow_error("shexp exponentiate: receiver " + std::to_string(first + l) + ": result coefficient " +
+        throw std::overflow_error("exponentiate: receiver " + std::to_string(first + l) + ": result coefficient " +
                                   std::to_string(i) + " overflowed");
     }
     st.squarings += s[l];

@@ -1,6 +1,6 @@
-// Host-side helpers of the Vulkan passes that run SHEXP's shaders (shaders/shexp/*.comp): SHEXP's
-// own passes (shexp_vulkan.cpp) and image_splat's (image_splat/image_splat_vulkan.cpp, which feeds
-// the same accumulate_log and exponentiate shaders). Pipeline cache, uploads of the tables and
+// Host-side helpers of the Vulkan passes that run the shared accumulation shaders
+// (shaders/common/*.comp) for every technique (shexp/shexp_vulkan.cpp, image_splat/
+// image_splat_vulkan.cpp, shade_vulkan.cpp). Pipeline cache, uploads of the tables and
 // product plans in the shaders' layout, size checks, chunked dispatch and the exponentiate status
 // words. Includes the Vulkan headers: include only from the *_vulkan.cpp files. Not installed.
 #pragma once
@@ -11,17 +11,19 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "shexp_internal.hpp"
+#include "accumulation.hpp"
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/render/frame.hpp"
 #include "softgi/sh/tables.hpp"
 #include "softgi_shared.h"
 
-namespace softgi::techniques::shexp::vulkan_common {
+namespace softgi::techniques::common::gpu_passes {
 
 namespace vk = backends::vulkan;
 
@@ -71,8 +73,52 @@ void put(vk::Context& dev, vk::Buffer& b, const V& v, const std::string& name) {
 // needs a buffer).
 void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name);
 
+// A 64-bit hash of a byte range (FNV-1a over 8-byte words): what a device buffer was last filled
+// with, so that inputs that did not change between frames stay on the device.
+std::uint64_t content_hash(const void* data, std::size_t bytes, std::uint64_t seed = 0xcbf29ce484222325ull);
+// `bytes` bytes into `b` (grown as needed; at least 16 bytes so that an empty input binds), uploaded
+// only when their hash differs from `hash` (the last upload's, updated) or `b` was reallocated.
+void upload_bytes_if_changed(vk::Context& dev, vk::Buffer& b, std::uint64_t& hash, const void* data, std::size_t bytes,
+                             const std::string& name);
+template <class V>
+void put_if_changed(vk::Context& dev, vk::Buffer& b, std::uint64_t& hash, const V& v, const std::string& name) {
+  upload_bytes_if_changed(dev, b, hash, v.data(), v.size() * sizeof(v[0]), name);
+}
+
 // Receivers as six planes px, py, pz, nx, ny, nz (accumulate_log.comp's and shade.comp's layout).
-void upload_receivers(vk::Context& dev, vk::Buffer& buf, const ReceiverSoA& soa, const std::string& name);
+// With `hash`: uploaded only when they changed since the upload that set it.
+void upload_receivers(vk::Context& dev, vk::Buffer& buf, const ReceiverSoA& soa, const std::string& name,
+                      std::uint64_t* hash = nullptr);
+
+// A frame resource a GPU pass left in device memory: `floats` floats (`order`^2 per receiver) at
+// the start of `buffer`. The pass stores it as the resource's device copy (FrameContext::put_device)
+// and the host copy deferred (put_deferred), so that the next GPU pass binds the buffer and only a
+// host pass that reads the resource downloads it; a host put() of the resource drops the device
+// copy. Valid for the frame that wrote it (a graph has one writer per resource).
+struct DeviceField {
+  const vk::Buffer* buffer = nullptr;
+  std::size_t floats = 0;
+  int order = 0;
+};
+// The device copy of `resource` in this frame, or null.
+inline const DeviceField* device_field(render::FrameContext& ctx, const std::string& resource) {
+  return ctx.device_copy<DeviceField>(resource);
+}
+// Stores `field` as the device copy of `resource` and, deferred, its host copy: read back (under
+// `m`, the mutex of the state owning the buffer) when a host pass asks for it.
+template <class HostField>
+void put_device_field(render::FrameContext& ctx, const std::string& resource, const DeviceField& field, std::mutex& m,
+                      vk::Context& dev) {
+  ctx.put_deferred<std::shared_ptr<const HostField>>(resource, [field, &m, &dev]() {
+    std::lock_guard<std::mutex> lock(m);
+    auto f = std::make_shared<HostField>();
+    f->order = field.order;
+    f->v.resize(field.floats);
+    dev.download(*field.buffer, f->v.data(), f->v.size() * sizeof(float));
+    return std::shared_ptr<const HostField>(f);
+  });
+  ctx.put_device<DeviceField>(resource, field);
+}
 
 // The OL table: the increasing prefix of the core's OL sweep that sh::ShTables::ol_lookup
 // interpolates, converted to float as planes x, a, b. `technique` names the buffer and the error.
@@ -128,7 +174,15 @@ struct ExponentiateBuffers {
 vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
                                   std::uint32_t ol_count, int degree, const std::string& submit_name);
 void reset_exp_status(vk::Context& dev, vk::Buffer& status, const std::string& name);
+// Whether exponentiate.comp's status words report an error (then throw_exp_errors names it).
+bool exp_status_failed(const std::uint32_t (&status)[gpu::kExpStatusWords]);
 void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const float* log, int n2, const std::string& pass,
                       const std::function<std::string(std::size_t)>& receiver_name);
 
-}  // namespace softgi::techniques::shexp::vulkan_common
+}  // namespace softgi::techniques::common::gpu_passes
+
+namespace softgi::techniques::common {
+// The shading of receivers on the GPU (GpuShade; shaders/common/shade.comp): the Vulkan backend's
+// ShadeKernel.
+long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA& rec, glm::vec3* out);
+}  // namespace softgi::techniques::common

@@ -1,4 +1,4 @@
-// Real SH basis by the polynomial recurrence of the CPU kernel (techniques/shexp/kernel_body.hpp):
+// Real SH basis by the polynomial recurrence of the CPU kernel (techniques/common/kernel_body.hpp):
 // y_{l,+-m} = Q_l^m(z) {C_m, S_m}(x, y), C_m + i S_m = (x + i y)^m, Q from the uploaded constants.
 // Expects SHEXP_BASIS_BINDING defined and softgi_shared.h included (and GL_EXT_control_flow_attributes
 // enabled when SHEXP_BASIS_ORDER is defined).
@@ -6,14 +6,14 @@ layout(std430, set = 0, binding = SHEXP_BASIS_BINDING) readonly buffer BasisCons
 
 float basis_qmm(uint m) { return basis_c[kBasisQmm + m]; }
 float basis_a1(uint m) { return basis_c[kBasisA1 + m]; }
-float basis_A(uint l, uint m) { return basis_c[kBasisA + l * kShexpMaxOrder + m]; }
-float basis_B(uint l, uint m) { return basis_c[kBasisB + l * kShexpMaxOrder + m]; }
+float basis_A(uint l, uint m) { return basis_c[kBasisA + l * kAccumMaxOrder + m]; }
+float basis_B(uint l, uint m) { return basis_c[kBasisB + l * kAccumMaxOrder + m]; }
 
 #ifdef SHEXP_BASIS_ORDER
 // Y = y(s) for every band below SHEXP_BASIS_ORDER (the including shader's order, a specialisation
 // constant declared before the include), by the recurrence above (the CPU kernel's basis_soa).
-void shexp_basis_eval(vec3 s, out float Y[kShexpMaxCoeffs]) {
-  float C[kShexpMaxOrder], S[kShexpMaxOrder];
+void sh_basis_eval(vec3 s, out float Y[kAccumMaxCoeffs]) {
+  float C[kAccumMaxOrder], S[kAccumMaxOrder];
   C[0] = 1.0;
   S[0] = 0.0;
   [[unroll]] for (uint m = 1; m < SHEXP_BASIS_ORDER; ++m) {

@@ -9,10 +9,10 @@
 
 #include <tbb/parallel_for.h>
 
-#include "shexp_internal.hpp"
+#include "accumulation.hpp"
 #include "softgi/sh/product.hpp"
 
-namespace softgi::techniques::shexp {
+namespace softgi::techniques::common {
 
 namespace {
 // Solid angle of a cone of half-angle theta, without cancellation for small theta.
@@ -199,4 +199,4 @@ long long add_lights_and_clamp(const LightLobeTable* table, const std::vector<sc
   return clamped;
 }
 
-}  // namespace softgi::techniques::shexp
+}  // namespace softgi::techniques::common

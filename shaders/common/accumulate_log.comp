@@ -10,12 +10,12 @@
 #extension GL_EXT_control_flow_attributes : require
 #include "softgi_shared.h"
 #define SHEXP_BASIS_BINDING kAccBindBasis
-#include "shexp_basis.glsl"
-#include "shexp_math.glsl"
+#include "sh_basis.glsl"
+#include "accum_math.glsl"
 
 layout(constant_id = 0) const uint N = 4;           // accumulation order
 layout(constant_id = 1) const uint RULE = kRuleContinuous;
-layout(local_size_x = kShexpAccumulateGroup) in;
+layout(local_size_x = kAccumulateGroup) in;
 
 layout(std430, set = 0, binding = kAccBindReceivers) readonly buffer Receivers { float rec[]; };
 layout(std430, set = 0, binding = kAccBindReceiverList) readonly buffer ReceiverList { uint rlist[]; };
@@ -39,7 +39,7 @@ void main() {
   if (i >= pc.end) return;
   const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
   const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
-  float acc[kShexpMaxCoeffs];
+  float acc[kAccumMaxCoeffs];
   [[unroll]] for (uint c = 0; c < N * N; ++c) acc[c] = 0.0;
   const uvec2 range = ranges[rlist[i]];
   for (uint b = range.x; b < range.x + range.y; ++b) {
@@ -50,7 +50,7 @@ void main() {
     const float h = dot(d, Nrm);  // centre height above the tangent plane T_p
     const float d2 = dot(d, d);
     const float a2 = max(d2 - h * h, 0.0);  // squared in-plane distance from p to q1
-    // Replacement rules (section 6.2; shexp_internal.hpp): a sphere tangent to T_p at q1, radius rho.
+    // Replacement rules (section 6.2; techniques/common/accumulation.hpp): a sphere tangent to T_p at q1, radius rho.
     float rho = r, hh = h;
     if (RULE != kRuleOff && h < r) {
       const float r2 = r * r;
@@ -78,16 +78,16 @@ void main() {
     const vec3 v = d + (hh - h) * Nrm;
     const float inv = inversesqrt(max(dot(v, v), 1e-30));
     const float st = (1e-6 * r < rho) ? min(rho * inv, 1.0) : 0.0;
-    const float theta = st > 0.0 ? shexp_asin01(st) : 0.0;
+    const float theta = st > 0.0 ? accum_asin01(st) : 0.0;
     const float u = theta * pc.scale;
     const int k = clamp(int(u), 0, int(pc.rows) - 2);
     const float fr = u - float(k);
     const uint row = uint(k) * 2u * N;
-    float fl[kShexpMaxOrder];
+    float fl[kAccumMaxOrder];
     [[unroll]] for (uint l = 0; l < N; ++l) fl[l] = (fr * table[row + 2 * l + 1] + table[row + 2 * l]) * weights[b * N + l];  // W of eq. 38
     const vec3 s = v * inv;
     // Basis by recurrence, accumulated as in kernel_block.
-    float C[kShexpMaxOrder], S[kShexpMaxOrder];
+    float C[kAccumMaxOrder], S[kAccumMaxOrder];
     C[0] = 1.0;
     S[0] = 0.0;
     [[unroll]] for (uint m = 1; m < N; ++m) {

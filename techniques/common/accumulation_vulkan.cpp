@@ -1,4 +1,4 @@
-#include "shexp_vulkan_common.hpp"
+#include "accumulation_vulkan.hpp"
 
 #include <cmath>
 #include <cstring>
@@ -6,7 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace softgi::techniques::shexp::vulkan_common {
+namespace softgi::techniques::common::gpu_passes {
 
 vk::ComputePipeline& pipeline(vk::Context& dev, PipelineCache& cache, const std::string& key, std::span<const std::uint32_t> spirv,
                               const std::vector<vk::SpecConstant>& spec) {
@@ -37,12 +37,46 @@ void check_fits(const vk::Context& dev, std::size_t bytes, const std::string& wh
                                 " of device '" + dev.device_info().name + "' (" + advice + ")");
 }
 
-void upload_receivers(vk::Context& dev, vk::Buffer& buf, const ReceiverSoA& soa, const std::string& name) {
+std::uint64_t content_hash(const void* data, std::size_t bytes, std::uint64_t seed) {
+  std::uint64_t h = seed ^ bytes;
+  const auto* p = static_cast<const unsigned char*>(data);
+  std::size_t i = 0;
+  for (; i + 8 <= bytes; i += 8) {
+    std::uint64_t w;
+    std::memcpy(&w, p + i, 8);
+    h = (h ^ w) * 0x100000001b3ull;
+    h ^= h >> 29;
+  }
+  for (; i < bytes; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
+  return h;
+}
+
+void upload_bytes_if_changed(vk::Context& dev, vk::Buffer& b, std::uint64_t& hash, const void* data, std::size_t bytes,
+                             const std::string& name) {
+  const VkBuffer before = b.handle();
+  dev.ensure_buffer(b, std::max<std::size_t>(16, bytes), kStorage, vk::MemoryKind::Device, name);
+  const std::uint64_t h = content_hash(data, bytes);
+  if (b.handle() == before && h == hash) return;
+  if (bytes) dev.upload(b, data, bytes);
+  hash = h;
+}
+
+void upload_receivers(vk::Context& dev, vk::Buffer& buf, const ReceiverSoA& soa, const std::string& name, std::uint64_t* hash) {
   const std::size_t n = soa.size(), plane = n * sizeof(float);
+  const VkBuffer before = buf.handle();
   dev.ensure_buffer(buf, std::max<std::size_t>(1, 6 * plane), kStorage, vk::MemoryKind::Device, name);
   const std::vector<float>* planes[6] = {&soa.px, &soa.py, &soa.pz, &soa.nx, &soa.ny, &soa.nz};
+  std::uint64_t h = 0;
+  if (hash) {
+    h = 0xcbf29ce484222325ull;
+    for (int a = 0; a < 6; ++a) h = content_hash(planes[a]->data(), plane, h);
+    if (buf.handle() == before && h == *hash) return;
+  }
   for (int a = 0; a < 6; ++a) dev.upload(buf, planes[a]->data(), plane, a * plane);
+  if (hash) *hash = h;
 }
+
+
 
 OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::string& technique) {
   const auto &xs = sht.ol_norm(), &as = sht.ol_a(), &bs = sht.ol_b();
@@ -98,7 +132,7 @@ PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const st
 
 std::vector<float> exp_series(std::uint32_t method, int degree) {
   if (degree < 1 || degree > static_cast<int>(gpu::kExpMaxDegree))
-    throw std::invalid_argument("shexp exponentiate on vulkan: series degree " + std::to_string(degree) + " outside 1.." +
+    throw std::invalid_argument("exponentiate on vulkan: series degree " + std::to_string(degree) + " outside 1.." +
                                 std::to_string(gpu::kExpMaxDegree));
   std::vector<float> h(static_cast<std::size_t>(degree) + 1, 1.0f);
   double fact = 1.0;
@@ -161,7 +195,7 @@ vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline&
       vk::Bind::buffer_at(gpu::kAccBindBasis, b.basis),         vk::Bind::buffer_at(gpu::kAccBindOut, b.out)};
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("accumulate_log");
-    dispatch_chunks<Push>(rec, p, binds, count, gpu::kShexpAccumulateGroup, [&](std::uint32_t first, std::uint32_t end) {
+    dispatch_chunks<Push>(rec, p, binds, count, gpu::kAccumulateGroup, [&](std::uint32_t first, std::uint32_t end) {
       return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(log.rows), log.scale, cut};
     });
     rec.end_timer();
@@ -182,7 +216,7 @@ vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p
       vk::Bind::buffer_at(gpu::kExpBindStatus, b.status)};
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("exponentiate");
-    dispatch_chunks<Push>(rec, p, binds, count, gpu::kShexpExpGroup, [&](std::uint32_t first, std::uint32_t end) {
+    dispatch_chunks<Push>(rec, p, binds, count, gpu::kExponentiateGroup, [&](std::uint32_t first, std::uint32_t end) {
       return Push{first, end, ol_count, static_cast<std::uint32_t>(degree)};
     });
     rec.end_timer();
@@ -195,6 +229,12 @@ void reset_exp_status(vk::Context& dev, vk::Buffer& status, const std::string& n
   const std::uint32_t status0[gpu::kExpStatusWords] = {0, none, none, none};
   dev.ensure_buffer(status, sizeof status0, kStorage, vk::MemoryKind::Host, name);
   dev.upload(status, status0, sizeof status0);
+}
+
+bool exp_status_failed(const std::uint32_t (&status)[gpu::kExpStatusWords]) {
+  const std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
+  return status[gpu::kExpStatusBadInput] != none || status[gpu::kExpStatusDcOverflow] != none ||
+         status[gpu::kExpStatusOverflow] != none;
 }
 
 void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const float* log, int n2, const std::string& pass,
@@ -216,4 +256,4 @@ void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const
     throw std::overflow_error(pass + ": receiver " + std::to_string(status[gpu::kExpStatusOverflow] - 1) + ": a result coefficient overflowed");
 }
 
-}  // namespace softgi::techniques::shexp::vulkan_common
+}  // namespace softgi::techniques::common::gpu_passes

@@ -36,7 +36,7 @@ __attribute__((always_inline)) inline typename V::F blocker_view(const ZhTable& 
   const F d2 = V::fma(dx, dx, V::fma(dy, dy, V::mul(dz, dz)));
   const F a2 = V::max(V::fnma(h, h, d2), zero);  // squared distance along T_p from p to q1
 
-  // Replacement rules (section 6.2, shexp_internal.hpp): the adjusted sphere is tangent to T_p at
+  // Replacement rules (section 6.2, accumulation.hpp): the adjusted sphere is tangent to T_p at
   // q1 with radius rho, so seen from p its centre is at (in-plane offset) + hh N.
   F rho = r, hh = h;
   // The rules leave a sphere entirely in front of every lane's tangent plane unaltered: the common

@@ -1,0 +1,47 @@
+// Constants of the upsampling shaders (shaders/common/upsample_*.comp, paper 000 section 4.2),
+// shared by the C++ side (techniques/common/upsample_vulkan.cpp) and GLSL: one declaration,
+// included by both.
+#ifndef SOFTGI_UPSAMPLE_SHARED_H
+#define SOFTGI_UPSAMPLE_SHARED_H
+
+#ifdef __cplusplus
+#include <cstdint>
+namespace softgi::gpu {
+#define SOFTGI_UP_CONST_UINT(name, value) inline constexpr std::uint32_t name = value;
+#else
+#define SOFTGI_UP_CONST_UINT(name, value) const uint name = value;
+#endif
+
+// Workgroup size of the per-display-pixel passes (8 x 8 pixels).
+SOFTGI_UP_CONST_UINT(kUpsampleGroupX, 8u)
+SOFTGI_UP_CONST_UINT(kUpsampleGroupY, 8u)
+// Upsampling modes (common::UpsampleMode).
+SOFTGI_UP_CONST_UINT(kUpsampleBilateral, 0u)
+SOFTGI_UP_CONST_UINT(kUpsampleBilinear, 1u)
+
+// upsample_weights bindings (set 0)
+SOFTGI_UP_CONST_UINT(kUpBindFineDepth, 0u)     // float per display pixel
+SOFTGI_UP_CONST_UINT(kUpBindFineNormal, 1u)    // float[3] per display pixel
+SOFTGI_UP_CONST_UINT(kUpBindCoarseDepth, 2u)   // float per coarse pixel
+SOFTGI_UP_CONST_UINT(kUpBindCoarseNormal, 3u)  // float[3] per coarse pixel
+SOFTGI_UP_CONST_UINT(kUpBindIndex, 4u)         // ivec4 per display pixel (-1 = unused, packed to the front)
+SOFTGI_UP_CONST_UINT(kUpBindWeight, 5u)        // vec4 per display pixel
+SOFTGI_UP_CONST_UINT(kUpBindMiss, 6u)          // uvec2 per display pixel: (miss, bits of the eq. 11 measure)
+SOFTGI_UP_CONST_UINT(kUpBindStatus, 7u)        // uint[2]: first bad fine pixel + 1, first bad coarse pixel + 1 (0xffffffff: none)
+// Status words of upsample_weights.
+SOFTGI_UP_CONST_UINT(kUpStatusBadFine, 0u)
+SOFTGI_UP_CONST_UINT(kUpStatusBadCoarse, 1u)
+SOFTGI_UP_CONST_UINT(kUpStatusWords, 2u)
+
+// upsample_apply bindings (set 0)
+SOFTGI_UP_CONST_UINT(kApBindIndex, 0u)
+SOFTGI_UP_CONST_UINT(kApBindWeight, 1u)
+SOFTGI_UP_CONST_UINT(kApBindIn, 2u)   // channels floats per coarse pixel
+SOFTGI_UP_CONST_UINT(kApBindOut, 3u)  // channels floats per display pixel
+
+#undef SOFTGI_UP_CONST_UINT
+#ifdef __cplusplus
+}  // namespace softgi::gpu
+#endif
+
+#endif

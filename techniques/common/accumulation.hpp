@@ -1,0 +1,259 @@
+// The shared proxy-accumulation library: what more than one technique builds on. Log-space
+// accumulation of sphere blockers in SH (paper 004 sections 5-6: ZH tables, the rotation rule of
+// eq. 34, the replacement rules of section 6.2) in receiver and blocker structure-of-arrays layout,
+// vectorised kernels (AVX-512, AVX2, scalar), batched SH exponentials and shading, and analytic
+// spherical lights (paper 004 section 7). SHEXP (paper 004) and image-space accumulation (paper 000)
+// both run on these; citations resolve in docs/papers.md. Not installed; include by path
+// (techniques/common/...).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "softgi/scene/scene.hpp"
+#include "softgi/sh/exp_log.hpp"
+#include "softgi/sh/sh.hpp"
+#include "softgi/sh/tables.hpp"
+
+namespace softgi::render {
+class FrameContext;
+}
+
+namespace softgi::techniques::common {
+
+inline constexpr int kMinOrder = 3;   // SH orders the accumulation techniques shade at
+inline constexpr int kMaxOrder = 6;
+inline constexpr int kMaxAccOrder = 8;  // accumulation may run above the shading order (Figure 7e)
+
+// ---------------------------------------------------------------------------------------------
+// Self-shadowing replacement rules (paper 004 section 6.2, Figure 5), per receiver p with outward
+// normal N and tangent plane T_p, for a blocker S = (P, r) with signed centre height h = (P - p).N:
+//  - p inside S: S is eliminated if its centre is behind T_p (h <= 0), else shrunk about its centre
+//    until tangent to T_p, i.e. radius h. That sphere touches T_p at q1 = P - h N.
+//  - p outside S: eliminated if S lies entirely behind T_p (h <= -r); unaltered if entirely in front
+//    (h >= r); otherwise replaced by S', the sphere with diameter q0 q1, where q0 = P + r N is the
+//    point of S farthest in front of T_p and q1 = q0 projected onto T_p = P - h N: radius (h + r)/2,
+//    tangent to T_p at q1.
+//  - Every replacement is therefore a sphere tangent to T_p at q1; only its radius rho differs. The
+//    paper scales S' "gradually" with p's distance to S along T_p, measured in units of
+//    d = sqrt(r^2 - (r - |q1 - q0|)^2) = sqrt(r^2 - h^2), the radius of the disc S cuts from T_p.
+//
+// The extracted text prints a = max(1, (|p - q1| - d)/d). That factor equals 1 for every p within d
+// of S and grows without bound beyond, so it neither removes the jump at the boundary of S (inside:
+// radius max(h, 0); just outside: (h + r)/2) nor keeps a distant sphere's angular size finite
+// (a (h + r)/2 grows like |p - q1|). Three readings are implemented:
+//  - Continuous (default): t = clamp((|p - q1| - d)/d, 0, 1); rho = max(h, 0) + t ((h + r)/2 - max(h, 0)).
+//    At the boundary of S (t = 0) it equals the inside rule for both signs of h, at distance >= d it
+//    is the paper's S', and every case is continuous in p (tests/shexp: ReplacementRules.*).
+//  - Clamped: rho = t (h + r)/2 outside, the inside rule inside (a = min(1, .), the reading of
+//    core/src/reference: continuous when the centre is behind T_p, a jump when it is in front).
+//  - Printed: rho = max(1, (|p - q1| - d)/d) (h + r)/2 outside, as extracted (a jump at the boundary).
+//  - Off: spheres unaltered (every receiver inside a sphere is fully shadowed).
+enum class ReplacementRule { Off, Continuous, Clamped, Printed };
+const char* to_string(ReplacementRule r);
+ReplacementRule parse_replacement_rule(const std::string& s);  // throws naming the value
+
+struct AdjustedSphere {
+  glm::vec3 center{0.0f};
+  float radius = 0.0f;  // 0: eliminated
+};
+// Scalar reference of the rules above.
+AdjustedSphere apply_replacement_rule(ReplacementRule rule, const glm::vec3& p, const glm::vec3& n,
+                                      const glm::vec3& center, float radius);
+
+// ---------------------------------------------------------------------------------------------
+// A ZH table in float for the hot loops: per theta sample k (uniform in [0, pi/2]), the n values
+// F_l(theta_k) = sqrt(4 pi/(2l+1)) zh_l(theta_k) (the rotation rule's factor folded in, so that
+// f_lm = F_l y_lm(s), eq. 34), each followed by its slope F_l(theta_{k+1}) - F_l(theta_k): the
+// kernel fetches a band's (value, slope) pair with one 64-bit gather.
+struct ZhTable {
+  int order = 0, rows = 0;
+  float scale = 0.0f;        // (rows - 1) / (pi/2): theta to row coordinate
+  std::vector<float> data;   // rows * 2 * order: (value, slope) of band 0, band 1, ...
+  std::vector<float> band;   // the same, band-major: per band, rows values then rows slopes
+  void lookup(float theta, float* out) const;  // linear interpolation, theta clamped to [0, pi/2]
+  std::size_t bytes() const { return (data.size() + band.size()) * sizeof(float); }
+};
+// From a theta-sampled sh::Table1D of width >= order (cap log or cap visibility ZH). Row 0 of a log
+// table is forced to exactly 0 (a sphere of radius 0 changes nothing).
+ZhTable make_zh_table(const sh::Table1D& table, int order, bool zero_first_row);
+
+// eq. 34 (and eq. 38 with band weights w, nullptr = 1) for one receiver and one sphere, scalar:
+// out[n^2] = W F(theta(p, c, r)) y(s(p, c)). theta = asin(min(1, r/|c - p|)).
+void sphere_zh_vector(const ZhTable& table, const glm::vec3& p, const glm::vec3& c, float r, const float* w,
+                      float* out);
+
+// ---------------------------------------------------------------------------------------------
+// Receivers in structure-of-arrays layout, ordered by receiver cluster.
+struct ReceiverSoA {
+  std::vector<float> px, py, pz, nx, ny, nz;
+  std::size_t size() const { return px.size(); }
+  void resize(std::size_t n);
+  void set(std::size_t i, const glm::vec3& p, const glm::vec3& n);
+};
+
+// A blocker list (one receiver cluster's cut, or the flat leaf list), SoA, with band weights
+// w[b * order + l] (eq. 37 ratio vectors; 1 for leaves and for the flat list).
+struct BlockerList {
+  int order = 0;
+  std::vector<float> cx, cy, cz, r, w;
+  std::size_t size() const { return r.size(); }
+  void push(const glm::vec3& c, float radius, const float* weights /* nullptr: all 1 */);
+  std::size_t bytes() const { return (cx.size() * 4 + w.size()) * sizeof(float); }
+};
+
+// ---------------------------------------------------------------------------------------------
+// The accumulation kernel (eq. 34 / eq. 38 summed over a blocker list, with the replacement rules):
+// out[i * n^2 + k] = sum_b W_b F(theta_ib) y_k(s_ib) for receivers i in [begin, end) of `rec`,
+// n = table.order (3..8). Vectorised across receivers (16 lanes with AVX-512, 8 with AVX2+FMA):
+// every lane shares the blocker, so blocker data is broadcast and only the table rows are gathered.
+enum class KernelIsa { Scalar, Avx2, Avx512 };
+const char* to_string(KernelIsa isa);
+KernelIsa best_kernel_isa();            // what this CPU runs (checked at run time)
+bool kernel_isa_supported(KernelIsa isa);
+int kernel_lanes(KernelIsa isa);
+void accumulate_log(KernelIsa isa, const ZhTable& table, ReplacementRule rule, const ReceiverSoA& rec,
+                    std::size_t begin, std::size_t end, const BlockerList& blockers, float* out);
+// Floating-point operations per receiver-blocker pair of the kernel at this order and rule, counted
+// by running the kernel's own code on a counting number type (add, sub, mul, div, sqrt = 1,
+// fma = 2, a refined reciprocal square root = 2 for the sqrt and division it replaces; compares,
+// selects, min/max, conversions, loads and permutes = 0). A sphere entirely in front of every
+// lane's tangent plane skips the replacement rules; `straddling` counts the path through them.
+double kernel_flops_per_pair(int order, ReplacementRule rule, bool straddling = false);
+
+// ---------------------------------------------------------------------------------------------
+// Batched SH products, exponentials and shading over blocks of receivers (the same instruction sets
+// as the kernel). The triple-product terms of sh::TripleProduct, grouped by output index.
+struct ProductPlan {
+  int order = 0;
+  // Squares: out_i = sum over [sq_begin[i], sq_begin[i+1]) of sq_v f_j f_k (symmetric terms merged).
+  std::vector<int> sq_begin;
+  std::vector<std::uint16_t> sq_j, sq_k;
+  std::vector<float> sq_v;
+  // Products: [pr_begin[i], pr_offdiag_end[i]) are j < k terms v (f_j g_k + f_k g_j), the rest of
+  // [.., pr_begin[i+1]) are j == k terms v f_j g_j.
+  std::vector<int> pr_begin, pr_offdiag_end;
+  std::vector<std::uint16_t> pr_j, pr_k;
+  std::vector<float> pr_v;
+  static const ProductPlan& get(int order);  // cached, thread-safe
+};
+
+struct BatchExp {
+  int order = 0;
+  sh::ExpMethod method = sh::ExpMethod::HYB;  // HYB, OL, PSStar or PS
+  int degree = 2;                             // PS*-p, PS-p
+  const sh::ShTables* tables = nullptr;       // OL a, b (HYB, OL)
+  const ProductPlan* plan = nullptr;
+};
+bool exp_batch_supports(sh::ExpMethod m);
+// g = exp*(f) for `count` receivers, f and g receiver-major (order^2 floats each), the same rules
+// and statistics as sh::exp per receiver. `first` numbers the receivers in error messages. Throws
+// std::invalid_argument for non-finite input and std::overflow_error for results out of range.
+void exp_batch(KernelIsa isa, const BatchExp& e, const float* f, float* g, std::size_t count, std::size_t first,
+               sh::ExpStats& stats);
+
+struct BatchShade {
+  int order = 0;
+  const ProductPlan* plan = nullptr;
+  const float* L = nullptr;      // light, 3 x order^2 (channel-major)
+  const float* hcoef = nullptr;  // order^2: H(N)_lm = hcoef y_lm(N) (clamped cosine / pi, rotation factor folded in)
+  const float* gwin = nullptr;   // order^2: window factor of the visibility per coefficient (1 = none)
+  const float* g = nullptr;      // visibility, receiver-major order^2 per receiver; null = unshadowed
+  // The plan of `order` with the given arrays (ProductPlan::get is cached).
+  static BatchShade make(int order, const float* L, const float* hcoef, const float* gwin, const float* g);
+};
+// out[i - begin] = (H(N_i) * g_i) . L per channel, for receivers [begin, end).
+void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out);
+
+// ---------------------------------------------------------------------------------------------
+// Product-space accumulation (Zhou et al. 2005, paper 004 eq. 6), vectorised: the baseline SHEXP
+// compares its log-space accumulation with.
+// The same, vectorised across receivers like the log-space kernel (the product pass's
+// implementation, so that log and product space are compared with equal vectorisation): the
+// visibility vectors come from the kernel's own geometry code, the products from ProductPlan. Lanes
+// where a blocker is eliminated multiply by the constant 1. Returns the SH products done (per
+// receiver, summed).
+long long accumulate_product_batch(KernelIsa isa, const ZhTable& vis_table, ReplacementRule rule, const ReceiverSoA& rec,
+                                   std::size_t begin, std::size_t end, const BlockerList& blockers, float* out);
+
+// The SH basis-recurrence constants and asin coefficients of the CPU kernel (kernel.cpp), laid out
+// as softgi_shared.h's kBasis* offsets: the Vulkan shaders evaluate the basis with the same floats.
+std::vector<float> basis_recurrence_constants();
+
+// ---------------------------------------------------------------------------------------------
+// Analytic spherical lights (paper 004 section 7): L_H(theta, f) = L(theta, f) * H((0, 0, 1)) for a
+// light of angular radius theta whose centre direction makes angle f with the normal (canonical
+// frame: N = z, light in the xz plane), fitted per (theta, f) by a single-lobe ZH (Sloan et al. 2005):
+// L_H ~ k_l y_lm(a(psi)), a(psi) = (sin psi, 0, cos psi). Stored normalised by the light's solid
+// angle so that the table stays smooth as theta -> 0. Bilinear lookup.
+struct LightLobeTable {
+  int order = 0, rows_theta = 0, rows_f = 0;
+  double window_h = 0.0;
+  std::vector<float> psi;  // rows_theta * rows_f
+  std::vector<float> k;    // rows_theta * rows_f * order: k_l / solid angle
+  // max over theta of (max over f of ||L_H - lobe||) / (max over f of ||L_H||): the fit's error
+  // relative to the light's strongest L_H at that size (a light near the horizon has a small L_H
+  // whose shape one lobe fits poorly, but which contributes little).
+  double max_fit_error = 0.0;
+  // Lobe of a light of angular radius theta at angle f from the normal (k multiplied back by the solid angle).
+  void lookup(float theta, float f, float& psi_out, float* k_out) const;
+  std::size_t bytes() const { return (psi.size() + k.size()) * sizeof(float); }
+};
+// window_h > 0 windows the light's projection (section 7) before the product with H.
+LightLobeTable make_light_lobe_table(int order, int rows_theta, int rows_f, double window_h);
+// The exact canonical L_H(theta, f) (double, n^2), for tests.
+std::vector<double> light_lh_canonical(int order, double theta, double f, double window_h);
+// L_H of a spherical light (centre c, radius R) at receiver p with normal N, in world SH (n^2 floats),
+// through the fitted lobe; false when the light is behind the receiver's horizon entirely or degenerate.
+bool light_lh_world(const LightLobeTable& t, const glm::vec3& p, const glm::vec3& n, const glm::vec3& c, float radius,
+                    float* out);
+// The smallest theta the light table samples (and the floor of its solid-angle normalisation): the
+// normalised L_H / Omega has a finite limit at theta -> 0 (a directional light), which this stands in for.
+inline constexpr double kLightThetaFloor = 1e-3;
+// The end of the diffuse shading of receivers [begin, end) of rec, shared by SHEXP's shade pass and
+// image_splat's shade_direct (and mirrored by shaders/common/shade.comp): out[i - begin] holds
+// (H(N) * g) . L (shade_batch); adds the spherical lights' L_H . (gwin g_i) (section 7; g_i at
+// g + i n^2, null: unshadowed) when `table` is given, then clamps at 0. zero_normal_empty: a receiver
+// with a zero normal (no surface) gets 0 and is not counted. Returns the receivers clamped at 0.
+long long add_lights_and_clamp(const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights, int order,
+                               const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
+                               bool zero_normal_empty, glm::vec3* out);
+
+// ---------------------------------------------------------------------------------------------
+// The diffuse shading of receivers on the GPU (shaders/common/shade.comp): what shade_batch followed
+// by add_lights_and_clamp computes on the CPU, out[i] = max(0, (H(N_i) * g_i) . L + lights), for
+// SHEXP's shade pass and image_splat's shade_direct.
+struct GpuShade {
+  const BatchShade* b = nullptr;  // order, L, hcoef, gwin; b->g: n^2 per receiver (null: unshadowed, or `gather`)
+  const LightLobeTable* lights_table = nullptr;  // null: no spherical light shading
+  const std::vector<scene::SphericalLight>* lights = nullptr;
+  bool zero_normal_empty = false;  // add_lights_and_clamp's flag
+  // Paper 000 eq. 11 (image_splat): the visibility of receiver i interpolated from a coarse field,
+  // g_i = sum_t weight[pixel[i]][t] coarse[index[pixel[i]][t]] (taps packed to the front, -1 unused;
+  // no tap: unshadowed), in place of b->g.
+  struct Gather {
+    const std::int32_t* pixel = nullptr;               // per receiver
+    const std::array<std::int32_t, 4>* index = nullptr;  // per display pixel
+    const std::array<float, 4>* weight = nullptr;        // per display pixel
+    std::size_t pixels = 0;                              // display pixels
+    const float* coarse = nullptr;                       // n^2 per coarse sample
+    std::size_t coarse_count = 0;
+  };
+  const Gather* gather = nullptr;
+  // The frame resource holding the visibility when a GPU pass left it on the device (b->g null):
+  // the kernel binds the device copy instead of uploading b->g.
+  const char* visibility_resource = nullptr;
+};
+// A backend's implementation of that shading (common::vulkan_shade on Vulkan): shades every receiver
+// of rec into out[0, rec.size()); returns the receivers clamped at 0 and sets the pass record's
+// kernel_gpu_seconds.
+using ShadeKernel = std::function<long long(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA& rec, glm::vec3* out)>;
+
+}  // namespace softgi::techniques::common

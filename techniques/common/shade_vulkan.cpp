@@ -1,0 +1,176 @@
+// The diffuse shading of receivers on the Vulkan backend (shaders/common/shade.comp): SHEXP's shade
+// pass and image_splat's shade_direct (with paper 000's eq. 11 gather) run this one dispatch. The
+// product plan, basis constants and light-lobe table are the CPU's own floats, uploaded once per
+// device (the table again when it changes) and kept in the context's cache.
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <stdexcept>
+
+#include "accumulation_vulkan.hpp"
+#include "softgi/backends/vulkan/context.hpp"
+#include "softgi/render/frame.hpp"
+#include "softgi_shared.h"
+
+namespace spv {
+#include "softgi/shaders/common/shade_comp.h"
+}  // namespace spv
+
+namespace softgi::techniques::common {
+
+namespace vk = backends::vulkan;
+using namespace gpu_passes;
+
+namespace {
+
+// Per-device state of the shading dispatch: pipelines by specialisation, constants uploaded once,
+// buffers reused from frame to frame (grown when a frame needs more).
+struct ShadeState {
+  std::mutex m;
+  PipelineCache pipelines;
+  vk::Buffer basis;
+  std::map<int, PlanBuffers> plans;
+  vk::Buffer shade_rec, shade_vis, shade_consts, shade_out, shade_status, shade_lights;
+  vk::Buffer shade_tap_pixel, shade_tap_index, shade_tap_weight;  // eq. 11 gather (paper 000)
+  std::uint64_t rec_hash = 0;     // what shade_rec holds (upload_receivers)
+  vk::Buffer light_table;         // LightLobeTable psi then k
+  std::vector<float> light_host;  // the floats in light_table (upload_if_changed)
+};
+
+ShadeState& shade_state(vk::Context& dev) {
+  return *dev.cached<ShadeState>("common.shade", [] { return std::make_shared<ShadeState>(); });
+}
+
+const PlanBuffers& plan_buffers(vk::Context& dev, ShadeState& g, int order) {
+  auto it = g.plans.find(order);
+  if (it != g.plans.end()) return it->second;
+  return g.plans.emplace(order, upload_product_plan(dev, ProductPlan::get(order), "shade")).first->second;
+}
+
+const vk::Buffer& basis_buffer(vk::Context& dev, ShadeState& g) {
+  if (!g.basis) g.basis = dev.upload_vector(basis_recurrence_constants(), kStorage, "shade basis constants");
+  return g.basis;
+}
+
+void check_fits_shade(const vk::Context& dev, std::size_t bytes, const std::string& what, const std::string& pass) {
+  gpu_passes::check_fits(dev, bytes, what, pass, "use fewer receivers or a smaller frame, or --backend cpu");
+}
+
+}  // namespace
+
+long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA& soa, glm::vec3* out) {
+  if (!in.b) throw std::logic_error("shade on vulkan: no shading constants");
+  const BatchShade& b = *in.b;
+  vk::Context& dev = vk::context_of(ctx);
+  ShadeState& g = shade_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);
+  const int n = b.order, n2 = n * n;
+  const std::size_t count = soa.size();
+  if (count == 0) return 0;
+  if (count > std::numeric_limits<std::uint32_t>::max() / 8)
+    throw std::invalid_argument("shade on vulkan: " + std::to_string(count) + " receivers exceed the 32-bit indexing");
+  check_fits_shade(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", "shade");
+  const bool lights = in.lights_table && in.lights && !in.lights->empty();
+  const GpuShade::Gather* ga = in.gather;
+  const DeviceField* dvis = !ga && in.visibility_resource ? device_field(ctx, in.visibility_resource) : nullptr;
+  if (dvis && dvis->floats != count * static_cast<std::size_t>(n2))
+    throw std::logic_error("shade on vulkan: the device visibility does not match the " + std::to_string(count) + " receivers");
+  const std::uint32_t vis_mode = ga ? gpu::kShadeVisGather : (b.g || dvis ? gpu::kShadeVisReceiver : gpu::kShadeVisNone);
+  const PlanBuffers& plan = plan_buffers(dev, g, n);
+  const vk::Buffer& basis = basis_buffer(dev, g);
+  upload_receivers(dev, g.shade_rec, soa, "shade receivers", &g.rec_hash);
+  // Visibility: per receiver, or the coarse field of a gather.
+  const float* vsrc = ga ? ga->coarse : dvis ? nullptr : b.g;
+  const std::size_t vrows = ga ? ga->coarse_count : count;
+  const std::size_t vis_bytes = vsrc ? vrows * n2 * sizeof(float) : 0;
+  check_fits_shade(dev, vis_bytes, "the visibility of " + std::to_string(vrows) + (ga ? " coarse samples" : " receivers"), "shade");
+  dev.ensure_buffer(g.shade_vis, std::max<std::size_t>(sizeof(float), vis_bytes), kStorage, vk::MemoryKind::Device, "shade visibility");
+  if (vis_bytes) dev.upload(g.shade_vis, vsrc, vis_bytes);
+  if (ga) {
+    if (!ga->pixel || !ga->index || !ga->weight || (ga->coarse_count && !ga->coarse))
+      throw std::logic_error("shade on vulkan: incomplete gather");
+    check_fits_shade(dev, ga->pixels * 16, "the eq. 11 taps of " + std::to_string(ga->pixels) + " display pixels", "shade");
+    for (std::size_t i = 0; i < count; ++i)
+      if (ga->pixel[i] < 0 || static_cast<std::size_t>(ga->pixel[i]) >= ga->pixels)
+        throw std::logic_error("shade on vulkan: receiver " + std::to_string(i) + " gathers from pixel " + std::to_string(ga->pixel[i]) +
+                               " outside " + std::to_string(ga->pixels));
+    dev.ensure_buffer(g.shade_tap_pixel, count * sizeof(std::int32_t), kStorage, vk::MemoryKind::Device, "shade tap pixels");
+    dev.upload(g.shade_tap_pixel, ga->pixel, count * sizeof(std::int32_t));
+    dev.ensure_buffer(g.shade_tap_index, ga->pixels * 16, kStorage, vk::MemoryKind::Device, "shade tap index");
+    dev.upload(g.shade_tap_index, ga->index, ga->pixels * 16);
+    dev.ensure_buffer(g.shade_tap_weight, ga->pixels * 16, kStorage, vk::MemoryKind::Device, "shade tap weights");
+    dev.upload(g.shade_tap_weight, ga->weight, ga->pixels * 16);
+  } else {
+    for (vk::Buffer* buf : {&g.shade_tap_pixel, &g.shade_tap_index, &g.shade_tap_weight})
+      dev.ensure_buffer(*buf, 16, kStorage, vk::MemoryKind::Device, "shade taps (unused)");
+  }
+  std::vector<float> consts(5 * n2);
+  std::copy(b.L, b.L + 3 * n2, consts.begin());
+  std::copy(b.hcoef, b.hcoef + n2, consts.begin() + 3 * n2);
+  std::copy(b.gwin, b.gwin + n2, consts.begin() + 4 * n2);
+  put(dev, g.shade_consts, consts, "shade constants");
+
+  // Paper 004 section 7: the light-lobe table (the CPU's floats, uploaded when they change) and the
+  // posed lights.
+  const LightLobeTable* lt = in.lights_table;
+  std::vector<float> light_data;
+  if (lights) {
+    if (lt->order != n)
+      throw std::logic_error("shade on vulkan: light table of order " + std::to_string(lt->order) + " for order " + std::to_string(n));
+    std::vector<float> tab(lt->psi);
+    tab.insert(tab.end(), lt->k.begin(), lt->k.end());
+    upload_if_changed(dev, g.light_table, g.light_host, tab, "shade light lobe table");
+    for (const auto& l : *in.lights) {
+      light_data.insert(light_data.end(), {l.position.x, l.position.y, l.position.z, l.radius});
+      light_data.insert(light_data.end(), {l.radiance.x, l.radiance.y, l.radiance.z, 0.0f});
+    }
+  } else if (!g.light_table) {
+    upload_if_changed(dev, g.light_table, g.light_host, {}, "shade light lobe table (unused)");
+  }
+  put(dev, g.shade_lights, light_data, "shade spherical lights");
+  const std::uint32_t zero = 0;
+  dev.ensure_buffer(g.shade_status, sizeof zero, kStorage, vk::MemoryKind::Host, "shade status");
+  dev.upload(g.shade_status, &zero, sizeof zero);
+  dev.ensure_buffer(g.shade_out, count * 4 * sizeof(float), kStorage, vk::MemoryKind::Host, "shading");
+
+  vk::ComputePipeline& p = pipeline(dev, g.pipelines,
+                                    "common.shade.n" + std::to_string(n) + ".vis" + std::to_string(vis_mode) + (lights ? ".lights" : ""),
+                                    words(spv::common_shade_comp), {{0, static_cast<std::uint32_t>(n)}, {1, vis_mode}, {2, lights ? 1u : 0u}});
+  struct Push {
+    std::uint32_t count, first, end, flags, light_count, rows_theta, rows_f;
+    float theta_floor;
+  };
+  const std::uint32_t flags = in.zero_normal_empty ? gpu::kShadeFlagZeroNormalEmpty : 0u;
+  const std::uint32_t nl = lights ? static_cast<std::uint32_t>(in.lights->size()) : 0u;
+  const std::uint32_t rt = lights ? static_cast<std::uint32_t>(lt->rows_theta) : 2u, rf = lights ? static_cast<std::uint32_t>(lt->rows_f) : 2u;
+  const std::vector<vk::Bind> binds = {
+      vk::Bind::buffer_at(gpu::kShadeBindReceivers, g.shade_rec),       vk::Bind::buffer_at(gpu::kShadeBindVis, dvis ? *dvis->buffer : g.shade_vis),
+      vk::Bind::buffer_at(gpu::kShadeBindConsts, g.shade_consts),       vk::Bind::buffer_at(gpu::kShadeBindPrIndex, plan.pr_range),
+      vk::Bind::buffer_at(gpu::kShadeBindPrTerms, plan.pr_terms),       vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
+      vk::Bind::buffer_at(gpu::kShadeBindOut, g.shade_out),             vk::Bind::buffer_at(gpu::kShadeBindTapPixel, g.shade_tap_pixel),
+      vk::Bind::buffer_at(gpu::kShadeBindTapIndex, g.shade_tap_index),  vk::Bind::buffer_at(gpu::kShadeBindTapWeight, g.shade_tap_weight),
+      vk::Bind::buffer_at(gpu::kShadeBindLightTable, g.light_table),    vk::Bind::buffer_at(gpu::kShadeBindLights, g.shade_lights),
+      vk::Bind::buffer_at(gpu::kShadeBindStatus, g.shade_status)};
+  const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
+    rec.begin_timer("shade");
+    dispatch_chunks<Push>(rec, p, binds, count, gpu::kShadeGroup, [&](std::uint32_t first, std::uint32_t end) {
+      return Push{static_cast<std::uint32_t>(count), first, end, flags, nl, rt, rf, static_cast<float>(kLightThetaFloor)};
+    });
+    rec.end_timer();
+    rec.barrier();
+  }, "shade");
+  std::vector<float> rgba(count * 4);
+  dev.download(g.shade_out, rgba.data(), rgba.size() * sizeof(float));
+  for (std::size_t i = 0; i < count; ++i) out[i] = glm::vec3(rgba[4 * i], rgba[4 * i + 1], rgba[4 * i + 2]);
+  std::uint32_t clamped = 0;
+  dev.download(g.shade_status, &clamped, sizeof clamped);
+  // Summed over the pass's shading dispatches (image_splat shades surface pixels and misses apart).
+  const double secs = timer_seconds(res);
+  double& total = ctx.record().counters["kernel_gpu_seconds"];
+  total = secs < 0.0 ? secs : std::max(total, 0.0) + secs;
+  return clamped;
+}
+
+}  // namespace softgi::techniques::common

@@ -1,0 +1,236 @@
+// Bilateral and bilinear upsampling (paper 000 section 4.2, eq. 11) on the Vulkan backend: the
+// eq. 11 weights (shaders/common/upsample_weights.comp) and their application to a coarse field
+// (upsample_apply.comp), with upsample.cpp's checks and messages. The weights stay on the device
+// for the applications that follow them.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+
+#include "accumulation_vulkan.hpp"
+#include "softgi/backends/vulkan/context.hpp"
+#include "softgi_shared.h"
+#include "upsample.hpp"
+#include "upsample_shared.h"
+
+namespace spv {
+#include "softgi/shaders/common/upsample_apply_comp.h"
+#include "softgi/shaders/common/upsample_weights_comp.h"
+}  // namespace spv
+
+namespace softgi::techniques::common {
+
+namespace vk = backends::vulkan;
+using namespace gpu_passes;
+
+namespace {
+
+// Per-device state: pipelines, and buffers reused from frame to frame (grown when needed).
+struct UpsampleState {
+  std::mutex m;
+  PipelineCache pipelines;
+  vk::Buffer fdepth, fnormal, cdepth, cnormal, up_index, up_weight, up_miss, up_status;  // weights
+  const void* up_resident = nullptr;  // UpsampleWeights::index.data() of the weights in up_index / up_weight
+  std::size_t up_pixels = 0;
+  vk::Buffer ap_in, ap_out;           // apply
+};
+
+UpsampleState& upsample_state(vk::Context& dev) {
+  return *dev.cached<UpsampleState>("common.upsample", [] { return std::make_shared<UpsampleState>(); });
+}
+
+void check_fits(const vk::Context& dev, std::size_t bytes, const std::string& what, const std::string& pass) {
+  gpu_passes::check_fits(dev, bytes, what, pass, "use a smaller frame or --backend cpu");
+}
+
+[[noreturn]] void upsample_fail(const std::string& what) { throw std::invalid_argument("upsample on vulkan: " + what); }
+
+std::string dims(const PlaneView& v) {
+  return std::to_string(v.width) + "x" + std::to_string(v.height) + " (scale " + std::to_string(v.scale) + ")";
+}
+
+// upsample.cpp's size and option checks (the per-pixel depth and normal checks run in the shader).
+void check_upsample_input(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt) {
+  if (opt.mode != UpsampleMode::Bilateral && opt.mode != UpsampleMode::Bilinear)
+    upsample_fail("unknown mode value " + std::to_string(static_cast<int>(opt.mode)));
+  if (!std::isfinite(opt.epsilon_rel) || !(opt.epsilon_rel > 0.0))
+    upsample_fail("epsilon_rel = " + std::to_string(opt.epsilon_rel) + " must be finite and positive");
+  if (opt.normal_power < 0) upsample_fail("normal_power = " + std::to_string(opt.normal_power) + " must not be negative");
+  if (!std::isfinite(opt.miss_threshold) || opt.miss_threshold < 0.0)
+    upsample_fail("miss_threshold = " + std::to_string(opt.miss_threshold) + " must be finite and not negative");
+  for (const auto& [v, name] : {std::pair<const PlaneView&, const char*>{coarse, "coarse"}, {fine, "fine"}}) {
+    if (v.width <= 0 || v.height <= 0) upsample_fail(std::string(name) + " buffer size " + dims(v) + " must be positive");
+    if (v.scale < 1) upsample_fail(std::string(name) + " buffer scale " + std::to_string(v.scale) + " must be at least 1");
+    if (static_cast<std::int64_t>(v.width) * v.height > std::numeric_limits<std::int32_t>::max())
+      upsample_fail(std::string(name) + " buffer " + dims(v) + " has more pixels than an int32 index can address");
+    if (!v.depth || !v.normal) upsample_fail(std::string(name) + " buffer depth or normal pointer is null");
+  }
+  if (fine.scale > coarse.scale)
+    upsample_fail("fine buffer scale " + std::to_string(fine.scale) + " exceeds coarse buffer scale " + std::to_string(coarse.scale));
+  const auto extent_ok = [&](int fn, int cn) {
+    const std::int64_t d = static_cast<std::int64_t>(fn) * fine.scale - static_cast<std::int64_t>(cn) * coarse.scale;
+    return (d < 0 ? -d : d) < coarse.scale;
+  };
+  if (!extent_ok(fine.width, coarse.width) || !extent_ok(fine.height, coarse.height))
+    upsample_fail("fine buffer " + dims(fine) + " and coarse buffer " + dims(coarse) +
+                  " do not cover the same display area (extents differ by a coarse pixel or more)");
+}
+
+}  // namespace
+
+UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneView& coarse, const PlaneView& fine,
+                                        const UpsampleOptions& opt, std::vector<float>* measure) {
+  check_upsample_input(coarse, fine, opt);
+  vk::Context& dev = vk::context_of(ctx);
+  UpsampleState& g = upsample_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);
+  const std::size_t nf = static_cast<std::size_t>(fine.width) * fine.height, nc = static_cast<std::size_t>(coarse.width) * coarse.height;
+  check_fits(dev, nf * 16, "the eq. 11 weights of " + std::to_string(nf) + " display pixels", "upsample");
+  check_fits(dev, nf * 12, "the normals of " + std::to_string(nf) + " display pixels", "upsample");
+  const auto up = [&](vk::Buffer& b, const void* src, std::size_t bytes, const char* name) {
+    dev.ensure_buffer(b, bytes, kStorage, vk::MemoryKind::Device, name);
+    dev.upload(b, src, bytes);
+  };
+  up(g.fdepth, fine.depth, nf * sizeof(float), "upsample display depth");
+  up(g.fnormal, fine.normal, nf * sizeof(glm::vec3), "upsample display normals");
+  up(g.cdepth, coarse.depth, nc * sizeof(float), "upsample receiver depth");
+  up(g.cnormal, coarse.normal, nc * sizeof(glm::vec3), "upsample receiver normals");
+  dev.ensure_buffer(g.up_index, nf * 16, kStorage, vk::MemoryKind::Host, "upsample taps");
+  dev.ensure_buffer(g.up_weight, nf * 16, kStorage, vk::MemoryKind::Host, "upsample weights");
+  dev.ensure_buffer(g.up_miss, nf * 8, kStorage, vk::MemoryKind::Host, "upsample misses");
+  const std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
+  const std::uint32_t status0[gpu::kUpStatusWords] = {none, none};
+  dev.ensure_buffer(g.up_status, sizeof status0, kStorage, vk::MemoryKind::Host, "upsample status");
+  dev.upload(g.up_status, status0, sizeof status0);
+  g.up_resident = nullptr;
+
+  vk::ComputePipeline& p = pipeline(dev, g.pipelines, "common.upsample_weights", words(spv::common_upsample_weights_comp), {});
+  struct Push {
+    std::int32_t fw, fh, fscale, cw, ch, cscale;
+    float epsilon_rel;
+    std::int32_t normal_power;
+    float miss_threshold;
+    std::uint32_t mode;
+  };
+  const Push push{fine.width,
+                  fine.height,
+                  fine.scale,
+                  coarse.width,
+                  coarse.height,
+                  coarse.scale,
+                  static_cast<float>(opt.epsilon_rel),
+                  opt.normal_power,
+                  static_cast<float>(opt.miss_threshold),
+                  opt.mode == UpsampleMode::Bilateral ? gpu::kUpsampleBilateral : gpu::kUpsampleBilinear};
+  const std::vector<vk::Bind> binds = {
+      vk::Bind::buffer_at(gpu::kUpBindFineDepth, g.fdepth),     vk::Bind::buffer_at(gpu::kUpBindFineNormal, g.fnormal),
+      vk::Bind::buffer_at(gpu::kUpBindCoarseDepth, g.cdepth),   vk::Bind::buffer_at(gpu::kUpBindCoarseNormal, g.cnormal),
+      vk::Bind::buffer_at(gpu::kUpBindIndex, g.up_index),       vk::Bind::buffer_at(gpu::kUpBindWeight, g.up_weight),
+      vk::Bind::buffer_at(gpu::kUpBindMiss, g.up_miss),         vk::Bind::buffer_at(gpu::kUpBindStatus, g.up_status)};
+  // The coarse buffer is checked by the invocations of its own extent: cover the larger of both.
+  const int gw = std::max(fine.width, coarse.width), gh = std::max(fine.height, coarse.height);
+  const auto& lim = dev.device_info().limits.maxComputeWorkGroupCount;
+  const std::uint32_t gx = (static_cast<std::uint32_t>(gw) + gpu::kUpsampleGroupX - 1) / gpu::kUpsampleGroupX;
+  const std::uint32_t gy = (static_cast<std::uint32_t>(gh) + gpu::kUpsampleGroupY - 1) / gpu::kUpsampleGroupY;
+  if (gx > lim[0] || gy > lim[1])
+    upsample_fail("display buffer " + dims(fine) + " needs more workgroups than device '" + dev.device_info().name + "' allows");
+  const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
+    rec.begin_timer("upsample_weights");
+    rec.dispatch(p, binds, push, gx, gy);
+    rec.end_timer();
+    rec.barrier();
+  }, "upsample weights");
+
+  std::uint32_t status[gpu::kUpStatusWords];
+  dev.download(g.up_status, status, sizeof status);
+  // upsample.cpp's per-pixel errors, naming the pixel (the coarse buffer is checked first there).
+  for (const auto& [word, v, name] : {std::tuple<std::uint32_t, const PlaneView&, const char*>{status[gpu::kUpStatusBadCoarse], coarse, "coarse"},
+                                      {status[gpu::kUpStatusBadFine], fine, "fine"}}) {
+    if (word == none) continue;
+    const std::size_t i = word - 1;
+    const int x = static_cast<int>(i % v.width), y = static_cast<int>(i / v.width);
+    const float z = v.depth[i];
+    const bool background = std::isinf(z) && z > 0.0f;
+    if (!background && !(std::isfinite(z) && z > 0.0f))
+      upsample_fail(std::string(name) + " depth at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " + std::to_string(z) +
+                    "; expected a positive eye-space depth or +inf for background");
+    upsample_fail(std::string(name) + " normal at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is not finite");
+  }
+  UpsampleWeights w;
+  w.width = fine.width;
+  w.height = fine.height;
+  w.index.resize(nf);
+  w.weight.resize(nf);
+  w.miss.resize(nf);
+  dev.download(g.up_index, w.index.data(), nf * 16);
+  dev.download(g.up_weight, w.weight.data(), nf * 16);
+  std::vector<std::uint32_t> mm(2 * nf);
+  dev.download(g.up_miss, mm.data(), nf * 8);
+  if (measure) measure->resize(nf);
+  for (std::size_t i = 0; i < nf; ++i) {
+    w.miss[i] = mm[2 * i] ? 1 : 0;
+    w.misses += w.miss[i];
+    if (measure) std::memcpy(&(*measure)[i], &mm[2 * i + 1], sizeof(float));
+  }
+  g.up_resident = w.index.data();
+  g.up_pixels = nf;
+  ctx.record().counters["weights_gpu_seconds"] = timer_seconds(res);
+  return w;
+}
+
+void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, const float* in, int channels, float* out) {
+  if (!in || !out) upsample_fail("input or output pointer is null");
+  if (channels < 1 || channels > 64) upsample_fail("channels = " + std::to_string(channels) + " (expected 1..64)");
+  const std::size_t nf = static_cast<std::size_t>(std::max(w.width, 0)) * static_cast<std::size_t>(std::max(w.height, 0));
+  if (w.width <= 0 || w.height <= 0 || w.index.size() != nf || w.weight.size() != nf)
+    upsample_fail("weights of " + std::to_string(w.width) + "x" + std::to_string(w.height) + " pixels have inconsistent array sizes");
+  vk::Context& dev = vk::context_of(ctx);
+  UpsampleState& g = upsample_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);
+  // The coarse buffer's size: one past the largest tap.
+  std::int32_t top = -1;
+  for (const auto& idx : w.index) top = std::max({top, idx[0], idx[1], idx[2], idx[3]});
+  const std::size_t nc = static_cast<std::size_t>(top + 1), ch = static_cast<std::size_t>(channels);
+  check_fits(dev, nf * ch * sizeof(float), std::to_string(channels) + " channels of " + std::to_string(nf) + " display pixels", "upsample");
+  if (g.up_resident != w.index.data() || g.up_pixels != nf) {  // not the weights on the device: upload them
+    dev.ensure_buffer(g.up_index, nf * 16, kStorage, vk::MemoryKind::Host, "upsample taps");
+    dev.ensure_buffer(g.up_weight, nf * 16, kStorage, vk::MemoryKind::Host, "upsample weights");
+    dev.upload(g.up_index, w.index.data(), nf * 16);
+    dev.upload(g.up_weight, w.weight.data(), nf * 16);
+    g.up_resident = w.index.data();
+    g.up_pixels = nf;
+  }
+  dev.ensure_buffer(g.ap_in, std::max<std::size_t>(1, nc * ch) * sizeof(float), kStorage, vk::MemoryKind::Device, "upsample input");
+  if (nc) dev.upload(g.ap_in, in, nc * ch * sizeof(float));
+  dev.ensure_buffer(g.ap_out, nf * ch * sizeof(float), kStorage, vk::MemoryKind::Host, "upsample output");
+  dev.upload(g.ap_out, out, nf * ch * sizeof(float));  // pixels without a tap keep their value
+  vk::ComputePipeline& p = pipeline(dev, g.pipelines, "common.upsample_apply.c" + std::to_string(channels), words(spv::common_upsample_apply_comp),
+                                    {{0, static_cast<std::uint32_t>(channels)}});
+  struct Push {
+    std::uint32_t first, end;
+  };
+  const std::vector<vk::Bind> binds = {vk::Bind::buffer_at(gpu::kApBindIndex, g.up_index), vk::Bind::buffer_at(gpu::kApBindWeight, g.up_weight),
+                                       vk::Bind::buffer_at(gpu::kApBindIn, g.ap_in), vk::Bind::buffer_at(gpu::kApBindOut, g.ap_out)};
+  const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
+    rec.begin_timer("upsample_apply");
+    dispatch_chunks<Push>(rec, p, binds, nf, gpu::kUpsampleGroupX * gpu::kUpsampleGroupY,
+                          [&](std::uint32_t first, std::uint32_t end) { return Push{first, end}; });
+    rec.end_timer();
+    rec.barrier();
+  }, "upsample apply");
+  dev.download(g.ap_out, out, nf * ch * sizeof(float));
+  ctx.record().counters["apply_gpu_seconds"] = timer_seconds(res);
+}
+
+UpsampleKernels vulkan_upsample_kernels(render::FrameContext& ctx) {
+  render::FrameContext* c = &ctx;
+  return {[c](const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt) { return vulkan_upsample_weights(*c, coarse, fine, opt); },
+          [c](const UpsampleWeights& w, const float* in, int channels, float* out) { vulkan_upsample_apply(*c, w, in, channels, out); }};
+}
+
+}  // namespace softgi::techniques::common

@@ -1,0 +1,18 @@
+#include <mutex>
+
+#include "image_splat/image_splat_vulkan.hpp"
+#include "shexp/shexp_passes.hpp"
+#include "softgi/techniques/registry.hpp"
+
+namespace softgi::techniques {
+
+void register_vulkan_kernels() {
+  register_all();
+  static std::once_flag once;
+  std::call_once(once, [] {
+    shexp::register_vulkan_kernels();
+    image_splat::register_vulkan_kernels();
+  });
+}
+
+}  // namespace softgi::techniques
