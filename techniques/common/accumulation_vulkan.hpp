@@ -112,7 +112,8 @@ void put_device_field(render::FrameContext& ctx, const std::string& resource, co
   ctx.put_deferred<std::shared_ptr<const HostField>>(resource, [field, &m, &dev]() {
     std::lock_guard<std::mutex> lock(m);
     auto f = std::make_shared<HostField>();
-    f->order = field.order;
+    if constexpr (requires { f->channels; }) f->channels = field.order * field.order;
+    else f->order = field.order;
     f->v.resize(field.floats);
     dev.download(*field.buffer, f->v.data(), f->v.size() * sizeof(float));
     return std::shared_ptr<const HostField>(f);

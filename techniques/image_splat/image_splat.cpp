@@ -753,16 +753,14 @@ class ImageSplat final : public render::Technique {
     auto dev_accumulate = [s](const DeviceKernels& k) -> render::PassFn {
       if (!k.accumulate_log) return {};
       return [s, f = k.accumulate_log](FrameContext& c) {
-        const auto& t = *c.get<std::shared_ptr<const ShadowTables>>(kTables);
-        c.put<std::shared_ptr<const Field>>(kLogOcclusion, f(c, s, t, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
-                                                             *c.get<std::shared_ptr<const ProxyBins>>(kBins)));
+        f(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables), *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
+          *c.get<std::shared_ptr<const ProxyBins>>(kBins), kLogOcclusion);
       };
     };
     auto dev_exponentiate = [s](const DeviceKernels& k) -> render::PassFn {
       if (!k.exponentiate || !k.exp_supports || !k.exp_supports(s.exp)) return {};
       return [s, f = k.exponentiate](FrameContext& c) {
-        c.put<std::shared_ptr<const Field>>(kOcclusion, f(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables),
-                                                          *c.get<std::shared_ptr<const Field>>(kLogOcclusion)));
+        f(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables), kLogOcclusion, kOcclusion);
       };
     };
     auto dev_accumulate_indirect = [](const DeviceKernels& k) -> render::PassFn {

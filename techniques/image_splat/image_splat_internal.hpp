@@ -233,11 +233,15 @@ struct RobustMisses {
 // writing the same frame resources as the host passes. exp_supports / indirect_supported: the
 // methods and operators the backend runs (the others run the host pass there).
 struct DeviceKernels {
-  std::function<std::shared_ptr<Field>(render::FrameContext&, const Settings&, const ShadowTables&, const ReceiverBuffer&,
-                                       const ProxyBins&)>
+  // accumulate_log writes the log occlusion (a shared_ptr<const Field>) as resource `out`;
+  // exponentiate reads resource `in` (the log occlusion) and writes O_p as `out`. A device backend
+  // may leave them on the device (FrameContext::put_deferred), read back only for a host pass.
+  std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const ReceiverBuffer&, const ProxyBins&,
+                     const std::string& out)>
       accumulate_log;
   std::function<bool(ExpMode)> exp_supports;
-  std::function<std::shared_ptr<Field>(render::FrameContext&, const Settings&, const ShadowTables&, const Field&)> exponentiate;
+  std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const std::string& in, const std::string& out)>
+      exponentiate;
   std::function<bool(IndirectOperator)> indirect_supported;
   std::function<std::shared_ptr<IndirectSums>(render::FrameContext&, const ReceiverBuffer&, const ProxyBins&,
                                               const IndirectEvaluator&)>

@@ -49,6 +49,8 @@ struct GpuState {
   vk::Buffer ol;
   std::uint32_t ol_count = 0;
   vk::Buffer receivers, rlist, ranges, blockers, weights, log_out;  // accumulate_log
+  // What receivers .. weights hold (content hashes): unchanged inputs are not uploaded again.
+  std::uint64_t receivers_hash = 0, rlist_hash = 0, ranges_hash = 0, blockers_hash = 0, weights_hash = 0;
   vk::Buffer exp_in, exp_out, status, series;                       // exponentiate
 };
 
@@ -88,8 +90,8 @@ const PlanBuffers& product_plan(vk::Context& dev, GpuState& g, int order) {
 
 }  // namespace
 
-std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t,
-                                             const ReceiverBuffer& r, const ProxyBins& bins) {
+void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const ReceiverBuffer& r,
+                           const ProxyBins& bins, const std::string& out) {
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
@@ -121,12 +123,15 @@ std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Se
 
   const vk::Buffer& table = log_table(dev, g, t);
   if (!g.basis) g.basis = dev.upload_vector(common::basis_recurrence_constants(), kStorage, "image_splat basis constants");
-  upload_receivers(dev, g.receivers, r.soa, "image_splat receivers");
-  put(dev, g.rlist, rlist, "image_splat receiver tiles");
-  put(dev, g.ranges, ranges, "image_splat tile list ranges");
-  put(dev, g.blockers, sph, "image_splat binned spheres");
-  put(dev, g.weights, w, "image_splat band weights");
-  dev.ensure_buffer(g.log_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Host,
+  const render::TransferBytes up0 = dev.transfer_bytes();
+  upload_receivers(dev, g.receivers, r.soa, "image_splat receivers", &g.receivers_hash);
+  put_if_changed(dev, g.rlist, g.rlist_hash, rlist, "image_splat receiver tiles");
+  put_if_changed(dev, g.ranges, g.ranges_hash, ranges, "image_splat tile list ranges");
+  put_if_changed(dev, g.blockers, g.blockers_hash, sph, "image_splat binned spheres");
+  put_if_changed(dev, g.weights, g.weights_hash, w, "image_splat band weights");
+  const std::size_t uploaded = dev.transfer_bytes().upload - up0.upload;
+  // The log occlusion stays on the device for exponentiate (device-local memory).
+  dev.ensure_buffer(g.log_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Device,
                     "image_splat log occlusion");
 
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "image_splat.accumulate_log.n" + std::to_string(n) + ".rule" + std::to_string(static_cast<int>(s.rule)),
@@ -137,10 +142,6 @@ std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Se
     res = run_accumulate_log(dev, p, {g.receivers, g.rlist, g.ranges, g.blockers, g.weights, table, g.basis, g.log_out}, count, t.log,
                              "image_splat accumulate_log", pair_cut_factor(t, s.rule));
 
-  auto f = std::make_shared<Field>();
-  f->channels = n2;
-  f->v.resize(count * n2);
-  if (count) dev.download(g.log_out, f->v.data(), f->v.size() * sizeof(float));
   double pairs = 0.0;
   for (std::size_t k = 0; k < r.tiles.size(); ++k)
     pairs += static_cast<double>(r.tiles[k].end - r.tiles[k].begin) * static_cast<double>(bins.shadow[k].size());
@@ -152,28 +153,35 @@ std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Se
   rec.counters["kernel_gpu_seconds"] = secs;
   rec.counters["hard_cut"] = t.hard_cut;
   rec.counters["pair_cut"] = pair_cut_factor(t, s.rule) > 0.0f;
-  rec.counters["upload_bytes"] = static_cast<double>((sph.size() + w.size() + 6 * count) * sizeof(float) + (rlist.size() + ranges.size()) * 4);
-  rec.bytes = f->v.size() * sizeof(float);
-  return f;
+  rec.counters["upload_bytes"] = static_cast<double>(uploaded);
+  rec.bytes = count * n2 * sizeof(float);
+  put_device_field<Field>(ctx, out, DeviceField{&g.log_out, count * n2, n}, g.m, dev);
 }
 
 bool vulkan_exp_supports(ExpMode m) { return m == ExpMode::HYB || m == ExpMode::OL || m == ExpMode::PSStar || m == ExpMode::PS; }
 
-std::shared_ptr<Field> vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const Field& log) {
+void vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const std::string& in,
+                         const std::string& out) {
   if (!vulkan_exp_supports(s.exp)) throw std::logic_error("image_splat exponentiate on vulkan: HYB, OL, PS* and PS only");
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
   const int n = t.order, n2 = n * n;
-  if (log.channels != n2)
-    throw std::logic_error("image_splat exponentiate on vulkan: " + std::to_string(log.channels) + " log channels for order " + std::to_string(n));
-  const std::size_t count = log.v.size() / n2;
+  // The log occlusion where accumulate_log left it on the device, else uploaded from the host.
+  const DeviceField* dlog = device_field(ctx, in);
+  std::shared_ptr<const Field> hlog;
+  if (!dlog) hlog = ctx.get<std::shared_ptr<const Field>>(in);
+  const int channels = dlog ? dlog->order * dlog->order : hlog->channels;
+  if (channels != n2)
+    throw std::logic_error("image_splat exponentiate on vulkan: " + std::to_string(channels) + " log channels for order " + std::to_string(n));
+  const std::size_t count = (dlog ? dlog->floats : hlog->v.size()) / n2;
   check_fits(dev, count * n2 * sizeof(float), "the log vectors of " + std::to_string(count) + " receivers", "exponentiate");
 
   ol_table(dev, g, t.sh);
   const PlanBuffers& plan = product_plan(dev, g, n);
-  put(dev, g.exp_in, log.v, "image_splat exp input");
-  dev.ensure_buffer(g.exp_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Host, "image_splat occlusion");
+  if (!dlog) put(dev, g.exp_in, hlog->v, "image_splat exp input");
+  const vk::Buffer& exp_in = dlog ? *dlog->buffer : g.exp_in;
+  dev.ensure_buffer(g.exp_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Device, "image_splat occlusion");
   reset_exp_status(dev, g.status, "image_splat exp status");
 
   const std::uint32_t method = s.exp == ExpMode::HYB ? gpu::kExpHyb : s.exp == ExpMode::OL ? gpu::kExpOl : s.exp == ExpMode::PSStar ? gpu::kExpPsStar : gpu::kExpPs;
@@ -184,23 +192,24 @@ std::shared_ptr<Field> vulkan_exponentiate(render::FrameContext& ctx, const Sett
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(n)}, {2, method}});
   vk::SubmitResult res;
   if (count)
-    res = run_exponentiate(dev, p, {g.exp_in, g.exp_out, g.ol, plan, g.series, g.status}, count, g.ol_count, s.ps_degree,
+    res = run_exponentiate(dev, p, {exp_in, g.exp_out, g.ol, plan, g.series, g.status}, count, g.ol_count, s.ps_degree,
                            "image_splat exponentiate");
 
   std::uint32_t status[gpu::kExpStatusWords];
   dev.download(g.status, status, sizeof status);
-  throw_exp_errors(status, log.v.data(), n2, "image_splat exponentiate on vulkan", [](std::size_t i) { return "receiver " + std::to_string(i); });
-
-  auto out = std::make_shared<Field>();
-  out->channels = n2;
-  out->v.resize(count * n2);
-  if (count) dev.download(g.exp_out, out->v.data(), out->v.size() * sizeof(float));
+  if (exp_status_failed(status)) {
+    // The error names the offending coefficient: read the log vectors back for it.
+    std::vector<float> log(count * n2);
+    if (dlog) dev.download(*dlog->buffer, log.data(), log.size() * sizeof(float));
+    else log = hlog->v;
+    throw_exp_errors(status, log.data(), n2, "image_splat exponentiate on vulkan", [](std::size_t i) { return "receiver " + std::to_string(i); });
+  }
   auto& rec = ctx.record();
   rec.counters["receivers"] = static_cast<double>(count);
   rec.counters["squarings"] = status[gpu::kExpStatusSquarings];
   rec.counters["kernel_gpu_seconds"] = timer_seconds(res);
-  rec.bytes = out->v.size() * sizeof(float);
-  return out;
+  rec.bytes = count * n2 * sizeof(float);
+  put_device_field<Field>(ctx, out, DeviceField{&g.exp_out, count * n2, n}, g.m, dev);
 }
 
 DirectKernels vulkan_direct_kernels(render::FrameContext& ctx) {

@@ -19,13 +19,14 @@ namespace softgi::techniques::image_splat {
 // Eq. 4's exponent summed per receiver over its tile's blocker list (paper 004 eqs. 34, 38 and the
 // replacement rules of section 6.2), one invocation per receiver, with accumulate_log_range's
 // per-pair cut where it applies (pair_cut_factor). Writes the record's counters.
-std::shared_ptr<Field> vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t,
-                                             const ReceiverBuffer& r, const ProxyBins& bins);
+void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const ReceiverBuffer& r,
+                           const ProxyBins& bins, const std::string& out);
 
 // exponentiate on the GPU: HYB, OL and PS* (paper 004 section 4, as common::exp_batch); the exact
 // exponential (eq. 28, the reference) runs the CPU pass under "vulkan" too.
 bool vulkan_exp_supports(ExpMode m);
-std::shared_ptr<Field> vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const Field& log);
+void vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const std::string& in,
+                         const std::string& out);
 
 
 // shade_direct's kernels on the GPU (shaders/common/shade.comp): the surface pixels gather O_p with

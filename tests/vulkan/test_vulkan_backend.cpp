@@ -143,6 +143,32 @@ TEST(VulkanBackend, ShexpIntermediatesStayOnTheDeviceUnlessRequested) {
   EXPECT_EQ(log->problems(), 0u) << log->summary();
 }
 
+// The same for image_splat (paper 000): the log occlusion stays on the device between
+// accumulate_log and exponentiate, and a static frame uploads none of the accumulation's inputs again.
+TEST(VulkanBackend, ImageSplatLogOcclusionStaysOnTheDevice) {
+  auto ctx = softgi::testing::validated_context();
+  auto log = ctx->validation_log();
+  {
+    backends::VulkanBackend vk(ctx);
+    const scene::Scene sc = scene::make_builtin("spheres");
+    auto tech = render::create_technique("image_splat");
+    const render::ParamSet params = render::default_params(*tech);
+    render::RenderRequest req;
+    req.width = 48;
+    req.height = 36;
+    vk.render(*tech, sc, params, req);
+    const render::FrameResult second = vk.render(*tech, sc, params, req);
+    std::map<std::string, render::TransferBytes> by_pass;
+    for (const auto& p : second.passes) by_pass[p.name] = p.transfer;
+    ASSERT_TRUE(by_pass.count("accumulate_log") && by_pass.count("exponentiate"));
+    EXPECT_EQ(by_pass["accumulate_log"].upload, 0u);
+    EXPECT_EQ(by_pass["accumulate_log"].download, 0u);
+    EXPECT_EQ(by_pass["exponentiate"].download, 4 * sizeof(std::uint32_t));  // the status words only
+  }
+  ctx.reset();
+  EXPECT_EQ(log->problems(), 0u) << log->summary();
+}
+
 // A whole image_splat frame (paper 000) on both backends, on `cornell` (a spherical light: every
 // pass of the graph runs, the light through shade_direct's GPU shading) and `character` (skinned,
 // robust misses). The backends' G-buffers differ at silhouettes (rasterised against ray traced:
