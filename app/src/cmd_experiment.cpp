@@ -52,102 +52,21 @@ constexpr int kSilhouetteRadii[] = {2, 8};
 constexpr int kOperatorCurveOrder = 3;
 constexpr double kOperatorCurveAlphaMin = 0.05, kOperatorCurveAlphaMax = 0.95;
 
-enum class Compared { Final, Indirect };
-enum class Region { Surface, Ground };
+using Compared = render::ExperimentImage;
+using Region = render::ExperimentRegion;
+using VariantDef = render::ExperimentVariant;
+using ExperimentDef = render::ExperimentDef;
 
-struct VariantDef {
-  std::string label, technique;
-  std::vector<std::string> params;  // "name=value" over the technique's defaults
-};
-struct RatioDef {
-  std::string a, b;  // variant labels: time(a) / time(b) and error(b) / error(a)
-};
-struct ExperimentDef {
-  std::string name, title, paper;  // paper: the figure and what it reports
-  std::string scene;
-  int width = 512, height = 512, quick_width = 48, quick_height = 48;
-  double time = 0.0;
-  std::vector<VariantDef> variants;
-  std::string baseline;            // label of the variant every other one is also compared with
-  Compared image = Compared::Final;
-  Region region = Region::Surface;
-  std::vector<int> reference_orders = {0};  // 0 = full environment, n = its order-n SH projection
-  bool silhouettes = false;
-  bool operator_curve = false;
-  std::vector<RatioDef> ratios;
-};
-
+// Every registered technique's experiments, in registration order; names are unique.
 std::vector<ExperimentDef> experiment_defs() {
+  register_builtin();
   std::vector<ExperimentDef> d;
-  {
-    ExperimentDef e;
-    e.name = "shexp_orders";
-    e.title = "SHEXP at SH orders 3 to 6 (runner check; paper 004)";
-    e.paper = "Not a figure: SHEXP's shadow error and cost as the SH order grows, the highest order as baseline.";
-    e.scene = "spheres";
-    e.width = e.height = 256;
-    e.quick_width = e.quick_height = 40;
-    for (int n : {3, 4, 5, 6}) e.variants.push_back({"order" + std::to_string(n), "shexp", {"order=" + std::to_string(n)}});
-    e.baseline = "order6";
-    e.reference_orders = {0, 4};
-    e.ratios = {{"order6", "order3"}};
-    d.push_back(e);
-  }
-  {
-    ExperimentDef e;
-    e.name = "image_splat_fig5";
-    e.title = "Indirect operators (paper 000 Figure 5)";
-    e.paper = "Figure 5: operator error (Frobenius norm against the exact operator) over sin(theta), and the image error of the "
-              "indirect light on the ground plane against the exact operator: about 7.8 % for point-sampled, 0.28 % for "
-              "averaged (the rougher copy 003 prints 'point-sampled, RMS=7%8 averaged, RMS=0.28').";
-    e.scene = "spheres";
-    e.width = e.height = 512;
-    e.quick_width = e.quick_height = 48;
-    // receiver_scale=1: no upsampling, so the differences are the operators' alone.
-    for (const char* op : {"point", "averaged_poly", "averaged", "exact"})
-      e.variants.push_back({op, "image_splat", {std::string("indirect_operator=") + op, "receiver_scale=1"}});
-    e.baseline = "exact";
-    e.image = Compared::Indirect;
-    e.region = Region::Ground;
-    e.reference_orders = {0};
-    e.operator_curve = true;
-    d.push_back(e);
-  }
-  {
-    ExperimentDef e;
-    e.name = "image_splat_fig6";
-    e.title = "Vertex vs pixel-based shading (paper 000 Figure 6)";
-    e.paper = "Figure 6: per-vertex SHEXP (60767 vertices, 30 fps) against image-space accumulation with a 256x256 receiver "
-              "buffer at 1024x1024 display (63 fps): 'much smoother and better sampled while still attaining a 2x speedup'.";
-    e.scene = "character";
-    e.width = e.height = 1024;
-    e.quick_width = e.quick_height = 64;
-    e.variants = {{"shexp", "shexp", {}}, {"image_splat_s4", "image_splat", {"receiver_scale=4"}}};
-    e.reference_orders = {0, 4};
-    e.ratios = {{"shexp", "image_splat_s4"}};
-    d.push_back(e);
-  }
-  {
-    ExperimentDef e;
-    e.name = "image_splat_fig7";
-    e.title = "Bilateral vs bilinear upsampling (paper 000 Figure 7)";
-    e.paper = "Figure 7: display resolution 8 fps; bilateral 16x (receiver scale 4) 66 fps, bilinear 16x 88 fps; bilateral 64x "
-              "(scale 8) 99 fps, bilinear 64x 171 fps. Bilateral at 4x (scale 2) shows no noticeable artifacts; bilinear "
-              "shows artifacts at silhouettes, much more severe at 64x.";
-    e.scene = "character";
-    e.width = e.height = 512;
-    e.quick_width = e.quick_height = 64;
-    e.variants.push_back({"full", "image_splat", {"receiver_scale=1"}});
-    for (int s : {2, 4, 8})
-      for (const char* up : {"bilateral", "bilinear"})
-        e.variants.push_back({std::string(up) + "_s" + std::to_string(s), "image_splat",
-                              {"receiver_scale=" + std::to_string(s), std::string("upsample=") + up}});
-    e.baseline = "full";
-    e.reference_orders = {0};
-    e.silhouettes = true;
-    e.ratios = {{"full", "bilateral_s4"}, {"full", "bilinear_s4"}, {"full", "bilateral_s8"}, {"full", "bilinear_s8"}};
-    d.push_back(e);
-  }
+  for (const auto& t : render::technique_names())
+    for (auto& e : render::create_technique(t)->experiments()) {
+      for (const auto& other : d)
+        if (other.name == e.name) throw std::logic_error("experiment '" + e.name + "' declared twice (technique " + t + ")");
+      d.push_back(std::move(e));
+    }
   return d;
 }
 

@@ -27,6 +27,8 @@
 
 namespace softgi::techniques::image_splat {
 
+std::vector<render::ExperimentDef> experiments();  // image_splat_experiments.cpp
+
 using render::FrameContext;
 using render::ParamDesc;
 using common::KernelIsa;
@@ -728,6 +730,8 @@ class ImageSplat final : public render::Technique {
            "bilateral upsampling to display resolution";
   }
   std::vector<ParamDesc> params() const override { return param_descs(); }
+
+  std::vector<render::ExperimentDef> experiments() const override { return image_splat::experiments(); }
 
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);

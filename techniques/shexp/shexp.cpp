@@ -30,6 +30,8 @@
 
 namespace softgi::techniques::shexp {
 
+std::vector<render::ExperimentDef> experiments();  // shexp_experiments.cpp
+
 Settings read_settings(const render::ParamSet& p) {
   Settings s;
   s.order = p.get_int("order");
@@ -690,6 +692,8 @@ class Shexp final : public render::Technique {
     d.push_back(common::params::kernel());
     return d;
   }
+
+  std::vector<render::ExperimentDef> experiments() const override { return shexp::experiments(); }
 
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "softgi/render/experiment_def.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/render/params.hpp"
 #include "softgi/render/pass_graph.hpp"
@@ -23,6 +24,9 @@ class Technique {
   // The pass graph for this scene and settings. `empty` receives the resources that are empty for
   // this scene (no moving object, no re-radiating proxy, ...), so compile() leaves out their passes.
   virtual PassGraph plan(const scene::Scene& scene, const ParamSet& params, std::set<std::string>& empty) = 0;
+  // The paper figures this technique reproduces, for `softgi experiment` (none by default). Their
+  // variants may name other registered techniques (a comparison figure).
+  virtual std::vector<ExperimentDef> experiments() const { return {}; }
 };
 
 using TechniqueFactory = std::function<std::unique_ptr<Technique>()>;
