@@ -117,58 +117,94 @@ struct TechniqueRun {
   double vs_cpu = -1.0;  // relMSE of the final image against the CPU backend's (other backends, when both ran)
 };
 
-void run_compare(const CompareArgs& args) {
+// What every step of a comparison works on: the techniques, backends, scene and frame size the
+// arguments name.
+struct CompareSetup {
+  std::vector<std::unique_ptr<render::Technique>> techs;
+  std::string reference_backend;
+  std::vector<std::unique_ptr<render::Backend>> backends_used;
+  scene::Scene sc;
+  int w = 0, h = 0;
+};
+
+// The surface the errors are measured over: the shared G-buffer on its own, on the reference backend.
+struct Surface {
+  render::GBufferFrame gbf;
+  Mask mask;
+  long long pixels = 0;
+  const render::PassRecord& gbuffer_pass() const { return gbf.frame.passes.front(); }  // "gbuffer" (then the hand-out)
+};
+
+// Step 1, the arguments: every name is checked before anything renders.
+CompareSetup read_arguments(const CompareArgs& args) {
+  CompareSetup cs;
   register_builtin();
   if (!std::isfinite(args.frame)) throw std::invalid_argument("--frame: time must be finite");
   std::vector<std::string> names = args.techniques.empty() ? render::technique_names() : split_list(args.techniques);
   if (names.empty()) throw std::invalid_argument("compare: no technique to compare (--techniques is empty or none is registered)");
-  std::vector<std::unique_ptr<render::Technique>> techs;
-  for (const auto& n : names) techs.push_back(render::create_technique(n));  // unknown names fail here
-  const std::string reference_backend = render::reference_backend_name();
+  for (const auto& n : names) cs.techs.push_back(render::create_technique(n));  // unknown names fail here
+  cs.reference_backend = render::reference_backend_name();
+  const std::string& reference_backend = cs.reference_backend;
   const std::vector<std::string> backend_names = parse_backends(args.backends.empty() ? reference_backend : args.backends);
   bool selects_device = false;
   for (const auto& b : backend_names) selects_device = selects_device || render::backend_info(b).selects_device;
   if (!args.device.empty() && !selects_device)
     throw std::invalid_argument("--device '" + args.device + "': none of the backends asked for selects a device");
-  std::vector<std::unique_ptr<render::Backend>> backends_used;
   for (const auto& b : backend_names)
-    backends_used.push_back(make_backend(b, render::backend_info(b).selects_device ? args.device : "", "compare"));
+    cs.backends_used.push_back(make_backend(b, render::backend_info(b).selects_device ? args.device : "", "compare"));
 
-  const scene::Scene sc = io::load_scene(args.scene);
-  int w = args.width, h = args.height;
-  render::resolve_resolution(sc.camera, w, h);
-  render::make_pinhole_camera(sc, w, h, "compare");
+  cs.sc = io::load_scene(args.scene);
+  cs.w = args.width;
+  cs.h = args.height;
+  render::resolve_resolution(cs.sc.camera, cs.w, cs.h);
+  render::make_pinhole_camera(cs.sc, cs.w, cs.h, "compare");
   make_output_dir(args.out);
-  std::cerr << "compare: scene '" << sc.name << "' at " << w << "x" << h << ", t = " << args.frame << " s, "
-            << techs.size() << " technique(s), reference " << args.spp << " spp\n";
+  std::cerr << "compare: scene '" << cs.sc.name << "' at " << cs.w << "x" << cs.h << ", t = " << args.frame << " s, "
+            << cs.techs.size() << " technique(s), reference " << args.spp << " spp\n";
 
+  return cs;
+}
+
+// Step 2, the surface mask.
+Surface measure_surface(const CompareSetup& cs, const CompareArgs& args) {
+  const scene::Scene& sc = cs.sc;
+  const int w = cs.w, h = cs.h;
+  Surface surf;
   // The shared G-buffer once on its own, on the reference backend: its cost, and the surface mask
   // errors are measured over.
-  render::GBufferFrame gbf;
   {
-    std::unique_ptr<render::Backend> ref = render::create_backend(reference_backend);
+    std::unique_ptr<render::Backend> ref = render::create_backend(cs.reference_backend);
     render::RenderRequest greq;
     greq.time = args.frame;
     greq.width = w;
     greq.height = h;
-    gbf = render::render_gbuffer(*ref, sc, greq);
+    surf.gbf = render::render_gbuffer(*ref, sc, greq);
   }
-  const render::GBuffer& gb = gbf.gbuffer;
-  const render::FrameResult& gb_frame = gbf.frame;
-  Mask surface{w, h, std::vector<std::uint8_t>(gb.object.size(), 0)};
-  long long surface_pixels = 0;
+  const render::GBuffer& gb = surf.gbf.gbuffer;
+  Mask& surface = surf.mask;
+  surface = Mask{w, h, std::vector<std::uint8_t>(gb.object.size(), 0)};
+  long long& surface_pixels = surf.pixels;
   for (std::size_t i = 0; i < gb.object.size(); ++i) {
     surface.on[i] = gb.hit(i) ? 1 : 0;
     surface_pixels += surface.on[i];
   }
   if (surface_pixels == 0) throw std::runtime_error("compare: scene '" + sc.name + "' shows no surface from its camera");
-  const render::PassRecord& gbr = gb_frame.passes.front();  // "gbuffer" (then the hand-out)
+  const render::PassRecord& gbr = surf.gbuffer_pass();
   std::cerr << "compare: G-buffer " << ms(gbr.wall_seconds) << " ms, " << surface_pixels << " surface pixels\n";
 
+  return surf;
+}
+
+// Step 3, the variants: every technique on every backend, a warm-up frame then the timed one.
+std::vector<TechniqueRun> render_variants(const CompareSetup& cs, const CompareArgs& args, std::set<int>& orders) {
+  const scene::Scene& sc = cs.sc;
+  const int w = cs.w, h = cs.h;
+  const auto& techs = cs.techs;
+  const auto& backends_used = cs.backends_used;
+  const std::string& reference_backend = cs.reference_backend;
   // Techniques: one warm-up frame (one-time setup such as tables), then the timed frame; on every
   // backend asked for (each technique instance keeps per-backend-independent state only).
   std::vector<TechniqueRun> runs;
-  std::set<int> orders;
   for (std::size_t bi = 0; bi < backends_used.size(); ++bi) {
     for (std::size_t k = 0; k < techs.size(); ++k) {
       render::Backend& backend = *backends_used[bi];
@@ -210,6 +246,13 @@ void run_compare(const CompareArgs& args) {
     }
   }
 
+  return runs;
+}
+
+// Step 4, the ground truth.
+std::vector<Reference> render_references(const CompareSetup& cs, const CompareArgs& args, const std::set<int>& orders) {
+  const int w = cs.w, h = cs.h;
+  const scene::Scene& sc = cs.sc;
   // Ground truth: real geometry as blockers, un-jittered (each pixel sampled at its centre, as the
   // techniques' G-buffer is), lit by the full environment and by each SH order in use.
   std::vector<Reference> refs;
@@ -231,6 +274,16 @@ void run_compare(const CompareArgs& args) {
     std::cerr << "compare: reference, " << ref.label << ": " << fmt(ref.result.seconds, 3) << " s, " << ref.result.rays
               << " rays\n";
   }
+  return refs;
+}
+
+// Step 5, the metrics of each run against the references, and its images and record.
+Json measure_runs(std::vector<TechniqueRun>& runs, const std::vector<Reference>& refs, const Surface& surf, const CompareSetup& cs,
+                  const CompareArgs& args, std::vector<std::string>& failures) {
+  const scene::Scene& sc = cs.sc;
+  const int w = cs.w, h = cs.h;
+  const Mask& surface = surf.mask;
+  const std::string& reference_backend = cs.reference_backend;
   auto ref_for_order = [&](int n) -> const Reference& {
     for (const auto& r : refs)
       if (r.order == n) return r;
@@ -238,7 +291,6 @@ void run_compare(const CompareArgs& args) {
   };
 
   // Errors and per-technique outputs.
-  std::vector<std::string> failures;
   Json jtechs = Json::array();
   for (auto& run : runs) {
     Json jt = {{"name", run.name}, {"backend", run.backend}, {"device", run.device}, {"params", params_json(run.params)},
@@ -303,6 +355,17 @@ void run_compare(const CompareArgs& args) {
     jtechs.push_back(jt);
   }
 
+  return jtechs;
+}
+
+// Step 6, the writing: compare.json and the Markdown summary.
+void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Reference>& refs, const Surface& surf,
+                   const CompareSetup& cs, const CompareArgs& args, const Json& jtechs) {
+  const scene::Scene& sc = cs.sc;
+  const int w = cs.w, h = cs.h;
+  const long long surface_pixels = surf.pixels;
+  const render::PassRecord& gbr = surf.gbuffer_pass();
+  const std::string& reference_backend = cs.reference_backend;
   Json jrefs = Json::array();
   for (const auto& r : refs)
     jrefs.push_back({{"key", r.key},
@@ -426,6 +489,18 @@ void run_compare(const CompareArgs& args) {
   write_text((fs::path(args.out) / "summary.md").string(), md.str());
   std::cerr << "compare: wrote " << (fs::path(args.out) / "summary.md").string() << "\n";
 
+}
+
+void run_compare(const CompareArgs& args) {
+  const CompareSetup cs = read_arguments(args);
+  const Surface surf = measure_surface(cs, args);
+  std::set<int> orders;
+  std::vector<TechniqueRun> runs = render_variants(cs, args, orders);
+  const std::vector<Reference> refs = render_references(cs, args, orders);
+  std::vector<std::string> failures;
+  const Json jtechs = measure_runs(runs, refs, surf, cs, args, failures);
+  write_results(runs, refs, surf, cs, args, jtechs);
+  const scene::Scene& sc = cs.sc;
   if (!failures.empty()) {
     std::string msg = "compare: " + std::to_string(failures.size()) + " technique(s) failed on scene '" + sc.name + "':";
     for (const auto& f : failures) msg += " [" + f + "]";

@@ -233,21 +233,21 @@ void write_operator_curve(const std::string& out, Json& j, std::ostringstream& m
                          {"samples", rows}};
 }
 
-void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_given) {
-  if (args.list) {
-    for (const auto& e : experiment_defs()) std::cout << e.name << "  " << e.title << "\n";
-    return;
-  }
-  if (args.name.empty()) throw std::invalid_argument("experiment: no experiment named (known: " + experiment_names() + ")");
-  if (args.out.empty()) throw std::invalid_argument("experiment: --out is required");
-  register_builtin();
-  const ExperimentDef& def = find_experiment(args.name);
-  const int spp = args.quick && !spp_given ? 4 : args.spp;
-  const int frames = args.quick && !frames_given ? 1 : args.frames;
-  const int w = args.quick ? def.quick_width : def.width, h = args.quick ? def.quick_height : def.height;
+// One run of an experiment, step by step (arguments and variants, regions, rendering, references,
+// metrics, writing); the members are what the steps hand on.
+class ExperimentRunner {
+ public:
+  ExperimentRunner(const ExperimentArgs& args, const ExperimentDef& def, bool spp_given, bool frames_given)
+      : args(args),
+        def(def),
+        spp(args.quick && !spp_given ? 4 : args.spp),
+        frames(args.quick && !frames_given ? 1 : args.frames),
+        w(args.quick ? def.quick_width : def.width),
+        h(args.quick ? def.quick_height : def.height) {}
 
-  // Every variant's technique and parameters first: an unknown name fails before anything renders.
-  std::vector<Variant> vars;
+  // Every variant's technique and parameters first: an unknown name fails before anything renders;
+  // then the scene and the output folder.
+  void make_variants() {
   std::vector<bool> override_used(args.overrides.size(), false);
   for (const auto& vd0 : def.variants) {
     Variant v;
@@ -280,24 +280,26 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
       throw std::invalid_argument("--param '" + args.overrides[k] + "': unknown parameter for every technique of experiment '" +
                                   def.name + "' (" + techs + ")");
     }
-  int baseline = -1;
   for (std::size_t i = 0; i < vars.size(); ++i)
     if (vars[i].def.label == def.baseline) baseline = static_cast<int>(i);
   if (!def.baseline.empty() && baseline < 0)
     throw std::logic_error("experiment '" + def.name + "': baseline '" + def.baseline + "' is no variant");
 
-  const scene::Scene sc = io::load_scene(def.scene);
+  sc = io::load_scene(def.scene);
   render::make_pinhole_camera(sc, w, h, "experiment");
   make_output_dir(args.out);
   std::cerr << "experiment: " << def.name << ": scene '" << sc.name << "' at " << w << "x" << h << ", " << vars.size()
             << " variant(s), " << frames << " timed frame(s) each, reference " << spp << " spp\n";
 
+  }
+
+  // The masks errors are taken over.
+  void measure_regions() {
   // The display G-buffer once: the surface, ground and silhouette masks. Experiments time the
   // techniques on the reference backend.
-  std::unique_ptr<render::Backend> backend_ptr = render::create_backend(render::reference_backend_name());
+  backend_ptr = render::create_backend(render::reference_backend_name());
   render::Backend& backend = *backend_ptr;
   const scene::PosedScene posed = scene::evaluate(sc, def.time);
-  render::GBuffer gb;
   {
     render::RenderRequest greq;
     greq.time = def.time;
@@ -305,22 +307,24 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
     greq.height = h;
     gb = std::move(render::render_gbuffer(backend, sc, greq).gbuffer);
   }
-  const Mask surface = ex::surface_mask(gb);
+  surface = ex::surface_mask(gb);
   if (ex::count(surface, w, h) == 0) throw std::runtime_error("experiment: scene '" + sc.name + "' shows no surface");
-  std::string region_desc = "surface pixels (G-buffer hits)";
-  Mask region = surface;
+  region_desc = "surface pixels (G-buffer hits)";
+  region = surface;
   if (def.region == Region::Ground) {
     std::string chosen;
     region = ex::object_mask(gb, sc, posed, "ground", chosen);
     region_desc = "ground-plane pixels: " + chosen;
   }
-  const long long region_pixels = ex::count(region, w, h);
-  std::vector<Mask> bands;
+  region_pixels = ex::count(region, w, h);
   if (def.silhouettes)
     for (int r : kSilhouetteRadii) bands.push_back(ex::silhouette_band(gb, kSilhouetteDepthJump, r));
 
+  }
+
+  void render_variants() {
   // Variants: a warm-up frame, then `frames` timed frames 1/30 s apart ending at def.time.
-  std::vector<std::string> failures;
+  render::Backend& backend = *backend_ptr;
   for (std::size_t k = 0; k < vars.size(); ++k) {
     Variant& v = vars[k];
     std::cerr << "experiment: [" << k + 1 << "/" << vars.size() << "] " << v.def.label << ": " << v.def.technique << " ("
@@ -361,9 +365,11 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
     throw std::runtime_error("experiment '" + def.name + "': the baseline variant '" + def.baseline +
                              "' failed: " + vars[baseline].error);
 
+  }
+
+  void render_references() {
   // Ground truth: real geometry as blockers, one-bounce indirect, every sample through the pixel
   // centre (the visibility of the one-sample G-buffer), as `softgi compare` renders it.
-  std::vector<Reference> refs;
   for (int n : def.reference_orders) {
     Reference r;
     r.order = n;
@@ -384,6 +390,9 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
     refs.push_back(std::move(r));
   }
 
+  }
+
+  void measure() {
   // Errors, images, error maps.
   const Image* base_img = baseline >= 0 ? &vars[baseline].compared() : nullptr;
   for (auto& v : vars) {
@@ -415,6 +424,11 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
       failures.push_back(v.def.label + ": " + v.error);
     }
   }
+  }
+
+  // results.json, index.md, images; then the failures, if any.
+  void write() {
+  render::Backend& backend = *backend_ptr;
   auto find_var = [&](const std::string& label) -> const Variant* {
     for (const auto& v : vars)
       if (v.def.label == label) return v.error.empty() ? &v : nullptr;
@@ -628,6 +642,41 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
     for (const auto& f : failures) msg += " [" + f + "]";
     throw std::runtime_error(msg);
   }
+  }
+
+ private:
+  const ExperimentArgs& args;
+  const ExperimentDef& def;
+  const int spp, frames, w, h;
+  std::vector<Variant> vars;
+  int baseline = -1;
+  scene::Scene sc;
+  std::unique_ptr<render::Backend> backend_ptr;  // the reference backend
+  render::GBuffer gb;
+  Mask surface, region;
+  std::string region_desc;
+  long long region_pixels = 0;
+  std::vector<Mask> bands;
+  std::vector<std::string> failures;
+  std::vector<Reference> refs;
+};
+
+void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_given) {
+  if (args.list) {
+    for (const auto& e : experiment_defs()) std::cout << e.name << "  " << e.title << "\n";
+    return;
+  }
+  if (args.name.empty()) throw std::invalid_argument("experiment: no experiment named (known: " + experiment_names() + ")");
+  if (args.out.empty()) throw std::invalid_argument("experiment: --out is required");
+  register_builtin();
+
+  ExperimentRunner run(args, find_experiment(args.name), spp_given, frames_given);
+  run.make_variants();
+  run.measure_regions();
+  run.render_variants();
+  run.render_references();
+  run.measure();
+  run.write();
 }
 
 void register_experiment(CLI::App& app) {
