@@ -25,13 +25,8 @@ constexpr int kFrameSide = 512;
 constexpr double kStep = 1.0 / 30.0;
 
 void BM_WholeFrame(benchmark::State& state, const std::string& technique, const std::string& scene_name, const std::string& backend) {
-  render::Backend* be = nullptr;
-  try {
-    be = &softgi::bench::backend_named(backend);
-  } catch (const std::exception& e) {
-    state.SkipWithError(e.what());
-    return;
-  }
+  render::Backend* be = softgi::bench::backend_or_skip(state, backend);
+  if (!be) return;
   const scene::Scene sc = scene::make_builtin(scene_name);
   // One technique object for all frames: it keeps its cross-frame state (tables, hierarchies).
   const std::unique_ptr<render::Technique> tech = render::create_technique(technique);

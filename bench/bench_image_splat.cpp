@@ -57,14 +57,8 @@ void BM_Accumulation(benchmark::State& state, const std::string& scene_name, con
     state.SkipWithError("this CPU cannot run this kernel");
     return;
   }
-  softgi::bench::register_builtin();
-  render::Backend* be = nullptr;
-  try {
-    be = &softgi::bench::backend_named(backend);
-  } catch (const std::exception& e) {
-    state.SkipWithError(e.what());
-    return;
-  }
+  render::Backend* be = softgi::bench::backend_or_skip(state, backend);
+  if (!be) return;
   static std::map<std::string, scene::Scene> scenes;
   if (!scenes.count(scene_name)) scenes.emplace(scene_name, scene::make_builtin(scene_name));
   const scene::Scene& sc = scenes.at(scene_name);

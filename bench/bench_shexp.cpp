@@ -476,14 +476,8 @@ void BM_CrowdHierarchy(benchmark::State& state) {
 void BM_Frame(benchmark::State& state, const std::string& scene_name, const std::string& backend) {
   constexpr int kFrameSide = 512;  // docs/backends.md's timing table
   constexpr double kStep = 1.0 / 30.0;
-  softgi::bench::register_builtin();
-  render::Backend* be = nullptr;
-  try {
-    be = &softgi::bench::backend_named(backend);
-  } catch (const std::exception& e) {
-    state.SkipWithError(e.what());
-    return;
-  }
+  render::Backend* be = softgi::bench::backend_or_skip(state, backend);
+  if (!be) return;
   const scene::Scene sc = scene::make_builtin(scene_name);
   auto tech = render::create_technique("shexp");
   const render::ParamSet params = render::default_params(*tech);

@@ -83,6 +83,17 @@ inline render::Backend& backend_named(const std::string& name) {
   throw std::runtime_error("no " + name + " backend: " + errors[name]);
 }
 
+// The backend, or null with the benchmark skipped, naming why the backend cannot run.
+inline render::Backend* backend_or_skip(benchmark::State& state, const std::string& name) {
+  register_builtin();
+  try {
+    return &backend_named(name);
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+    return nullptr;
+  }
+}
+
 // Where a pass's kernel time came from.
 enum class TimeSource { HostKernelTimer, GpuTimestamp, FenceWait, PassWall };
 inline const char* to_string(TimeSource s) {

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <map>
+#include <mutex>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -229,6 +231,43 @@ void reset_exp_status(vk::Context& dev, vk::Buffer& status, const std::string& n
   const std::uint32_t status0[gpu::kExpStatusWords] = {0, none, none, none};
   dev.ensure_buffer(status, sizeof status0, kStorage, vk::MemoryKind::Host, name);
   dev.upload(status, status0, sizeof status0);
+}
+
+namespace {
+struct DeviceConstants {
+  std::mutex m;
+  vk::Buffer basis;
+  std::map<int, PlanBuffers> plans;
+};
+DeviceConstants& device_constants(vk::Context& dev) {
+  return *dev.cached<DeviceConstants>("common.constants", [] { return std::make_shared<DeviceConstants>(); });
+}
+}  // namespace
+
+const vk::Buffer& basis_constants(vk::Context& dev) {
+  DeviceConstants& c = device_constants(dev);
+  std::lock_guard<std::mutex> lock(c.m);
+  if (!c.basis) c.basis = dev.upload_vector(basis_recurrence_constants(), kStorage, "basis recurrence constants");
+  return c.basis;
+}
+
+const PlanBuffers& product_plan_buffers(vk::Context& dev, int order) {
+  DeviceConstants& c = device_constants(dev);
+  std::lock_guard<std::mutex> lock(c.m);
+  auto it = c.plans.find(order);
+  if (it != c.plans.end()) return it->second;
+  return c.plans.emplace(order, upload_product_plan(dev, ProductPlan::get(order), "order " + std::to_string(order))).first->second;
+}
+
+std::size_t AccumulationInputs::upload(vk::Context& dev, const ReceiverSoA& soa, const std::vector<std::uint32_t>& rl,
+                                       const PackedBlockers& packed, const std::string& technique) {
+  const std::size_t before = dev.transfer_bytes().upload;
+  upload_receivers(dev, receivers, soa, technique + " receivers", &receivers_hash);
+  put_if_changed(dev, rlist, rlist_hash, rl, technique + " receiver lists");
+  put_if_changed(dev, ranges, ranges_hash, packed.ranges, technique + " list ranges");
+  put_if_changed(dev, blockers, blockers_hash, packed.sph, technique + " blocker spheres");
+  put_if_changed(dev, weights, weights_hash, packed.w, technique + " band weights");
+  return dev.transfer_bytes().upload - before;
 }
 
 bool exp_status_failed(const std::uint32_t (&status)[gpu::kExpStatusWords]) {

@@ -137,6 +137,11 @@ struct PlanBuffers {
   vk::Buffer sq_begin, sq_terms, pr_range, pr_terms;
 };
 PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique);
+// The basis-recurrence constants (basis_recurrence_constants) and each order's product plan, uploaded
+// once per device and shared by every pass that runs the shared shaders (they never change).
+const vk::Buffer& basis_constants(vk::Context& dev);
+const PlanBuffers& product_plan_buffers(vk::Context& dev, int order);
+
 
 // Blocker lists concatenated as accumulate_log.comp reads them: spheres (cx, cy, cz, r), band
 // weights (`order` per sphere; `w_fill` for a list without weights) and a (first, count) range per
@@ -148,6 +153,16 @@ struct PackedBlockers {
 };
 PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int order, std::size_t min_rows, float w_fill,
                                   const std::string& technique, const std::string& order_name);
+
+// The accumulation inputs of accumulate_log.comp in device buffers, each uploaded only when its
+// content changed since the last frame (receivers, receiver-to-list map, list ranges, spheres, band
+// weights). upload() returns the bytes it uploaded.
+struct AccumulationInputs {
+  vk::Buffer receivers, rlist, ranges, blockers, weights;
+  std::uint64_t receivers_hash = 0, rlist_hash = 0, ranges_hash = 0, blockers_hash = 0, weights_hash = 0;
+  std::size_t upload(vk::Context& dev, const ReceiverSoA& soa, const std::vector<std::uint32_t>& rlist, const PackedBlockers& packed,
+                     const std::string& technique);
+};
 
 // The accumulate_log.comp dispatch over `count` receivers (bindings as softgi_shared.h names them),
 // timed as "accumulate_log". cut > 0: a blocker counts only where |c - p| < cut r (image_splat).

@@ -25,13 +25,10 @@ using namespace gpu_passes;
 
 namespace {
 
-// Per-device state of the shading dispatch: pipelines by specialisation, constants uploaded once,
-// buffers reused from frame to frame (grown when a frame needs more).
+// Per-device state of the shading dispatch: pipelines by specialisation, buffers reused from frame to frame (grown when a frame needs more).
 struct ShadeState {
   std::mutex m;
   PipelineCache pipelines;
-  vk::Buffer basis;
-  std::map<int, PlanBuffers> plans;
   vk::Buffer shade_rec, shade_vis, shade_consts, shade_out, shade_status, shade_lights;
   vk::Buffer shade_tap_pixel, shade_tap_index, shade_tap_weight;  // eq. 11 gather (paper 000)
   std::uint64_t rec_hash = 0;     // what shade_rec holds (upload_receivers)
@@ -41,17 +38,6 @@ struct ShadeState {
 
 ShadeState& shade_state(vk::Context& dev) {
   return *dev.cached<ShadeState>("common.shade", [] { return std::make_shared<ShadeState>(); });
-}
-
-const PlanBuffers& plan_buffers(vk::Context& dev, ShadeState& g, int order) {
-  auto it = g.plans.find(order);
-  if (it != g.plans.end()) return it->second;
-  return g.plans.emplace(order, upload_product_plan(dev, ProductPlan::get(order), "shade")).first->second;
-}
-
-const vk::Buffer& basis_buffer(vk::Context& dev, ShadeState& g) {
-  if (!g.basis) g.basis = dev.upload_vector(basis_recurrence_constants(), kStorage, "shade basis constants");
-  return g.basis;
 }
 
 void check_fits_shade(const vk::Context& dev, std::size_t bytes, const std::string& what, const std::string& pass) {
@@ -78,8 +64,8 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   if (dvis && dvis->floats != count * static_cast<std::size_t>(n2))
     throw std::logic_error("shade on vulkan: the device visibility does not match the " + std::to_string(count) + " receivers");
   const std::uint32_t vis_mode = ga ? gpu::kShadeVisGather : (b.g || dvis ? gpu::kShadeVisReceiver : gpu::kShadeVisNone);
-  const PlanBuffers& plan = plan_buffers(dev, g, n);
-  const vk::Buffer& basis = basis_buffer(dev, g);
+  const PlanBuffers& plan = product_plan_buffers(dev, n);
+  const vk::Buffer& basis = basis_constants(dev);
   upload_receivers(dev, g.shade_rec, soa, "shade receivers", &g.rec_hash);
   // Visibility: per receiver, or the coarse field of a gather.
   const float* vsrc = ga ? ga->coarse : dvis ? nullptr : b.g;

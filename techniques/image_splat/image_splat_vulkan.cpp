@@ -48,9 +48,8 @@ struct GpuState {
   std::weak_ptr<const sh::ShTables> ol_src;      // the ShTables whose OL table is in `ol`
   vk::Buffer ol;
   std::uint32_t ol_count = 0;
-  vk::Buffer receivers, rlist, ranges, blockers, weights, log_out;  // accumulate_log
-  // What receivers .. weights hold (content hashes): unchanged inputs are not uploaded again.
-  std::uint64_t receivers_hash = 0, rlist_hash = 0, ranges_hash = 0, blockers_hash = 0, weights_hash = 0;
+  AccumulationInputs inputs;  // accumulate_log: receivers, tile lists and spheres, uploaded when they change
+  vk::Buffer log_out;
   vk::Buffer exp_in, exp_out, status, series;                       // exponentiate
 };
 
@@ -82,12 +81,6 @@ void ol_table(vk::Context& dev, GpuState& g, const std::shared_ptr<const sh::ShT
 }
 
 // common::ProductPlan in the exponentiate shader's form.
-const PlanBuffers& product_plan(vk::Context& dev, GpuState& g, int order) {
-  auto it = g.plans.find(order);
-  if (it != g.plans.end()) return it->second;
-  return g.plans.emplace(order, upload_product_plan(dev, common::ProductPlan::get(order), "image_splat")).first->second;
-}
-
 }  // namespace
 
 void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const ReceiverBuffer& r,
@@ -115,21 +108,12 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
 
   // The tiles' blocker lists concatenated; each receiver reads the list of its tile.
   const PackedBlockers packed = pack_blocker_lists(bins.shadow, n, 0, 1.0f, "image_splat", "order");
-  const std::vector<float>&sph = packed.sph, &w = packed.w;
-  const std::vector<std::uint32_t>& ranges = packed.ranges;
   std::vector<std::uint32_t> rlist(count, 0);
   for (std::size_t k = 0; k < r.tiles.size(); ++k)
     for (std::size_t i = r.tiles[k].begin; i < r.tiles[k].end; ++i) rlist[i] = static_cast<std::uint32_t>(k);
 
   const vk::Buffer& table = log_table(dev, g, t);
-  if (!g.basis) g.basis = dev.upload_vector(common::basis_recurrence_constants(), kStorage, "image_splat basis constants");
-  const render::TransferBytes up0 = dev.transfer_bytes();
-  upload_receivers(dev, g.receivers, r.soa, "image_splat receivers", &g.receivers_hash);
-  put_if_changed(dev, g.rlist, g.rlist_hash, rlist, "image_splat receiver tiles");
-  put_if_changed(dev, g.ranges, g.ranges_hash, ranges, "image_splat tile list ranges");
-  put_if_changed(dev, g.blockers, g.blockers_hash, sph, "image_splat binned spheres");
-  put_if_changed(dev, g.weights, g.weights_hash, w, "image_splat band weights");
-  const std::size_t uploaded = dev.transfer_bytes().upload - up0.upload;
+  const std::size_t uploaded = g.inputs.upload(dev, r.soa, rlist, packed, "image_splat");
   // The log occlusion stays on the device for exponentiate (device-local memory).
   dev.ensure_buffer(g.log_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Device,
                     "image_splat log occlusion");
@@ -139,7 +123,7 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(s.rule)}});
   vk::SubmitResult res;
   if (count)
-    res = run_accumulate_log(dev, p, {g.receivers, g.rlist, g.ranges, g.blockers, g.weights, table, g.basis, g.log_out}, count, t.log,
+    res = run_accumulate_log(dev, p, {g.inputs.receivers, g.inputs.rlist, g.inputs.ranges, g.inputs.blockers, g.inputs.weights, table, basis_constants(dev), g.log_out}, count, t.log,
                              "image_splat accumulate_log", pair_cut_factor(t, s.rule));
 
   double pairs = 0.0;
@@ -178,7 +162,7 @@ void vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const Sha
   check_fits(dev, count * n2 * sizeof(float), "the log vectors of " + std::to_string(count) + " receivers", "exponentiate");
 
   ol_table(dev, g, t.sh);
-  const PlanBuffers& plan = product_plan(dev, g, n);
+  const PlanBuffers& plan = product_plan_buffers(dev, n);
   if (!dlog) put(dev, g.exp_in, hlog->v, "image_splat exp input");
   const vk::Buffer& exp_in = dlog ? *dlog->buffer : g.exp_in;
   dev.ensure_buffer(g.exp_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Device, "image_splat occlusion");

@@ -35,7 +35,6 @@ namespace {
 struct GpuState {
   std::mutex m;
   PipelineCache pipelines;
-  vk::Buffer basis;
   std::vector<float> vis_host, dfac_host, consts_host, mtab_host, qrot_host;
   vk::Buffer vis, dfac, consts, mtab, qrot;
   vk::Buffer receivers, rlist, ranges, proxies, albedo, out, pairs;
@@ -144,7 +143,6 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   consts.insert(consts.end(), tv.vh.begin(), tv.vh.end());
   consts.insert(consts.end(), tv.hc.begin(), tv.hc.end());
   upload_if_changed(dev, g.consts, g.consts_host, consts, "image_splat indirect L~ and band factors");
-  if (!g.basis) g.basis = dev.upload_vector(common::basis_recurrence_constants(), kStorage, "image_splat indirect basis constants");
   upload_receivers(dev, g.receivers, r.soa, "image_splat indirect receivers");
   put(dev, g.rlist, rlist, "image_splat indirect receiver tiles");
   put(dev, g.ranges, ranges, "image_splat indirect tile list ranges");
@@ -171,7 +169,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
       vk::Bind::buffer_at(gpu::kIndBindListRange, g.ranges),    vk::Bind::buffer_at(gpu::kIndBindProxies, g.proxies),
       vk::Bind::buffer_at(gpu::kIndBindAlbedo, g.albedo),       vk::Bind::buffer_at(gpu::kIndBindVis, g.vis),
       vk::Bind::buffer_at(gpu::kIndBindDfac, g.dfac),           vk::Bind::buffer_at(gpu::kIndBindConsts, g.consts),
-      vk::Bind::buffer_at(gpu::kIndBindBasis, g.basis),         vk::Bind::buffer_at(gpu::kIndBindOut, g.out),
+      vk::Bind::buffer_at(gpu::kIndBindBasis, basis_constants(dev)),       vk::Bind::buffer_at(gpu::kIndBindOut, g.out),
       vk::Bind::buffer_at(gpu::kIndBindPairs, g.pairs),         vk::Bind::buffer_at(gpu::kIndBindMtab, g.mtab),
       vk::Bind::buffer_at(gpu::kIndBindQrot, g.qrot)};
   vk::SubmitResult res;

@@ -44,31 +44,16 @@ namespace {
 struct GpuState {
   std::mutex m;
   PipelineCache pipelines;
-  vk::Buffer basis;
-  std::map<int, PlanBuffers> plans;
   std::weak_ptr<const Tables> table_src;  // the Tables whose log table / OL table are uploaded
   vk::Buffer log_table, ol;
   std::uint32_t ol_count = 0;
-  vk::Buffer receivers, rlist, ranges, blockers, weights, field_out;  // accumulate
-  // What receivers, rlist, ranges, blockers and weights hold (content hashes): inputs that did not
-  // change since the last frame are not uploaded again.
-  std::uint64_t receivers_hash = 0, rlist_hash = 0, ranges_hash = 0, blockers_hash = 0, weights_hash = 0;
+  AccumulationInputs inputs;  // accumulate: receivers, lists and blockers, uploaded when they change
+  vk::Buffer field_out;
   vk::Buffer exp_in, exp_out, status, series;                         // exponentiate
 };
 
 GpuState& gpu_state(vk::Context& dev) {
   return *dev.cached<GpuState>("shexp.gpu", [] { return std::make_shared<GpuState>(); });
-}
-
-const PlanBuffers& plan_buffers(vk::Context& dev, GpuState& g, int order) {
-  auto it = g.plans.find(order);
-  if (it != g.plans.end()) return it->second;
-  return g.plans.emplace(order, upload_product_plan(dev, ProductPlan::get(order), "shexp")).first->second;
-}
-
-const vk::Buffer& basis_buffer(vk::Context& dev, GpuState& g) {
-  if (!g.basis) g.basis = dev.upload_vector(basis_recurrence_constants(), kStorage, "shexp basis constants");
-  return g.basis;
 }
 
 // The log table (ZhTable::data, the accumulation's float copy of the core's double table) and the
@@ -113,21 +98,13 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx) {
 
   // Blocker lists concatenated; each receiver reads the list of its cluster.
   const PackedBlockers packed = pack_blocker_lists(cuts.lists, na, 1, 0.0f, "shexp", "accumulation order");
-  const std::vector<float>&sph = packed.sph, &w = packed.w;
-  const std::vector<std::uint32_t>& ranges = packed.ranges;
   std::vector<std::uint32_t> rlist(std::max<std::size_t>(1, count), 0);
   for (std::size_t c = 0; c < r.clusters.size(); ++c)
     for (std::size_t i = r.clusters[c].begin; i < r.clusters[c].end; ++i) rlist[i] = static_cast<std::uint32_t>(cuts.list_of_cluster[c]);
 
   upload_tables(dev, g, tp);
-  const vk::Buffer& basis = basis_buffer(dev, g);
-  const render::TransferBytes up0 = dev.transfer_bytes();
-  upload_receivers(dev, g.receivers, r.soa, "shexp receivers", &g.receivers_hash);
-  put_if_changed(dev, g.rlist, g.rlist_hash, rlist, "shexp receiver lists");
-  put_if_changed(dev, g.ranges, g.ranges_hash, ranges, "shexp list ranges");
-  put_if_changed(dev, g.blockers, g.blockers_hash, sph, "shexp blockers");
-  put_if_changed(dev, g.weights, g.weights_hash, w, "shexp band weights");
-  const std::size_t uploaded = dev.transfer_bytes().upload - up0.upload;
+  const vk::Buffer& basis = basis_constants(dev);
+  const std::size_t uploaded = g.inputs.upload(dev, r.soa, rlist, packed, "shexp");
   // The log vectors stay on the device for exponentiate (device-local memory).
   const std::size_t out_bytes = std::max<std::size_t>(1, count * n2a) * sizeof(float);
   dev.ensure_buffer(g.field_out, out_bytes, kStorage, vk::MemoryKind::Device, "shexp log vectors");
@@ -136,7 +113,7 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx) {
                                     words(spv::common_accumulate_log_comp),
                                     {{0, static_cast<std::uint32_t>(na)}, {1, static_cast<std::uint32_t>(s.rule)}});
   const vk::SubmitResult res = run_accumulate_log(
-      dev, p, {g.receivers, g.rlist, g.ranges, g.blockers, g.weights, g.log_table, basis, g.field_out}, count, t.log, "shexp accumulate_log");
+      dev, p, {g.inputs.receivers, g.inputs.rlist, g.inputs.ranges, g.inputs.blockers, g.inputs.weights, g.log_table, basis, g.field_out}, count, t.log, "shexp accumulate_log");
 
   auto& record = ctx.record();
   double pairs = 0.0;
@@ -167,7 +144,7 @@ void vulkan_exponentiate(const Settings& s, render::FrameContext& ctx) {
     throw std::logic_error("shexp exponentiate on vulkan: the log vectors do not match the " + std::to_string(count) + " receivers");
 
   upload_tables(dev, g, tp);
-  const PlanBuffers& plan = plan_buffers(dev, g, na);
+  const PlanBuffers& plan = product_plan_buffers(dev, na);
   if (!dlog) {
     dev.ensure_buffer(g.exp_in, std::max<std::size_t>(1, hlog->v.size()) * sizeof(float), kStorage, vk::MemoryKind::Device, "shexp exp input");
     dev.upload(g.exp_in, hlog->v.data(), hlog->v.size() * sizeof(float));
