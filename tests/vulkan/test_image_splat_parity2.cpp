@@ -93,26 +93,22 @@ class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
   // the same inputs.
   static Run run(const std::string& scene_name, const scene::Scene& sc, const render::ParamSet& params, const std::string& label,
                  double rgb_tol = kIndirectRelTol) {
-    const scene::PosedScene posed = scene::evaluate(sc, 0.0);
-    std::set<std::string> empty;
-    render::PassGraph graph = tech_->plan(sc, params, empty);
-    const render::CompiledGraph cg = graph.compile({render::kFinal}, empty);
-    render::FrameResult result;
-    render::FrameContext ctx(sc, posed, params, kWidth, kHeight, result, ctx_.get());
+    render::RenderRequest req;
+    req.width = kWidth;
+    req.height = kHeight;
+    render::SteppedFrame frame(*tech_, sc, params, req, ctx_.get());
+    render::FrameContext& ctx = frame.context();
+    render::FrameResult& result = frame.result();
     Run out;
-    for (int idx : cg.order) {
-      const render::PassDesc& pass = graph.passes()[idx];
-      result.passes.push_back(render::PassRecord{pass.name});
+    for (const render::PassDesc* pp : frame.passes()) {
+      const render::PassDesc& pass = *pp;
       if (pass.impl.empty()) {
-        const render::PassFn* fn = render::find_shared_pass_impl(pass.name, backends::cpu::kBackendName);
-        EXPECT_NE(fn, nullptr) << pass.name;
-        if (!fn) return out;
-        (*fn)(ctx);
+        frame.run(pass, backends::cpu::kBackendName);
         continue;
       }
-      EXPECT_TRUE(pass.impl.count(render::kHostImpl)) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
+      EXPECT_TRUE(pass.impl.count(render::kHostImpl)) << "pass '" << pass.name << "' lacks a host implementation";
       if (!pass.impl.count(render::kHostImpl)) return out;
-      pass.impl.at(render::kHostImpl)(ctx);
+      frame.run(pass, render::kHostImpl);
       if (pass.name != "accumulate_indirect") continue;
       const double cpu_inside = result.passes.back().counters["pairs_inside_influence"];
       auto cpu_res = ctx.get<std::shared_ptr<const is::IndirectSums>>(pass.writes.at(0));

@@ -51,7 +51,6 @@ class ShexpParity : public softgi::testing::ValidatedParamSuite<ShexpParity> {};
 TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
   const std::string name = GetParam();
   const scene::Scene sc = scene::make_builtin(name);
-  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
   std::unique_ptr<render::Technique> tech = sx::create();  // one instance: receivers are clustered once
   std::size_t compared = 0;
   // HYB at every order; the other GPU exponentials at order 4: OL, PS*-2, PS*-7 (the even-power
@@ -69,16 +68,16 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
     params.set("order", std::to_string(order));
     params.set("exp", cs.exp);
     params.set("ps_degree", std::to_string(cs.degree));
-    std::set<std::string> empty;
-    render::PassGraph graph = tech->plan(sc, params, empty);
-    const render::CompiledGraph cg = graph.compile({"shexp.vertex_shading"}, empty);
-    render::FrameResult result;
-    render::FrameContext ctx(sc, posed, params, 8, 8, result, ctx_.get());
-    for (int idx : cg.order) {
-      const render::PassDesc& pass = graph.passes()[idx];
-      ASSERT_TRUE(pass.impl.count(render::kHostImpl)) << "pass '" << pass.name << "' lacks a cpu or vulkan implementation";
-      result.passes.push_back(render::PassRecord{pass.name});
-      pass.impl.at(render::kHostImpl)(ctx);
+    render::RenderRequest req;
+    req.width = req.height = 8;
+    req.outputs = {"shexp.vertex_shading"};
+    render::SteppedFrame frame(*tech, sc, params, req, ctx_.get());
+    render::FrameContext& ctx = frame.context();
+    render::FrameResult& result = frame.result();
+    for (const render::PassDesc* pp : frame.passes()) {
+      const render::PassDesc& pass = *pp;
+      ASSERT_TRUE(pass.impl.count(render::kHostImpl)) << "pass '" << pass.name << "' lacks a host implementation";
+      frame.run(pass, render::kHostImpl);
       const std::string out = pass.writes.at(0);
       if (pass.name != "accumulate_log" && pass.name != "exponentiate" && pass.name != "shade") continue;
       // The same pass on Vulkan, from the same inputs; then the CPU output goes back so that the
@@ -88,8 +87,7 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
       double tol = 0.0;
       if (pass.name == "shade") {
         auto cpu_res = ctx.get<std::shared_ptr<const sx::Shading>>(out);
-        result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
-        softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
+        frame.run(pass, backends::vulkan::kBackendName, pass.name + "@vulkan");
         auto gpu_res = ctx.get<std::shared_ptr<const sx::Shading>>(out);
         ASSERT_NE(cpu_res, gpu_res);
         cpu = flatten(cpu_res->irradiance);
@@ -99,8 +97,7 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
         ctx.put<std::shared_ptr<const sx::Shading>>(out, cpu_res);
       } else {
         auto cpu_res = ctx.get<std::shared_ptr<const sx::Field>>(out);
-        result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
-        softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
+        frame.run(pass, backends::vulkan::kBackendName, pass.name + "@vulkan");
         auto gpu_res = ctx.get<std::shared_ptr<const sx::Field>>(out);
         ASSERT_NE(cpu_res, gpu_res);
         EXPECT_EQ(cpu_res->order, gpu_res->order);

@@ -258,18 +258,17 @@ TEST(VulkanBackend, MoreBlockersThanTheDeviceBufferHoldsIsAClearError) {
   auto log = ctx->validation_log();
   {
     const scene::Scene sc = scene::make_builtin("cornell");
-    const scene::PosedScene posed = scene::evaluate(sc, 0.0);
     auto tech = sx::create();
     render::ParamSet params = render::default_params(*tech);
     params.set("order", "3");
-    std::set<std::string> empty;
-    const render::PassGraph graph = tech->plan(sc, params, empty);
-    const render::CompiledGraph cg = graph.compile({"shexp.cuts"}, empty);
-    render::FrameResult result;
-    render::FrameContext fc(sc, posed, params, 8, 8, result, ctx.get());
-    for (int idx : cg.order) {
-      result.passes.push_back(render::PassRecord{graph.passes()[idx].name});
-      graph.passes()[idx].impl.at(render::kHostImpl)(fc);
+    render::RenderRequest req;
+    req.width = req.height = 8;
+    req.outputs = {"shexp.log_visibility"};
+    render::SteppedFrame frame(*tech, sc, params, req, ctx.get());
+    render::FrameContext& fc = frame.context();
+    for (const render::PassDesc* p : frame.passes()) {
+      if (p->name == "accumulate_log") break;
+      frame.run(*p, render::kHostImpl);
     }
     // One cut holding more spheres (16 bytes each on the device) than maxStorageBufferRange allows.
     const std::size_t n = ctx->device_info().limits.maxStorageBufferRange / 16 + 1;
@@ -285,13 +284,8 @@ TEST(VulkanBackend, MoreBlockersThanTheDeviceBufferHoldsIsAClearError) {
     const auto& rec = *fc.get<std::shared_ptr<const sx::Receivers>>("shexp.receivers");
     cuts->list_of_cluster.assign(rec.clusters.size(), 0);
     fc.put<std::shared_ptr<const sx::Cuts>>("shexp.cuts", cuts);
-    const render::PassDesc* acc = nullptr;
-    for (const auto& p : graph.passes())
-      if (p.name == "accumulate_log") acc = &p;
-    ASSERT_NE(acc, nullptr);
-    result.passes.push_back(render::PassRecord{"accumulate_log"});
     try {
-      acc->impl.at(backends::vulkan::kBackendName)(fc);
+      frame.run(frame.pass("accumulate_log"), backends::vulkan::kBackendName);
       ADD_FAILURE() << "no error for " << n << " blockers";
     } catch (const std::invalid_argument& e) {
       const std::string what = e.what();

@@ -108,24 +108,50 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
   return result;
 }
 
+const PassFn* find_pass_impl(const PassDesc& pass, const std::string& backend) {
+  auto it = pass.impl.find(backend);
+  if (it != pass.impl.end()) return &it->second;
+  if (backend != kHostImpl)
+    if (const PassFn* shared = find_shared_pass_impl(pass.name, backend)) return shared;
+  it = pass.impl.find(kHostImpl);
+  return it == pass.impl.end() ? nullptr : &it->second;
+}
+
 void Backend::execute_pass(const PassDesc& pass, FrameContext& ctx) {
   // The backend's own implementation, then the backend's implementation of a shared pass, then the
   // host code every backend can run.
-  auto it = pass.impl.find(name());
-  if (it != pass.impl.end()) {
-    it->second(ctx);
-    return;
-  }
-  if (const PassFn* shared = find_shared_pass_impl(pass.name, name())) {
-    (*shared)(ctx);
-    return;
-  }
-  it = pass.impl.find(kHostImpl);
-  if (it != pass.impl.end()) {
-    it->second(ctx);
-    return;
-  }
-  throw std::logic_error("pass '" + pass.name + "' has no implementation for the " + name() + " backend");
+  const PassFn* fn = find_pass_impl(pass, name());
+  if (!fn) throw std::logic_error("pass '" + pass.name + "' has no implementation for the " + name() + " backend");
+  (*fn)(ctx);
+}
+
+SteppedFrame::SteppedFrame(Technique& technique, const scene::Scene& scene, const ParamSet& params, const RenderRequest& request,
+                           Device* device) {
+  result_.technique = technique.name();
+  const int w = request.width > 0 ? request.width : scene.camera.width;
+  const int h = request.height > 0 ? request.height : scene.camera.height;
+  posed_ = scene::evaluate(scene, request.time);
+  std::set<std::string> empty;
+  graph_ = technique.plan(scene, params, empty);
+  const CompiledGraph compiled = graph_.compile(request.outputs, empty);
+  result_.pruned = compiled.pruned;
+  for (int i : compiled.order) order_.push_back(&graph_.passes()[i]);
+  ctx_ = std::make_unique<FrameContext>(scene, posed_, params, w, h, result_, device);
+}
+
+const PassDesc& SteppedFrame::pass(const std::string& name) const {
+  for (const PassDesc* p : order_)
+    if (p->name == name) return *p;
+  throw std::invalid_argument("stepped frame: no pass '" + name + "' runs in this frame");
+}
+
+void SteppedFrame::run(const PassDesc& pass, const std::string& backend, const std::string& label) {
+  const PassFn* fn = find_pass_impl(pass, backend);
+  if (!fn) throw std::logic_error("pass '" + pass.name + "' has no implementation for " + backend);
+  result_.passes.push_back(PassRecord{label.empty() ? pass.name : label});
+  const auto t0 = std::chrono::steady_clock::now();
+  (*fn)(*ctx_);
+  result_.passes.back().wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void NullBackend::execute_pass(const PassDesc& pass, FrameContext&) { executed.push_back(pass.name); }

@@ -43,6 +43,37 @@ class NullBackend : public Backend {
   void execute_pass(const PassDesc& pass, FrameContext& ctx) override;
 };
 
+// What `backend` runs for `pass`: its own implementation, else its implementation of a shared pass,
+// else the host implementation (kHostImpl names the host one alone); null when there is none.
+const PassFn* find_pass_impl(const PassDesc& pass, const std::string& backend);
+
+// A frame run pass by pass by the caller: posed, planned and compiled as Backend::render does, so
+// that a test can run one pass on two backends from the same inputs (backend parity) or stop after
+// a pass. run() records each pass in result() as Backend::render would. The scene and the
+// parameters must outlive the frame.
+class SteppedFrame {
+ public:
+  SteppedFrame(Technique& technique, const scene::Scene& scene, const ParamSet& params, const RenderRequest& request,
+               Device* device = nullptr);
+  SteppedFrame(const SteppedFrame&) = delete;
+  SteppedFrame& operator=(const SteppedFrame&) = delete;
+  // The passes to run, in dependency order.
+  const std::vector<const PassDesc*>& passes() const { return order_; }
+  const PassDesc& pass(const std::string& name) const;  // throws std::invalid_argument naming it
+  FrameContext& context() { return *ctx_; }
+  FrameResult& result() { return result_; }
+  // Runs `pass` as `backend` would (find_pass_impl), recorded as `label` (default: the pass name).
+  // Throws std::logic_error when the backend has no implementation of it.
+  void run(const PassDesc& pass, const std::string& backend, const std::string& label = "");
+
+ private:
+  FrameResult result_;
+  scene::PosedScene posed_;
+  PassGraph graph_;
+  std::vector<const PassDesc*> order_;
+  std::unique_ptr<FrameContext> ctx_;
+};
+
 // --- The backend registry ---------------------------------------------------------------------
 
 struct BackendOptions {
