@@ -248,6 +248,7 @@ class ExperimentRunner {
   // Every variant's technique and parameters first: an unknown name fails before anything renders;
   // then the scene and the output folder.
   void make_variants() {
+  check_distinct_params(args.overrides);
   std::vector<bool> override_used(args.overrides.size(), false);
   for (const auto& vd0 : def.variants) {
     Variant v;

@@ -34,6 +34,7 @@ void run_render(const RenderArgs& args) {
   if (!std::isfinite(args.frame)) throw std::invalid_argument("--frame: time must be finite");
   // Cheap checks first: an unknown technique or parameter fails before the scene is loaded.
   std::unique_ptr<render::Technique> technique = render::create_technique(args.technique);
+  check_distinct_params(args.params);
   const render::ParamSet params = technique_params(*technique, args.params);
   std::unique_ptr<render::Backend> backend_ptr = make_backend(backend_name, args.device, "render");  // device errors early
   render::Backend& backend = *backend_ptr;

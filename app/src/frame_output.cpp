@@ -6,6 +6,7 @@
 #include <iostream>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
@@ -92,6 +93,16 @@ Json device_json(const render::Backend& backend) {
   Json j = Json::object();
   for (const auto& [k, v] : backend.device_record()) j[k] = v;
   return j;
+}
+
+void check_distinct_params(const std::vector<std::string>& assignments) {
+  std::map<std::string, std::string> seen;
+  for (const auto& a : assignments) {
+    const std::string name = a.substr(0, a.find('='));
+    auto [it, fresh] = seen.emplace(name, a);
+    if (!fresh)
+      throw std::invalid_argument("--param '" + name + "' given twice ('" + it->second + "' and '" + a + "'): say which value you mean");
+  }
 }
 
 render::ParamSet technique_params(const render::Technique& t, const std::vector<std::string>& assignments) {

@@ -33,6 +33,9 @@ std::unique_ptr<render::Backend> make_backend(const std::string& name, const std
 // backend; name, type, driver, API version, ids and validation state for the Vulkan backend.
 Json device_json(const render::Backend& backend);
 
+// The user's --param list names each parameter once (a repeated one is an error naming both values,
+// not a silent last-wins).
+void check_distinct_params(const std::vector<std::string>& assignments);
 // A technique's parameters, defaults overridden by "name=value" assignments (errors name the
 // technique and the parameter).
 render::ParamSet technique_params(const render::Technique& t, const std::vector<std::string>& assignments);

@@ -7,3 +7,6 @@ expect_failure("resolution" tables --resolution 1)
 expect_failure("param" tables --param gamma)
 expect_failure("no-such" tables --no-such-flag)
 expect_failure("subcommand|required" )
+# A repeated --param is an error naming both values, before anything renders.
+expect_failure("--param 'order' given twice \\('order=3' and 'order=5'\\)" render --scene spheres --technique shexp --param order=3 --param order=5 --out ${WORK_DIR}/twice)
+expect_failure("--param 'order' given twice" experiment shexp_orders --quick --param order=3 --param order=4 --out ${WORK_DIR}/twice)

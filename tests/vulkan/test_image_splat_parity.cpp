@@ -126,14 +126,14 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
         out.identical += cpu_res->v == gpu_res->v;
       } else {
         if (ctx_->device_info().timestamp_valid_bits > 0) {
-          EXPECT_GE(result.passes.back().counters["kernel_gpu_seconds"], 0.0);
+          EXPECT_GE(result.passes.back().counters.at("kernel_gpu_seconds"), 0.0);
         }
         const double tol = pass.name == "accumulate_log" ? kAccumulateRelTol : kExpRelTol;
         const Compared c = compare_rows(cpu_res->v, gpu_res->v, width);
         EXPECT_LE(c.worst, tol) << pass.name << " (" << label << "): receiver " << c.worst_index << " differs by " << c.worst << " of its size";
         std::printf("[parity] %-9s %-22s %-15s %zu receivers, worst relative difference %.3g (GPU kernel %.3f ms)\n", scene_name.c_str(),
                     label.c_str(), pass.name.c_str(), cpu_res->v.size() / width, c.worst,
-                    result.passes.back().counters["kernel_gpu_seconds"] * 1e3);
+                    result.passes.back().counters.at("kernel_gpu_seconds") * 1e3);
         ++out.compared;
       }
       ctx.put<std::shared_ptr<const is::Field>>(res, cpu_res);
@@ -220,7 +220,7 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
                              const std::string& scene_name, const std::string& label) {
     const std::string res = pass.writes.at(0);
     const Image cpu = ctx.get<Image>(res);
-    const double cpu_clamped = result.passes.back().counters["pixels_clamped"];
+    const double cpu_clamped = result.passes.back().counters.at("pixels_clamped");
     result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
     softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
     const Image& gpu = ctx.get<Image>(res);
@@ -233,14 +233,14 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
     const Compared c = compare_rows(flat(cpu), flat(gpu), 3);
     auto& counters = result.passes.back().counters;
     EXPECT_LE(c.worst, kShadeDirectRelTol) << "shade_direct (" << label << "): pixel " << c.worst_index << " differs by " << c.worst << " of its size";
-    EXPECT_LE(std::abs(counters["pixels_clamped"] - cpu_clamped), kClampedPixelSlack * std::max(1.0, counters["surface_pixels"]))
+    EXPECT_LE(std::abs(counters.at("pixels_clamped") - cpu_clamped), kClampedPixelSlack * std::max(1.0, counters.at("surface_pixels")))
         << "shade_direct (" << label << "): clamped pixels";
     if (ctx_->device_info().timestamp_valid_bits > 0) {
-      EXPECT_GE(counters["kernel_gpu_seconds"], 0.0);
+      EXPECT_GE(counters.at("kernel_gpu_seconds"), 0.0);
     }
     std::printf("[parity] %-9s %-22s shade_direct    %zu pixels, worst relative difference %.3g, clamped %g / %g (GPU kernel %.3f ms)\n",
-                scene_name.c_str(), label.c_str(), cpu.rgb.size(), c.worst, cpu_clamped, counters["pixels_clamped"],
-                counters["kernel_gpu_seconds"] * 1e3);
+                scene_name.c_str(), label.c_str(), cpu.rgb.size(), c.worst, cpu_clamped, counters.at("pixels_clamped"),
+                counters.at("kernel_gpu_seconds") * 1e3);
     ctx.put<Image>(res, cpu);
   }
 

@@ -110,7 +110,7 @@ class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
       if (!pass.impl.count(render::kHostImpl)) return out;
       frame.run(pass, render::kHostImpl);
       if (pass.name != "accumulate_indirect") continue;
-      const double cpu_inside = result.passes.back().counters["pairs_inside_influence"];
+      const double cpu_inside = result.passes.back().counters.at("pairs_inside_influence");
       auto cpu_res = ctx.get<std::shared_ptr<const is::IndirectSums>>(pass.writes.at(0));
       result.passes.push_back(render::PassRecord{pass.name + "@vulkan"});
       softgi::testing::impl_on(pass, backends::vulkan::kBackendName)(ctx);
@@ -123,7 +123,7 @@ class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
         break;
       }
       EXPECT_EQ(cpu_res->pairs, gpu_res->pairs);
-      EXPECT_LE(std::abs(counters["pairs_inside_influence"] - cpu_inside), kPairCountRelTol * cpu_inside + 2.0)
+      EXPECT_LE(std::abs(counters.at("pairs_inside_influence") - cpu_inside), kPairCountRelTol * cpu_inside + 2.0)
           << label << ": pairs inside the sphere of influence";
       std::size_t wi = 0;
       out.worst_rgb = compare_rows(cpu_res->rgb, gpu_res->rgb, 3, &wi);
@@ -133,7 +133,7 @@ class ImageSplatParity2 : public ::testing::TestWithParam<std::string> {
       EXPECT_LE(out.worst_omega, kOmegaRelTol) << scene_name << " (" << label << "): omega of receiver " << wi;
       std::printf("[parity2] %-9s %-28s %4zu receivers, %8.0f pairs (%6.0f inside), worst rgb %.3g, omega %.3g (GPU kernel %.3f ms)\n",
                   scene_name.c_str(), label.c_str(), cpu_res->omega.size(), cpu_res->pairs, cpu_inside, out.worst_rgb, out.worst_omega,
-                  counters["kernel_gpu_seconds"] * 1e3);
+                  counters.at("kernel_gpu_seconds") * 1e3);
       ++out.compared;
       break;  // later passes are not ported here
     }
@@ -268,7 +268,7 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
           const double wr = compare_rows(rgb, gpu->rgb, 3), wo = compare_rows(omega, gpu->omega, 1);
           EXPECT_LE(wr, op == is::IndirectOperator::Exact ? kExactRelTol : kIndirectRelTol);
           EXPECT_LE(wo, kOmegaRelTol);
-          EXPECT_LE(std::abs(result.passes.back().counters["pairs_inside_influence"] - static_cast<double>(inside)),
+          EXPECT_LE(std::abs(result.passes.back().counters.at("pairs_inside_influence") - static_cast<double>(inside)),
                     kPairCountRelTol * static_cast<double>(inside) + 2.0);
           if (wr > 1e-4 || wo > 1e-4) std::printf("[parity2] %-40s worst rgb %.3g omega %.3g\n", label.c_str(), wr, wo);
           // Rule off separately: no rule-adjusted tangent spheres, so no ill-conditioned asin.

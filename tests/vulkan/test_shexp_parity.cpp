@@ -110,7 +110,7 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
       ASSERT_FALSE(cpu.empty());
       // The GPU pass timed itself (timestamps) where the device has them.
       if (ctx_->device_info().timestamp_valid_bits > 0) {
-        EXPECT_GE(result.passes.back().counters["kernel_gpu_seconds"], 0.0);
+        EXPECT_GE(result.passes.back().counters.at("kernel_gpu_seconds"), 0.0);
       }
       const Compared c = compare_rows(cpu, gpu, width);
       EXPECT_LE(c.worst, tol) << pass.name << ": receiver " << c.worst_index << " differs by " << c.worst << " of its size";
@@ -124,7 +124,7 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
       }
       std::printf("[parity] %-9s order %d %-5s %-2d %-15s %zu receivers, worst relative difference %.3g (GPU kernel %.3f ms)\n",
                   name.c_str(), order, cs.exp, cs.degree, pass.name.c_str(), cpu.size() / width, c.worst,
-                  result.passes.back().counters["kernel_gpu_seconds"] * 1e3);
+                  result.passes.back().counters.at("kernel_gpu_seconds") * 1e3);
       ++compared;
     }
   }

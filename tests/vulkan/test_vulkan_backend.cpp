@@ -32,6 +32,14 @@ namespace {
 // its largest value.
 constexpr double kFrameRelTol = 1e-3;
 
+// Non-finite values in an image (std::max and > comparisons skip NaN, so the image comparisons
+// below check this first).
+std::size_t non_finite(const Image& im) {
+  std::size_t n = 0;
+  for (const auto& c : im.rgb) n += !(std::isfinite(c.x) && std::isfinite(c.y) && std::isfinite(c.z));
+  return n;
+}
+
 }  // namespace
 
 TEST(VulkanBackend, RendersAShexpFrameLikeTheCpuBackendWithGpuTimes) {
@@ -66,6 +74,8 @@ TEST(VulkanBackend, RendersAShexpFrameLikeTheCpuBackendWithGpuTimes) {
       }
     }
     ASSERT_EQ(a.final_image.rgb.size(), b.final_image.rgb.size());
+    EXPECT_EQ(non_finite(a.final_image), 0u);
+    EXPECT_EQ(non_finite(b.final_image), 0u);
     double peak = 0.0, diff = 0.0;
     for (std::size_t i = 0; i < a.final_image.rgb.size(); ++i)
       for (int c = 0; c < 3; ++c) {
@@ -210,6 +220,8 @@ TEST(VulkanBackend, RendersAnImageSplatFrameLikeTheCpuBackend) {
       }
       ASSERT_EQ(a.final_image.rgb.size(), b.final_image.rgb.size());
       double peak = 0.0;
+      EXPECT_EQ(non_finite(a.final_image), 0u) << name;
+      EXPECT_EQ(non_finite(b.final_image), 0u) << name;
       for (const auto& c : b.final_image.rgb) peak = std::max({peak, static_cast<double>(c.x), static_cast<double>(c.y), static_cast<double>(c.z)});
       ASSERT_GT(peak, 0.0);
       std::size_t off = 0;
