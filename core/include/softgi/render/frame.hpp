@@ -74,6 +74,9 @@ class FrameContext {
   FrameContext(const scene::Scene& scene, const scene::PosedScene& posed, const ParamSet& params, int width,
                int height, FrameResult& result, Device* device = nullptr)
       : scene(scene), posed(posed), params(params), width(width), height(height), result(result), device(device) {}
+  // Deferred resources refer to their frame: a frame is neither copied nor moved.
+  FrameContext(const FrameContext&) = delete;
+  FrameContext& operator=(const FrameContext&) = delete;
 
   const scene::Scene& scene;
   const scene::PosedScene& posed;
