@@ -5,10 +5,14 @@
 // include by path (techniques/common/...).
 #pragma once
 
+#include <functional>
+#include <map>
 #include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "softgi/render/pass_graph.hpp"
 
 namespace softgi::techniques::common {
 
@@ -34,5 +38,17 @@ class DeviceKernelRegistry {
   mutable std::mutex m_;
   std::vector<std::pair<std::string, Kernels>> entries_;
 };
+
+// A pass's implementations: `impl` (its host one) plus, per registered backend, the PassFn make()
+// builds from that backend's kernels (none where it returns an empty one: the backend runs the host
+// implementation there).
+template <class Kernels>
+std::map<std::string, render::PassFn> with_kernels(std::map<std::string, render::PassFn> impl,
+                                                   const std::vector<std::pair<std::string, Kernels>>& kernels,
+                                                   const std::function<render::PassFn(const Kernels&)>& make) {
+  for (const auto& [backend, k] : kernels)
+    if (render::PassFn f = make(k)) impl[backend] = std::move(f);
+  return impl;
+}
 
 }  // namespace softgi::techniques::common

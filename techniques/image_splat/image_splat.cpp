@@ -749,10 +749,7 @@ class ImageSplat final : public render::Technique {
     const auto cpu = render::host_impl;
     const auto kernels = device_kernels().all();
     auto with_kernels = [&kernels, &cpu](render::PassFn host, const std::function<render::PassFn(const DeviceKernels&)>& make) {
-      std::map<std::string, render::PassFn> impl = cpu(std::move(host));
-      for (const auto& [backend, k] : kernels)
-        if (render::PassFn f = make(k)) impl[backend] = std::move(f);
-      return impl;
+      return common::with_kernels<DeviceKernels>(cpu(std::move(host)), kernels, make);
     };
     auto dev_accumulate = [s](const DeviceKernels& k) -> render::PassFn {
       if (!k.accumulate_log) return {};

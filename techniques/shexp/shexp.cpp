@@ -647,15 +647,6 @@ common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
   return r;
 }
 
-// impl (the host implementation) plus, per registered backend, the PassFn make() builds from its
-// kernels (none when it returns an empty one).
-std::map<std::string, render::PassFn> with_kernels(std::map<std::string, render::PassFn> impl,
-                                                   const std::vector<std::pair<std::string, DeviceKernels>>& kernels,
-                                                   const std::function<render::PassFn(const DeviceKernels&)>& make) {
-  for (const auto& [backend, k] : kernels)
-    if (render::PassFn f = make(k)) impl[backend] = std::move(f);
-  return impl;
-}
 
 class Shexp final : public render::Technique {
  public:
@@ -749,7 +740,7 @@ class Shexp final : public render::Technique {
     } else {
       g.add({"accumulate_log", {kReceivers, kTables, kCuts}, {}, {kLogVisibility},
              "sum of blocker log vectors per receiver (eqs. 8, 34, 38; rules of section 6.2)",
-             with_kernels(cpu([s](FrameContext& c) { pass_accumulate(s, c); }), kernels,
+             common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_accumulate(s, c); }), kernels,
                           [s](const DeviceKernels& k) -> render::PassFn {
                             if (!k.accumulate) return {};
                             return [s, f = k.accumulate](FrameContext& c) { f(s, c); };
@@ -758,7 +749,7 @@ class Shexp final : public render::Technique {
       // the others run the host pass there.
       g.add({"exponentiate", {kReceivers, kTables, kLogVisibility}, {}, {kVisibility},
              "SH exponential per receiver (section 4), truncated to the shading order",
-             with_kernels(cpu([s](FrameContext& c) { pass_exponentiate(s, c); }), kernels,
+             common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_exponentiate(s, c); }), kernels,
                           [s](const DeviceKernels& k) -> render::PassFn {
                             if (!k.exponentiate || !k.exp_supports || !k.exp_supports(s.mode)) return {};
                             return [s, f = k.exponentiate](FrameContext& c) { f(s, c); };
@@ -766,7 +757,7 @@ class Shexp final : public render::Technique {
     }
     g.add({"shade", {kReceivers}, {kVisibility, kLightTables}, {kShading},
            "L_H(N) . g per vertex, environment and spherical lights (section 7)",
-           with_kernels(cpu([st, s](FrameContext& c) { pass_shade(*st, s, c); }), kernels,
+           common::with_kernels<DeviceKernels>(cpu([st, s](FrameContext& c) { pass_shade(*st, s, c); }), kernels,
                         [st, s](const DeviceKernels& k) -> render::PassFn {
                           if (!k.shade) return {};
                           return [st, s, f = k.shade](FrameContext& c) { pass_shade(*st, s, c, &f); };
