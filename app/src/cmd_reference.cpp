@@ -255,8 +255,9 @@ void register_reference(CLI::App& app) {
   sub->add_option("--blockers", args->blockers, "what casts shadows: geometry | proxies (default geometry)");
   sub->add_option("--light", args->light, "full | sh:N (the environment's order-N SH projection)");
   sub->add_option("--frame,--time", args->time, "animation time in seconds (default 0)");
-  sub->add_option("--width", args->width, "image width (default: the scene camera's)");
-  sub->add_option("--height", args->height, "image height (default: the scene camera's)");
+  // The same range as `render` and `compare`: 0 is no size (omit the option for the camera's).
+  sub->add_option("--width", args->width, "image width (default: the scene camera's)")->check(CLI::Range(1, 16384));
+  sub->add_option("--height", args->height, "image height (default: the scene camera's)")->check(CLI::Range(1, 16384));
   sub->add_option("--seed", args->seed, "random seed (default 1)");
   sub->add_option("--exposure", args->exposure, "exposure scale of final.png (default 1)");
   sub->add_flag("--convergence", args->convergence, "record error against the final image at spp 1, 2, 4, ... in convergence.json");

@@ -45,8 +45,11 @@ expect_failure("--blockers" reference --scene spheres --blockers spheres --out $
 expect_failure("--spp" reference --scene spheres --spp 0 --out ${WORK_DIR}/x -q)
 expect_failure("--spp" reference --scene spheres --spp -2 --out ${WORK_DIR}/x -q)
 expect_failure("--frame" reference --scene spheres --frame nan --out ${WORK_DIR}/x ${args})
-expect_failure("size" reference --scene spheres --spp 1 --width 100000 --height 8 --out ${WORK_DIR}/x -q)
+expect_failure("--width: Value 100000 not in range 1 to 16384" reference --scene spheres --spp 1 --width 100000 --height 8 --out ${WORK_DIR}/x -q)
 # An output path below a regular file cannot be created.
 file(WRITE ${WORK_DIR}/afile "x")
 expect_failure("--out" reference --scene spheres --out ${WORK_DIR}/afile/sub ${args})
 expect_failure("out" reference --scene spheres ${args})
+# --width 0 is refused as `render` refuses it (not read as "the camera's width").
+expect_failure("--width" reference --scene spheres --width 0 --out ${WORK_DIR}/bad_width)
+expect_failure("--height" reference --scene spheres --height 0 --out ${WORK_DIR}/bad_height)
