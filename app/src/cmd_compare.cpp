@@ -154,6 +154,7 @@ CompareSetup read_arguments(const CompareArgs& args) {
     cs.backends_used.push_back(make_backend(b, render::backend_info(b).selects_device ? args.device : "", "compare"));
 
   cs.sc = io::load_scene(args.scene);
+  print_scene_notices("compare", cs.sc);
   cs.w = args.width;
   cs.h = args.height;
   render::resolve_resolution(cs.sc.camera, cs.w, cs.h);
@@ -231,6 +232,7 @@ std::vector<TechniqueRun> render_variants(const CompareSetup& cs, const CompareA
         warm.time = args.frame - kWarmupFrameSeconds;
         run.first_frame_seconds = backend.render(t, sc, run.params, warm).total_seconds;
         run.frame = backend.render(t, sc, run.params, req);
+        print_frame_warnings("compare", run.frame);
         if (run.frame.final_image.width != w || run.frame.final_image.height != h)
           throw std::runtime_error("final image is " + std::to_string(run.frame.final_image.width) + "x" +
                                    std::to_string(run.frame.final_image.height) + ", expected " + std::to_string(w) + "x" +
@@ -379,7 +381,7 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
                      {"image", "reference_" + r.key + ".png"}});
   Json j = {{"softgi_version", softgi_version()},
                       {"date", utc_now()},
-                      {"scene", {{"name", sc.name}, {"source", sc.source}, {"spec", args.scene}}},
+                      {"scene", scene_json(sc, args.scene)},
                       {"frame_time", args.frame},
                       {"resolution", {w, h}},
                       {"surface_pixels", surface_pixels},

@@ -287,6 +287,7 @@ class ExperimentRunner {
     throw std::logic_error("experiment '" + def.name + "': baseline '" + def.baseline + "' is no variant");
 
   sc = io::load_scene(def.scene);
+  print_scene_notices("experiment", sc);
   render::make_pinhole_camera(sc, w, h, "experiment");
   make_output_dir(args.out);
   std::cerr << "experiment: " << def.name << ": scene '" << sc.name << "' at " << w << "x" << h << ", " << vars.size()
@@ -347,6 +348,7 @@ class ExperimentRunner {
       v.median_seconds = ex::median(v.frame_seconds);
       v.pass_median = pass_medians(timed);
       v.frame = std::move(timed.back());
+      print_frame_warnings("experiment", v.frame);
       const Image& img = v.compared();
       if (img.empty())
         throw std::runtime_error(std::string("produced no ") + (def.image == Compared::Indirect ? "indirect" : "final") +
@@ -444,7 +446,7 @@ class ExperimentRunner {
             {"title", def.title},
             {"paper", def.paper},
             {"quick", args.quick},
-            {"scene", {{"name", sc.name}, {"source", sc.source}}},
+            {"scene", scene_json(sc, def.scene)},
             {"frame_time", def.time},
             {"resolution", {w, h}},
             {"backend", backend.name()},

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "frame_output.hpp"
 #include "softgi/io/image_io.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/metrics/image_metrics.hpp"
@@ -158,6 +159,7 @@ void run_reference(const ReferenceArgs& args) {
 
   prepare_out_dir(args.out);
   const scene::Scene sc = io::load_scene(args.scene);
+  print_scene_notices("reference", sc);
 
   struct PassRecord {
     int spp;
@@ -181,7 +183,7 @@ void run_reference(const ReferenceArgs& args) {
   io::write_png((dir / "final.png").string(), res.final_image, args.exposure);
 
   nlohmann::json j;
-  j["scene"] = {{"name", sc.name}, {"source", sc.source.empty() ? args.scene : sc.source}};
+  j["scene"] = scene_json(sc, args.scene);
   j["options"] = {{"spp", opt.spp},
                   {"blockers", args.blockers},
                   {"light", args.light},

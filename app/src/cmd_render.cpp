@@ -39,6 +39,7 @@ void run_render(const RenderArgs& args) {
   std::unique_ptr<render::Backend> backend_ptr = make_backend(backend_name, args.device, "render");  // device errors early
   render::Backend& backend = *backend_ptr;
   const scene::Scene sc = io::load_scene(args.scene);
+  print_scene_notices("render", sc);
   int w = args.width, h = args.height;
   render::resolve_resolution(sc.camera, w, h);
   render::make_pinhole_camera(sc, w, h, "render");  // camera and size errors before any work
@@ -54,6 +55,7 @@ void run_render(const RenderArgs& args) {
   const render::FrameResult r = backend.render(*technique, sc, params, req);
   if (r.final_image.empty())
     throw std::runtime_error("render: technique '" + technique->name() + "' produced no final image");
+  print_frame_warnings("render", r);
 
   Json images = Json::object();
   auto save = [&](const char* name, const Image& img) {
@@ -68,7 +70,7 @@ void run_render(const RenderArgs& args) {
   Json rec = {{"softgi_version", softgi_version()},
                         {"date", utc_now()},
                         {"command", "render"},
-                        {"scene", {{"name", sc.name}, {"source", sc.source}, {"spec", args.scene}}},
+                        {"scene", scene_json(sc, args.scene)},
                         {"technique", technique->name()},
                         {"backend", backend.name()},
                         {"device", device_json(backend)},

@@ -150,7 +150,20 @@ Json frame_json(const render::FrameResult& r) {
           {"total_seconds", r.total_seconds},
           {"bytes", r.bytes()},
           {"transfer_bytes", {{"upload", r.transfer.upload}, {"download", r.transfer.download}}},
-          {"peak_rss_bytes", r.peak_rss_bytes}};
+          {"peak_rss_bytes", r.peak_rss_bytes},
+          {"warnings", r.warnings}};
+}
+
+void print_scene_notices(const std::string& command, const scene::Scene& sc) {
+  for (const auto& n : sc.notices) std::cerr << command << ": note: " << n << "\n";
+}
+
+void print_frame_warnings(const std::string& command, const render::FrameResult& r) {
+  for (const auto& w : r.warnings) std::cerr << command << ": warning: " << r.technique << ": " << w << "\n";
+}
+
+Json scene_json(const scene::Scene& sc, const std::string& spec) {
+  return {{"name", sc.name}, {"source", sc.source}, {"spec", spec}, {"notices", sc.notices}};
 }
 
 std::string softgi_version() { return SOFTGI_VERSION; }

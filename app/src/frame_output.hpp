@@ -42,8 +42,14 @@ render::ParamSet technique_params(const render::Technique& t, const std::vector<
 
 // Parameter values typed by their descriptions (int, float, bool, enum as string), in description order.
 Json params_json(const render::ParamSet& params);
-// passes, pruned, total_seconds, bytes, peak_rss_bytes of a frame.
+// passes, pruned, total_seconds, bytes, transfer_bytes, peak_rss_bytes, warnings of a frame.
 Json frame_json(const render::FrameResult& r);
+// A record's "scene": name, source, the spec the user gave (--scene), what loading noted.
+Json scene_json(const scene::Scene& sc, const std::string& spec);
+// Scene::notices ("COMMAND: note: ...") and FrameResult::warnings ("COMMAND: warning: TECHNIQUE:
+// ...") on stderr, one line each, so what a record keeps is also seen when it happens.
+void print_scene_notices(const std::string& command, const scene::Scene& sc);
+void print_frame_warnings(const std::string& command, const render::FrameResult& r);
 // "0.1.0" and an ISO 8601 UTC timestamp.
 std::string softgi_version();
 std::string utc_now();

@@ -50,6 +50,9 @@ struct FrameResult {
   // Host <-> device bytes of the frame: the passes' plus what the backend moved outside any pass
   // (requested outputs read back after the last pass).
   TransferBytes transfer;
+  // What the frame could not do as asked, one sentence each (shadows left out for want of proxies,
+  // receivers too coarse for the proxies that shade them): the CLI prints them and records keep them.
+  std::vector<std::string> warnings;
   std::size_t bytes() const;            // sum over passes
 };
 
@@ -135,6 +138,12 @@ class FrameContext {
   bool has(const std::string& name) const { return resources_.count(name) != 0 || deferred_.count(name) != 0; }
   // The record of the pass being executed (counters, bytes).
   PassRecord& record() { return result.passes.back(); }
+  // Adds a frame warning (FrameResult::warnings) once, however many passes report it.
+  void warn(const std::string& message) {
+    for (const auto& w : result.warnings)
+      if (w == message) return;
+    result.warnings.push_back(message);
+  }
 
  private:
   std::map<std::string, std::any> resources_;

@@ -145,6 +145,9 @@ struct Scene {
   Camera camera;
   Environment environment;
   std::vector<SphericalLight> lights;
+  // What loading changed in or assumed about the input, one sentence each naming the file and part
+  // (flat normals computed, negative radiance clamped): the CLI prints them and records keep them.
+  std::vector<std::string> notices;
 };
 
 // The scene posed at time t: world-space geometry ready for rendering.
