@@ -40,7 +40,8 @@ constexpr int kDefaultShOrder = 4;
 constexpr double kWarmupFrameSeconds = 1.0 / 30.0;
 
 struct CompareArgs {
-  std::string scene, out, techniques, backends, device;  // backends: "" = the reference backend
+  SceneArgs scene;
+  std::string out, techniques, backends, device;  // backends: "" = the reference backend
   double frame = 0.0;
   int spp = 64;
   int width = 0, height = 0;
@@ -153,8 +154,7 @@ CompareSetup read_arguments(const CompareArgs& args) {
   for (const auto& b : backend_names)
     cs.backends_used.push_back(make_backend(b, render::backend_info(b).selects_device ? args.device : "", "compare"));
 
-  cs.sc = io::load_scene(args.scene);
-  print_scene_notices("compare", cs.sc);
+  cs.sc = load_cli_scene("compare", args.scene.spec, args.scene.fit_proxies);
   cs.w = args.width;
   cs.h = args.height;
   render::resolve_resolution(cs.sc.camera, cs.w, cs.h);
@@ -381,7 +381,7 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
                      {"image", "reference_" + r.key + ".png"}});
   Json j = {{"softgi_version", softgi_version()},
                       {"date", utc_now()},
-                      {"scene", scene_json(sc, args.scene)},
+                      {"scene", scene_json(sc, args.scene.spec)},
                       {"frame_time", args.frame},
                       {"resolution", {w, h}},
                       {"surface_pixels", surface_pixels},
@@ -394,7 +394,7 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
   // The Markdown summary.
   std::ostringstream md;
   md << "# softgi compare: " << sc.name << "\n\n"
-     << "Scene `" << args.scene << "` (" << sc.source << "), " << w << "x" << h << ", frame t = " << args.frame
+     << "Scene `" << args.scene.spec << "` (" << sc.source << "), " << w << "x" << h << ", frame t = " << args.frame
      << " s; softgi " << softgi_version() << ", " << utc_now() << ", backend(s): " << (args.backends.empty() ? reference_backend : args.backends) << ".\n\n"
      << "Ground truth: the Embree path tracer with the real geometry as blockers and one-bounce diffuse indirect, "
      << args.spp << " spp through each pixel centre (the visibility of the techniques' one-sample G-buffer); "
@@ -514,7 +514,7 @@ void register_compare(CLI::App& app) {
   auto args = std::make_shared<CompareArgs>();
   CLI::App* sub = app.add_subcommand(
       "compare", "Render a scene with every technique and the ground truth; errors, times, compare.json, summary.md");
-  sub->add_option("--scene", args->scene, "built-in scene name or scene file")->required();
+  add_scene_options(*sub, args->scene);
   sub->add_option("--out", args->out, "output directory")->required();
   sub->add_option("--frame", args->frame, "animation time in seconds (default 0)");
   sub->add_option("--spp", args->spp, "reference samples per pixel (default 64)")->check(CLI::Range(1, 1 << 20));

@@ -11,6 +11,7 @@
 
 #include "commands.hpp"
 #include "softgi/io/gltf.hpp"
+#include "softgi/io/proxy_fit.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/proxies/binding.hpp"
 #include "softgi/proxies/sphere_fit.hpp"
@@ -88,7 +89,6 @@ void run_fit_proxies(const FitArgs& a) {
   scene::ProxySet ps;
   ps.name = s.nodes[node].name;
   ps.node = node;
-  if (mesh.material >= 0 && mesh.material < static_cast<int>(s.materials.size())) ps.albedo = s.materials[mesh.material].albedo;
   std::cout << std::fixed;
   if (a.octree) {
     ps.spheres = proxies::octree_sphere_set(tri, a.spheres);
@@ -118,6 +118,11 @@ void run_fit_proxies(const FitArgs& a) {
               << std::setprecision(3) << err << " mesh units\n"
               << std::fixed;
   }
+  // The albedo the proxies re-radiate with: the surface's (texture and vertex colours included),
+  // averaged over each sphere's segment.
+  io::average_surface_albedo(s, node, ps);
+  std::cout << "albedo: surface average (" << std::setprecision(3) << ps.albedo.x << ", " << ps.albedo.y << ", " << ps.albedo.z
+            << "), per sphere over its segment\n";
   io::write_proxies_json(a.output, ps);
   std::cout << "wrote " << a.output << "\n";
 }

@@ -37,7 +37,8 @@ namespace {
 namespace fs = std::filesystem;
 
 struct ReferenceArgs {
-  std::string scene, out, blockers = "geometry", light = "full";
+  SceneArgs scene;
+  std::string out, blockers = "geometry", light = "full";
   int spp = 64, width = 0, height = 0;
   double time = 0.0;
   unsigned seed = 1;
@@ -158,8 +159,7 @@ void run_reference(const ReferenceArgs& args) {
   opt.jitter = !args.no_jitter;
 
   prepare_out_dir(args.out);
-  const scene::Scene sc = io::load_scene(args.scene);
-  print_scene_notices("reference", sc);
+  const scene::Scene sc = load_cli_scene("reference", args.scene.spec, args.scene.fit_proxies);
 
   struct PassRecord {
     int spp;
@@ -183,7 +183,7 @@ void run_reference(const ReferenceArgs& args) {
   io::write_png((dir / "final.png").string(), res.final_image, args.exposure);
 
   nlohmann::json j;
-  j["scene"] = scene_json(sc, args.scene);
+  j["scene"] = scene_json(sc, args.scene.spec);
   j["options"] = {{"spp", opt.spp},
                   {"blockers", args.blockers},
                   {"light", args.light},
@@ -251,7 +251,7 @@ void run_reference(const ReferenceArgs& args) {
 void register_reference(CLI::App& app) {
   auto args = std::make_shared<ReferenceArgs>();
   CLI::App* sub = app.add_subcommand("reference", "ray-traced one-bounce ground truth (Embree) of a scene");
-  sub->add_option("--scene", args->scene, "built-in scene name or scene file")->required();
+  add_scene_options(*sub, args->scene);
   sub->add_option("--out,-o", args->out, "output directory (created)")->required();
   sub->add_option("--spp", args->spp, "samples per pixel (default 64)");
   sub->add_option("--blockers", args->blockers, "what casts shadows: geometry | proxies (default geometry)");

@@ -19,7 +19,8 @@ namespace softgi::app {
 namespace {
 
 struct RenderArgs {
-  std::string scene, technique, backend, device, out;  // backend: "" = the reference backend
+  SceneArgs scene;
+  std::string technique, backend, device, out;  // backend: "" = the reference backend
   std::vector<std::string> params;
   double frame = 0.0;
   int width = 0, height = 0;
@@ -38,8 +39,7 @@ void run_render(const RenderArgs& args) {
   const render::ParamSet params = technique_params(*technique, args.params);
   std::unique_ptr<render::Backend> backend_ptr = make_backend(backend_name, args.device, "render");  // device errors early
   render::Backend& backend = *backend_ptr;
-  const scene::Scene sc = io::load_scene(args.scene);
-  print_scene_notices("render", sc);
+  const scene::Scene sc = load_cli_scene("render", args.scene.spec, args.scene.fit_proxies);
   int w = args.width, h = args.height;
   render::resolve_resolution(sc.camera, w, h);
   render::make_pinhole_camera(sc, w, h, "render");  // camera and size errors before any work
@@ -70,7 +70,7 @@ void run_render(const RenderArgs& args) {
   Json rec = {{"softgi_version", softgi_version()},
                         {"date", utc_now()},
                         {"command", "render"},
-                        {"scene", scene_json(sc, args.scene)},
+                        {"scene", scene_json(sc, args.scene.spec)},
                         {"technique", technique->name()},
                         {"backend", backend.name()},
                         {"device", device_json(backend)},
@@ -94,7 +94,7 @@ void run_render(const RenderArgs& args) {
 void register_render(CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* sub = app.add_subcommand("render", "Render one frame of a technique: final/direct/indirect EXR + PNG and record.json");
-  sub->add_option("--scene", args->scene, "built-in scene name or scene file")->required();
+  add_scene_options(*sub, args->scene);
   sub->add_option("--technique", args->technique, "technique name (softgi techniques lists them)")->required();
   sub->add_option("--param", args->params, "technique parameter NAME=VALUE (repeatable)");
   sub->add_option("--frame", args->frame, "animation time in seconds (default 0)");

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <functional>
+#include <string>
 #include <vector>
 
 namespace CLI {
@@ -17,5 +18,14 @@ std::vector<RegisterFn>& command_registry();
 struct CommandRegistrar {
   explicit CommandRegistrar(RegisterFn fn) { command_registry().push_back(fn); }
 };
+
+// What every command that renders a scene takes to name it: --scene SPEC (required) and
+// --fit-proxies N (proxy spheres fitted to every closed mesh that has none, cached on disk; for a
+// bare glTF/GLB, which brings no proxies of its own).
+struct SceneArgs {
+  std::string spec;
+  int fit_proxies = 0;
+};
+void add_scene_options(CLI::App& sub, SceneArgs& args);
 
 }  // namespace softgi::app

@@ -1,5 +1,7 @@
 #include "frame_output.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <ctime>
@@ -14,6 +16,8 @@
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/io/image_io.hpp"
+#include "softgi/io/scene_file.hpp"
+#include "commands.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/techniques/registry.hpp"
 
@@ -152,6 +156,22 @@ Json frame_json(const render::FrameResult& r) {
           {"transfer_bytes", {{"upload", r.transfer.upload}, {"download", r.transfer.download}}},
           {"peak_rss_bytes", r.peak_rss_bytes},
           {"warnings", r.warnings}};
+}
+
+void add_scene_options(CLI::App& sub, SceneArgs& args) {
+  sub.add_option("--scene", args.spec, "built-in scene name, scene file or glTF/GLB file")->required();
+  sub.add_option("--fit-proxies", args.fit_proxies,
+                 "fit N proxy spheres to every closed mesh without proxies (cached in $SOFTGI_CACHE_DIR, else "
+                 "$XDG_CACHE_HOME/softgi or ~/.cache/softgi; SOFTGI_CACHE_DIR=off caches nothing)")
+      ->check(CLI::Range(1, 4096));
+}
+
+scene::Scene load_cli_scene(const std::string& command, const std::string& spec, int fit_proxies) {
+  io::LoadOptions opt;
+  opt.fit_spheres = fit_proxies;
+  scene::Scene sc = io::load_scene(spec, opt);
+  print_scene_notices(command, sc);
+  return sc;
 }
 
 void print_scene_notices(const std::string& command, const scene::Scene& sc) {

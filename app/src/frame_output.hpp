@@ -17,6 +17,9 @@ namespace softgi::app {
 // Records keep insertion order (parameters in description order, fields as written).
 using Json = nlohmann::ordered_json;
 
+// The scene of --scene / --fit-proxies (commands.hpp SceneArgs), its notices printed as COMMAND's.
+scene::Scene load_cli_scene(const std::string& command, const std::string& spec, int fit_proxies);
+
 // Registers every backend and technique this build has (idempotent); every command calls it first.
 void register_builtin();
 // Backends the CLI can run (--backend): the registered ones. Errors name the backend and list the

@@ -1,5 +1,6 @@
 #include "pass_support.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -16,6 +17,48 @@ namespace {
 bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 }  // namespace
 
+void blocker_spheres_input(const std::string& technique, const std::string& effects, const scene::Scene& scene,
+                           const std::string& resource, render::PassGraph& graph, std::set<std::string>& empty) {
+  graph.add_input(resource);
+  bool spheres = false;
+  for (const auto& p : scene.proxies) spheres = spheres || !p.spheres.empty();
+  if (!spheres) empty.insert(resource);
+  graph.warn_if_empty(resource, "scene '" + scene.name + "' has no proxy spheres, so " + technique + " renders it without " +
+                                    effects + " (give its objects \"proxies\" in a scene file, or pass --fit-proxies N)");
+}
+
+void warn_coarse_receivers(const std::string& technique, render::FrameContext& ctx) {
+  std::vector<float> radii;
+  for (const auto& set : ctx.posed.proxies)
+    for (const auto& sp : set)
+      if (std::isfinite(sp.radius) && sp.radius > 0.0f) radii.push_back(sp.radius);
+  if (radii.empty()) return;
+  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+  const double median = radii[radii.size() / 2];
+  for (const auto& o : ctx.posed.objects) {
+    if (!o.source) continue;
+    double sum = 0.0;
+    std::size_t edges = 0;
+    for (const glm::uvec3& t : o.source->triangles) {
+      if (t.x >= o.positions.size() || t.y >= o.positions.size() || t.z >= o.positions.size()) continue;
+      const glm::vec3 a = o.positions[t.x], b = o.positions[t.y], c = o.positions[t.z];
+      sum += static_cast<double>(glm::length(b - a)) + glm::length(c - b) + glm::length(a - c);
+      edges += 3;
+    }
+    if (!edges) continue;
+    const double mean = sum / static_cast<double>(edges);
+    if (!(mean > median)) continue;
+    const std::string name = o.node >= 0 && o.node < static_cast<int>(ctx.scene.nodes.size()) ? ctx.scene.nodes[o.node].name : "?";
+    std::ostringstream os;
+    os.precision(3);
+    os << "object '" << name << "' (node " << o.node << ") has edges of " << mean << " m on average, longer than the median radius "
+       << median << " m of the proxy spheres that shade it: " << technique
+       << " shades at vertices, so its shadows there are blocky or missing (tessellate it finer; builtin:plane and builtin:box "
+          "take \"segments\")";
+    ctx.warn(os.str());
+  }
+}
+
 void check_proxy_spheres(const std::string& technique, const render::FrameContext& ctx, bool check_albedo) {
   for (std::size_t s = 0; s < ctx.posed.proxies.size(); ++s)
     for (std::size_t i = 0; i < ctx.posed.proxies[s].size(); ++i) {
@@ -30,15 +73,18 @@ void check_proxy_spheres(const std::string& technique, const render::FrameContex
       }
     }
   if (!check_albedo) return;
-  for (const scene::ProxySet& set : ctx.scene.proxies) {
-    const glm::vec3 a = set.albedo;
-    if (!finite(a) || a.x < 0.0f || a.y < 0.0f || a.z < 0.0f) {
-      std::ostringstream os;
-      os << technique << ": proxy set '" << set.name << "' of scene '" << ctx.scene.name << "' has albedo (" << a.x << ", " << a.y
-         << ", " << a.z << ") (expected finite values >= 0)";
-      throw std::invalid_argument(os.str());
+  for (const scene::ProxySet& set : ctx.scene.proxies)
+    for (std::size_t k = 0; k <= set.sphere_albedo.size(); ++k) {
+      const bool whole = k == set.sphere_albedo.size();
+      const glm::vec3 a = whole ? set.albedo : set.sphere_albedo[k];
+      if (!finite(a) || a.x < 0.0f || a.y < 0.0f || a.z < 0.0f) {
+        std::ostringstream os;
+        os << technique << ": proxy set '" << set.name << "' of scene '" << ctx.scene.name << "' has "
+           << (whole ? std::string("albedo") : "sphere " + std::to_string(k) + " albedo") << " (" << a.x << ", " << a.y << ", "
+           << a.z << ") (expected finite values >= 0)";
+        throw std::invalid_argument(os.str());
+      }
     }
-  }
 }
 
 std::string environment_signature(const scene::Environment& env) {

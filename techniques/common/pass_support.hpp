@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -15,6 +16,7 @@
 
 #include "accumulation.hpp"
 #include "softgi/render/frame.hpp"
+#include "softgi/render/pass_graph.hpp"
 #include "softgi/scene/scene.hpp"
 #include "softgi/sh/tables.hpp"
 
@@ -27,6 +29,18 @@ double seconds_since(std::chrono::steady_clock::time_point t0);
 // re-radiate from proxies). std::invalid_argument "<technique>: proxy set '<name>' of scene ...",
 // naming the set, the sphere, the time and the values.
 void check_proxy_spheres(const std::string& technique, const render::FrameContext& ctx, bool check_albedo);
+
+// The proxy spheres a technique's shadow (and indirect) passes read, as graph input `resource`:
+// empty when no proxy set of the scene has a sphere, and then a frame warning saying what
+// `technique` leaves out (`effects`, e.g. "shadows") and how to give the scene proxies.
+void blocker_spheres_input(const std::string& technique, const std::string& effects, const scene::Scene& scene,
+                           const std::string& resource, render::PassGraph& graph, std::set<std::string>& empty);
+
+// Per-vertex receivers show a proxy's shadow only where their vertices are closer together than
+// the shadow is wide (about a proxy's radius at contact). Warns (FrameContext::warn) for each posed
+// object whose mean edge length exceeds the median radius of the scene's posed proxy spheres,
+// naming the object and both lengths; nothing without proxies.
+void warn_coarse_receivers(const std::string& technique, render::FrameContext& ctx);
 
 // A key that changes whenever anything the environment's SH projection depends on changes.
 std::string environment_signature(const scene::Environment& env);

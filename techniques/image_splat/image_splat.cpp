@@ -736,9 +736,6 @@ class ImageSplat final : public render::Technique {
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);
     render::add_scene_facts(scene, empty);
-    bool spheres = false;
-    for (const auto& p : scene.proxies) spheres = spheres || !p.spheres.empty();
-    if (!spheres) empty.insert(kBlockerSpheres);
     if (scene.lights.empty() || !s.lights) empty.insert(kSphericalLights);
     if (!s.indirect) empty.insert(kIndirectEnabled);
 
@@ -785,7 +782,7 @@ class ImageSplat final : public render::Technique {
     g.add_input(render::kScene);
     g.add_input(render::kMovingObjects);
     g.add_input(render::kReradiatingProxies);
-    g.add_input(kBlockerSpheres);
+    common::blocker_spheres_input("image_splat", s.indirect ? "shadows or indirect light" : "shadows", scene, kBlockerSpheres, g, empty);
     g.add_input(kSphericalLights);
     g.add_input(kIndirectEnabled);
     render::add_gbuffer_pass(g);

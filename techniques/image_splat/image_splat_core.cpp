@@ -117,10 +117,11 @@ void flat_proxies(const scene::Scene& scene, const scene::PosedScene& posed, int
   if (shadow) *shadow = BlockerList{order, {}, {}, {}, {}, {}};
   if (indirect) *indirect = ProxyList{};
   for (std::size_t s = 0; s < posed.proxies.size(); ++s) {
-    const glm::vec3 albedo = s < scene.proxies.size() ? scene.proxies[s].albedo : glm::vec3(0.8f);
-    for (const scene::Sphere& sp : posed.proxies[s]) {
+    const scene::ProxySet* set = s < scene.proxies.size() ? &scene.proxies[s] : nullptr;
+    for (std::size_t k = 0; k < posed.proxies[s].size(); ++k) {
+      const scene::Sphere& sp = posed.proxies[s][k];
       if (shadow) shadow->push(sp.center, sp.radius, nullptr);
-      if (indirect) indirect->push(sp.center, sp.radius, albedo);
+      if (indirect) indirect->push(sp.center, sp.radius, set ? set->albedo_of(k) : glm::vec3(0.8f));
     }
   }
 }

@@ -237,6 +237,7 @@ void pass_receivers(State& st, const Settings& s, FrameContext& ctx) {
                                   std::to_string(o.normals.size()) + " normals for " + std::to_string(o.positions.size()) + " vertices");
   const int want = s.clusters > 0 ? s.clusters : std::max<int>(1, static_cast<int>((total + kAutoReceiversPerCluster / 2) / kAutoReceiversPerCluster));
   const std::string key = receivers_signature(ctx.scene, posed, want);
+  common::warn_coarse_receivers("shexp", ctx);
 
   std::lock_guard<std::mutex> lock(st.m);
   int iterations = 0, objects_reclustered = 0;
@@ -689,9 +690,6 @@ class Shexp final : public render::Technique {
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);
     render::add_scene_facts(scene, empty);
-    bool spheres = false;
-    for (const auto& p : scene.proxies) spheres = spheres || !p.spheres.empty();
-    if (!spheres) empty.insert(kBlockerSpheres);
     if (scene.lights.empty() || !s.lights) empty.insert(kSphericalLights);
 
     auto st = state_;
@@ -702,7 +700,7 @@ class Shexp final : public render::Technique {
     render::PassGraph g;
     g.add_input(render::kScene);
     g.add_input(render::kMovingObjects);
-    g.add_input(kBlockerSpheres);
+    common::blocker_spheres_input("shexp", "shadows", scene, kBlockerSpheres, g, empty);
     g.add_input(kSphericalLights);
     // SHEXP has no indirect pass: compose reads the indirect image optionally, as an empty input.
     g.add_input(render::kIndirect);

@@ -1,6 +1,7 @@
 // The shared "receiver_gbuffer" pass on the CPU backend (paper 000 section 4, receiver setup): at
 // scale 1 a copy of the display G-buffer, at scale s the display camera's rays through display points
 // ((x + 0.5) s, (y + 0.5) s), checked against the plane's closed-form intersection; bad scales named.
+#include <array>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -99,8 +100,24 @@ TEST(ReceiverGBuffer, CoarsePixelsSampleEveryScaleThDisplayPoint) {
   }
 }
 
+// A scale larger than the frame is halved until a receiver pixel fits (a 1x1 frame at the default
+// scale 2 renders at scale 1), and the frame says so.
+TEST(ReceiverGBuffer, ScaleLargerThanTheFrameIsReducedWithAWarning) {
+  for (auto [w, h, s, want] : {std::array<int, 4>{1, 1, 2, 1}, {45, 31, 46, 23}, {3, 2, 8, 2}, {45, 31, 8, 8}}) {
+    Frame f(w, h, 1);
+    f.params = render::ParamSet({render::ParamDesc::integer("receiver_scale", 1, -5, 100, "test")});
+    f.params.set("receiver_scale", std::to_string(s));
+    f.run("receiver_gbuffer");
+    EXPECT_EQ(f.ctx->get<render::GBuffer>(render::kReceiverGBuffer).scale, want) << w << "x" << h << " at " << s;
+    EXPECT_EQ(f.result.warnings.size(), want == s ? 0u : 1u) << w << "x" << h << " at " << s;
+    if (want != s && !f.result.warnings.empty()) {
+      EXPECT_NE(f.result.warnings[0].find("receiver_scale " + std::to_string(s)), std::string::npos) << f.result.warnings[0];
+    }
+  }
+}
+
 TEST(ReceiverGBuffer, BadScalesAreNamed) {
-  for (int s : {0, 46}) {
+  for (int s : {0, -3}) {
     Frame f(45, 31, 1);
     f.params = render::ParamSet({render::ParamDesc::integer("receiver_scale", 1, -5, 100, "test")});
     f.params.set("receiver_scale", std::to_string(s));

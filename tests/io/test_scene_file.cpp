@@ -118,8 +118,14 @@ TEST(io_scene_file, FullSceneLoadsTheWrittenValues) {
   EXPECT_EQ(s.nodes[4].parent, 3);
   EXPECT_EQ(s.nodes[3].translation, glm::vec3(3, 0, 0));
   ASSERT_EQ(s.meshes.size(), 4u);
-  EXPECT_EQ(s.meshes[std::size_t(s.nodes[0].mesh)].positions[2], glm::vec3(5, 0, 3));  // plane 10 x 6
-  EXPECT_EQ(s.meshes[std::size_t(s.nodes[2].mesh)].positions.size(), 24u);
+  glm::vec3 lo(1e9f), hi(-1e9f);
+  for (const auto& p : s.meshes[std::size_t(s.nodes[0].mesh)].positions) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  EXPECT_EQ(lo, glm::vec3(-5, 0, -3));  // plane 10 x 6
+  EXPECT_EQ(hi, glm::vec3(5, 0, 3));
+  EXPECT_EQ(s.meshes[std::size_t(s.nodes[2].mesh)].positions.size(), 6u * 17u * 17u);  // box: 16 x 16 quads per face
   const auto& ball_mat = s.materials[std::size_t(s.meshes[std::size_t(s.nodes[1].mesh)].material)];
   EXPECT_EQ(ball_mat.albedo, glm::vec3(0.9f, 0.1f, 0.1f));
   EXPECT_EQ(ball_mat.phong_ns, 32.0f);
@@ -323,6 +329,39 @@ TEST(io_scene_file, GltfClipChosenByNameOrIndex) {
     io::parse_scene_json(R"({"objects": [{"mesh": "tri.glb"}], "animation": {"clip": "run"}})", dir.path().string(), "s.json");
   });
   EXPECT_CONTAINS(e, "s.json: animation.clip: expected the name of a clip (hop, slide), got \"run\"");
+  // The same file twice: two clips called "hop"; the name no longer says which.
+  const std::string amb = error_of([&] {
+    io::parse_scene_json(R"({"objects": [{"mesh": "tri.glb"}, {"name": "b", "mesh": "tri.glb"}], "animation": {"clip": "hop"}})",
+                         dir.path().string(), "s.json");
+  });
+  EXPECT_CONTAINS(amb, "s.json: animation.clip: the name is ambiguous: clips 0, 2 are all called so");
+  s = io::parse_scene_json(R"({"objects": [{"mesh": "tri.glb"}, {"name": "b", "mesh": "tri.glb"}], "animation": {"clip": 2}})",
+                           dir.path().string(), "s.json");
+  EXPECT_EQ(s.active_clip, 2);
+}
+
+// Built-in planes and boxes are grids (per-vertex receivers need vertices where shadows fall):
+// (n + 1)^2 vertices and 2 n^2 triangles per face, every triangle facing along its face normal,
+// the face area preserved.
+TEST(io_scene_file, BuiltinPlaneAndBoxAreTessellated) {
+  for (auto [kind, n, faces] : {std::tuple<const char*, int, int>{"plane", 5, 1}, {"box", 3, 6}, {"plane", 64, 1}}) {
+    const std::string seg = n == 64 ? "" : ", \"segments\": " + std::to_string(n);
+    const Scene s = io::parse_scene_json(std::string(R"({"objects": [{"mesh": "builtin:)") + kind + "\", \"size\": 2" + seg + "}]}", ".",
+                                         "s.json");
+    ASSERT_EQ(s.meshes.size(), 1u);
+    const auto& m = s.meshes[0];
+    EXPECT_EQ(m.positions.size(), std::size_t(faces * (n + 1) * (n + 1))) << kind;
+    EXPECT_EQ(m.triangles.size(), std::size_t(faces * 2 * n * n)) << kind;
+    double area = 0.0;
+    for (const auto& t : m.triangles) {
+      const glm::vec3 c = glm::cross(m.positions[t.y] - m.positions[t.x], m.positions[t.z] - m.positions[t.x]);
+      area += 0.5 * glm::length(c);
+      EXPECT_GT(glm::dot(c, m.normals[t.x]), 0.0f) << kind << ": a triangle faces against its normal";
+    }
+    EXPECT_NEAR(area, 4.0 * faces, 1e-4 * faces) << kind;  // 2 x 2 faces; float rounding of the grid
+  }
+  EXPECT_CONTAINS(error_of([] { io::parse_scene_json(R"({"objects": [{"mesh": "builtin:plane", "segments": 0}]})", ".", "s.json"); }),
+                  "s.json: objects[0].segments");
 }
 
 TEST(io_scene_file, RelativePathsResolveAgainstTheSceneFile) {

@@ -741,25 +741,6 @@ Scene make_crowd() {
 
 // The 32-sphere fit takes seconds; it is deterministic, so one fit per process and model file
 // (keyed by path, size and modification time) serves every make_builtin("bunny").
-ProxySet fitted_bunny_proxies(const std::string& path, const Mesh& mesh) {
-  static std::mutex mutex;
-  static std::map<std::string, ProxySet> cache;
-  std::error_code ec;
-  const auto size = std::filesystem::file_size(path, ec);
-  const auto mtime = std::filesystem::last_write_time(path, ec).time_since_epoch().count();
-  const std::string key = path + "|" + std::to_string(size) + "|" + std::to_string(mtime);
-  std::lock_guard<std::mutex> lock(mutex);
-  if (auto it = cache.find(key); it != cache.end()) return it->second;
-  proxies::FitOptions opt;
-  opt.spheres = 32;
-  const proxies::FitResult fit = proxies::fit_sphere_set(proxies::trimesh_of(mesh), opt);
-  ProxySet ps;
-  ps.spheres = fit.spheres;
-  ps.outside_volume_ratio = fit.E;
-  cache[key] = ps;
-  return ps;
-}
-
 Scene make_bunny() {
   const std::string path = assets_dir() + "/models/bunny.glb";
   if (!std::filesystem::exists(path))
@@ -800,18 +781,13 @@ Scene make_bunny() {
   s.clips.push_back(clip);
   s.active_clip = static_cast<int>(s.clips.size()) - 1;
 
-  // Proxies: a stored fit (softgi fit-proxies) when the asset folder has one, else a fresh 32-sphere fit.
-  const std::string stored = assets_dir() + "/proxies/bunny.json";
-  ProxySet ps;
-  if (std::filesystem::exists(stored)) {
-    ps = io::read_proxies_json(stored);
-  } else {
-    ps = fitted_bunny_proxies(path, s.meshes[s.nodes[mesh_node].mesh]);
-  }
-  ps.name = "bunny";
-  ps.node = mesh_node;
-  ps.albedo = s.materials[s.meshes[s.nodes[mesh_node].mesh].material].albedo;
-  s.proxies.push_back(ps);
+  // Proxies: the 32-sphere fit of paper 004 section 6.2, from the fit cache (keyed by the mesh and
+  // the fitting code's version, so a changed asset or fit is never read stale) or fitted now.
+  io::ProxyFitSpec spec;
+  spec.spheres = 32;
+  io::ProxyFitOutcome fit = io::fit_node_proxies(s, mesh_node, spec, io::proxy_cache_dir());
+  fit.set.name = "bunny";
+  s.proxies.push_back(std::move(fit.set));
 
   s.camera.position = {0.0f, 0.8f, 2.8f};
   s.camera.target = {0.0f, 0.45f, 0.0f};

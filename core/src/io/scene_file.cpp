@@ -45,14 +45,20 @@ constexpr double kMaxRadiance = 1e9;
 constexpr std::size_t kMaxObjects = 10000;
 constexpr std::size_t kMaxLights = 10000;
 constexpr std::size_t kMaxSpheres = 100000;
+// A fit's cost grows with its sphere count; sets beyond this are fitted with `softgi fit-proxies`.
+constexpr long long kMaxFitSpheres = 4096;
 constexpr std::size_t kMaxChannels = 10000;
 constexpr std::size_t kMaxKeys = 1000000;
 constexpr int kMaxSegments = 1024;
+// Built-in planes and boxes are grids of segments x segments quads per face: fine enough by default
+// for per-vertex receivers to show a proxy's shadow (64 over a 1 m plane: 1.6 cm spacing).
+constexpr int kPlaneSegments = 64, kBoxSegments = 16, kMaxGridSegments = 1024;
 constexpr std::size_t kMaxStringBytes = 4096;
 constexpr std::size_t kShownChars = 60;  // longest value excerpt quoted in an error
 
 constexpr const char* kProxyFormat = "softgi-proxies";
-constexpr int kProxyVersion = 1;
+// Version 2 added the optional per-sphere "albedo"; version 1 files read as before.
+constexpr int kProxyVersion = 2;
 
 // ---- values in error messages ----
 
@@ -311,14 +317,32 @@ class Reader {
 
 // ---- built-in meshes ----
 
-scene::Mesh make_plane(glm::vec2 size) {
+// A grid of (segments + 1)^2 vertices on one face: centre c, half-axes du and dv, normal n = du x dv
+// direction. Per-vertex receivers (SHEXP) shade at vertices, so a face must be tessellated finely
+// enough for a shadow to fall between them.
+void add_grid_face(scene::Mesh& m, glm::vec3 c, glm::vec3 du, glm::vec3 dv, glm::vec3 n, int segments) {
+  const auto base = std::uint32_t(m.positions.size());
+  for (int i = 0; i <= segments; ++i)
+    for (int j = 0; j <= segments; ++j) {
+      const float a = float(i) / float(segments), b = float(j) / float(segments);
+      m.positions.push_back(c + (2.0f * a - 1.0f) * du + (2.0f * b - 1.0f) * dv);
+      m.normals.push_back(n);
+      m.uvs.emplace_back(a, b);
+    }
+  const auto at = [&](int i, int j) { return base + std::uint32_t(i * (segments + 1) + j); };
+  for (int i = 0; i < segments; ++i)
+    for (int j = 0; j < segments; ++j) {
+      // Wound so that (b - a) x (c - a) is along du x dv.
+      m.triangles.emplace_back(at(i, j), at(i + 1, j), at(i + 1, j + 1));
+      m.triangles.emplace_back(at(i, j), at(i + 1, j + 1), at(i, j + 1));
+    }
+}
+
+scene::Mesh make_plane(glm::vec2 size, int segments) {
   scene::Mesh m;
   m.name = "builtin:plane";
-  const float x = 0.5f * size.x, z = 0.5f * size.y;
-  m.positions = {{-x, 0, -z}, {x, 0, -z}, {x, 0, z}, {-x, 0, z}};
-  m.normals.assign(4, glm::vec3(0, 1, 0));
-  m.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
-  m.triangles = {{0, 2, 1}, {0, 3, 2}};  // counter-clockwise seen from +y
+  // du x dv = +z x +x = +y: counter-clockwise seen from above.
+  add_grid_face(m, glm::vec3(0.0f), glm::vec3(0, 0, 0.5f * size.y), glm::vec3(0.5f * size.x, 0, 0), glm::vec3(0, 1, 0), segments);
   return m;
 }
 
@@ -348,7 +372,7 @@ scene::Mesh make_sphere(float radius, int segments) {
   return m;
 }
 
-scene::Mesh make_box(glm::vec3 size) {
+scene::Mesh make_box(glm::vec3 size, int segments) {
   scene::Mesh m;
   m.name = "builtin:box";
   const glm::vec3 h = 0.5f * size;
@@ -359,15 +383,7 @@ scene::Mesh make_box(glm::vec3 size) {
       u[(axis + 1) % 3] = 1.0f;
       v[(axis + 2) % 3] = 1.0f;
       if (sign < 0) std::swap(u, v);  // keep u x v = n, so the winding faces outwards
-      const glm::vec3 c = n * h, du = u * h, dv = v * h;
-      const auto base = std::uint32_t(m.positions.size());
-      for (const glm::vec2 s : {glm::vec2(-1, -1), glm::vec2(1, -1), glm::vec2(1, 1), glm::vec2(-1, 1)}) {
-        m.positions.push_back(c + s.x * du + s.y * dv);
-        m.normals.push_back(n);
-        m.uvs.push_back(0.5f * (s + 1.0f));
-      }
-      m.triangles.emplace_back(base, base + 1, base + 2);
-      m.triangles.emplace_back(base, base + 2, base + 3);
+      add_grid_face(m, n * h, u * h, v * h, n, segments);
     }
   }
   return m;
@@ -377,7 +393,7 @@ scene::Mesh make_box(glm::vec3 size) {
 
 scene::Sphere read_sphere(const Reader& r, const json& v, const std::string& path, bool allow_skin) {
   if (allow_skin) {
-    r.object(v, path, {"center", "radius", "joints", "weights"});
+    r.object(v, path, {"center", "radius", "joints", "weights", "albedo"});
   } else {
     r.object(v, path, {"center", "radius"});
   }
@@ -449,7 +465,7 @@ scene::ProxySet parse_proxies(const Reader& r, const json& root) {
     r.fail("format", "expected \"" + std::string(kProxyFormat) + "\"", root["format"]);
   }
   if (!root.contains("version")) r.fail("", "missing key \"version\"");
-  r.integer(root["version"], "version", kProxyVersion, kProxyVersion);
+  r.integer(root["version"], "version", 1, kProxyVersion);
   scene::ProxySet ps;
   if (root.contains("name")) ps.name = r.string(root["name"], "name", true);
   if (root.contains("node")) ps.node = int(r.integer(root["node"], "node", -1, 1 << 24));
@@ -464,6 +480,9 @@ scene::ProxySet parse_proxies(const Reader& r, const json& root) {
   for (std::size_t i = 0; i < arr.size(); ++i) {
     const std::string p = child("spheres", i);
     ps.spheres.push_back(read_sphere(r, arr[i], p, true));
+    if (i > 0 && arr[i].contains("albedo") != !ps.sphere_albedo.empty())
+      r.fail(p, "either every sphere has \"albedo\" or none does");
+    if (arr[i].contains("albedo")) ps.sphere_albedo.push_back(r.colour(arr[i]["albedo"], child(p, "albedo"), 1.0));
     const bool has_j = arr[i].contains("joints"), has_w = arr[i].contains("weights");
     if (has_j != has_w) r.fail(p, "\"joints\" and \"weights\" must be given together");
     if (i > 0 && has_j != !ps.joints.empty()) r.fail(p, "either every sphere has \"joints\" and \"weights\" or none does");
@@ -493,9 +512,19 @@ struct Object {
   std::vector<int> materials;
 };
 
+// An object's "proxies": {"fit": N, ...}: fitted once the whole file has parsed (and only when
+// LoadOptions::fit_proxies), so a file's syntax errors come before seconds of fitting.
+struct PendingFit {
+  std::string path;         // JSON path of the "proxies" field, for errors
+  std::string object;
+  std::vector<int> nodes;   // the object's nodes with a mesh
+  ProxyFitSpec spec;
+};
+
 class SceneParser {
  public:
   SceneParser(const Reader& r, scene::Scene& s) : r_(r), s_(s) {}
+  std::vector<PendingFit> fits;
 
   void run(const json& root) {
     r_.object(root, "", {"name", "description", "camera", "environment", "objects", "lights", "animation"});
@@ -634,18 +663,20 @@ class SceneParser {
     };
     only_for("size", {"plane", "box"});
     only_for("radius", {"sphere"});
-    only_for("segments", {"sphere"});
+    only_for("segments", {"sphere", "plane", "box"});
 
     if (builtin) {
       scene::Mesh m;
       if (kind == "plane") {
-        m = make_plane(v.contains("size") ? r_.size<2>(v["size"], child(path, "size"), 0.0, kMaxCoordinate, true) : glm::vec2(1.0f));
+        m = make_plane(v.contains("size") ? r_.size<2>(v["size"], child(path, "size"), 0.0, kMaxCoordinate, true) : glm::vec2(1.0f),
+                       v.contains("segments") ? int(r_.integer(v["segments"], child(path, "segments"), 1, kMaxGridSegments)) : kPlaneSegments);
       } else if (kind == "sphere") {
         const float radius = v.contains("radius") ? r_.real(v["radius"], child(path, "radius"), 0.0, kMaxCoordinate, true) : 0.5f;
         const int segments = v.contains("segments") ? int(r_.integer(v["segments"], child(path, "segments"), 3, kMaxSegments)) : 32;
         m = make_sphere(radius, segments);
       } else if (kind == "box") {
-        m = make_box(v.contains("size") ? r_.size<3>(v["size"], child(path, "size"), 0.0, kMaxCoordinate, true) : glm::vec3(1.0f));
+        m = make_box(v.contains("size") ? r_.size<3>(v["size"], child(path, "size"), 0.0, kMaxCoordinate, true) : glm::vec3(1.0f),
+                     v.contains("segments") ? int(r_.integer(v["segments"], child(path, "segments"), 1, kMaxGridSegments)) : kBoxSegments);
       } else {
         r_.fail(mesh_path, "expected a glTF/GLB path or builtin:plane, builtin:sphere, builtin:box", v["mesh"]);
       }
@@ -702,12 +733,31 @@ class SceneParser {
         } catch (const std::exception& ex) {
           r_.fail(p, ex.what());
         }
+      } else if (pv.is_object()) {
+        r_.object(pv, p, {"fit", "seed", "iterations", "grid"});
+        if (!pv.contains("fit")) r_.fail(p, "missing key \"fit\" (the number of spheres to fit)");
+        PendingFit f;
+        f.path = p;
+        f.object = obj.name;
+        f.spec.spheres = int(r_.integer(pv["fit"], child(p, "fit"), 1, kMaxFitSpheres));
+        if (pv.contains("seed")) f.spec.seed = unsigned(r_.integer(pv["seed"], child(p, "seed"), 0, 0xffffffffll));
+        if (pv.contains("iterations")) f.spec.iterations = int(r_.integer(pv["iterations"], child(p, "iterations"), 1, 100000));
+        if (pv.contains("grid")) f.spec.grid = int(r_.integer(pv["grid"], child(p, "grid"), 1, 512));
+        if (builtin) {
+          f.nodes.push_back(obj.node);
+        } else {
+          for (int n = obj.first_file_node; n < obj.first_file_node + obj.file_nodes; ++n)
+            if (s_.nodes[std::size_t(n)].mesh >= 0) f.nodes.push_back(n);
+        }
+        fits.push_back(std::move(f));
+        objects_.push_back(std::move(obj));
+        return;
       } else if (pv.is_array()) {
         r_.array(pv, p, 1, kMaxSpheres);
         for (std::size_t i = 0; i < pv.size(); ++i) ps.spheres.push_back(read_sphere(r_, pv[i], child(p, i), false));
         ps.albedo = s_.materials[std::size_t(obj.materials.front())].albedo;
       } else {
-        r_.fail(p, "expected a proxy file name or an array of {\"center\", \"radius\"}", pv);
+        r_.fail(p, "expected a proxy file name, an array of {\"center\", \"radius\"} or {\"fit\": N}", pv);
       }
       ps.name = obj.name;
       // A proxy file's node index counts the nodes of the glTF file loaded alone (what
@@ -761,12 +811,18 @@ class SceneParser {
       if (s_.clips.empty()) r_.fail(p, "no glTF file in the scene has animations", c);
       int index = -1;
       if (c.is_string()) {
-        std::string names;
+        std::string names, matches;
+        int count = 0;
         for (std::size_t i = 0; i < s_.clips.size(); ++i) {
           names += (names.empty() ? "" : ", ") + s_.clips[i].name;
-          if (index < 0 && s_.clips[i].name == c.get_ref<const std::string&>()) index = int(i);
+          if (s_.clips[i].name == c.get_ref<const std::string&>()) {
+            if (index < 0) index = int(i);
+            matches += (count++ ? ", " : "") + std::to_string(i);
+          }
         }
         if (index < 0) r_.fail(p, "expected the name of a clip (" + names + ")", c);
+        // Two files (or one) may name clips alike: a name that picks one of several silently is an error.
+        if (count > 1) r_.fail(p, "the name is ambiguous: clips " + matches + " are all called so; give the clip's index", c);
       } else {
         index = int(r_.integer(c, p, 0, std::int64_t(s_.clips.size()) - 1));
       }
@@ -848,33 +904,84 @@ std::string stem_of(const std::string& name) {
 
 }  // namespace
 
-scene::Scene parse_scene_json(const std::string& text, const std::string& base_dir, const std::string& name_for_errors) {
+scene::Scene parse_scene_json(const std::string& text, const std::string& base_dir, const std::string& name_for_errors,
+                              const LoadOptions& opt) {
   const Reader r(name_for_errors, base_dir);
   const json root = r.parse(text);
   scene::Scene s;
   s.name = stem_of(name_for_errors);
   s.source = name_for_errors;
-  SceneParser(r, s).run(root);
+  SceneParser parser(r, s);
+  parser.run(root);
   try {
     scene::validate(s);
   } catch (const std::exception& e) {
     throw std::runtime_error(name_for_errors + ": " + e.what());
   }
+  for (const PendingFit& f : parser.fits) {
+    if (!opt.fit_proxies) {
+      s.notices.push_back(name_for_errors + ": " + f.path + ": proxy fit of object '" + f.object + "' skipped (fitting is off)");
+      continue;
+    }
+    int fitted = 0;
+    std::string open;
+    for (int node : f.nodes) {
+      try {
+        proxies::mesh_volume(proxies::trimesh_of(s.meshes[std::size_t(s.nodes[std::size_t(node)].mesh)]));
+      } catch (const std::exception& e) {
+        open += std::string(open.empty() ? "" : "; ") + "node '" + s.nodes[std::size_t(node)].name + "': " + e.what();
+        continue;
+      }
+      ProxyFitOutcome o;
+      try {
+        o = fit_node_proxies(s, node, f.spec, opt.cache_dir);
+      } catch (const std::exception& e) {
+        r.fail(f.path, e.what());
+      }
+      std::ostringstream os;
+      os.precision(3);
+      os << name_for_errors << ": " << f.path << ": " << (o.from_cache ? "read " : "fitted ") << o.set.spheres.size()
+         << " spheres to node '" << s.nodes[std::size_t(node)].name << "' (E = " << o.E << ")"
+         << (o.from_cache ? " from the cache " + o.cache_file : "");
+      if (!o.from_cache) os << " in " << o.seconds << " s" << (o.cache_file.empty() ? "" : ", cached as " + o.cache_file);
+      s.notices.push_back(os.str());
+      o.set.name = f.object;
+      s.proxies.push_back(std::move(o.set));
+      ++fitted;
+    }
+    if (!fitted) r.fail(f.path, "no mesh of object '" + f.object + "' is closed, so there is nothing to fit (" + open + ")");
+  }
+  if (opt.fit_spheres > 0) {
+    ProxyFitSpec spec;
+    spec.spheres = opt.fit_spheres;
+    fit_missing_proxies(s, spec, opt.cache_dir);
+  }
   return s;
 }
 
-scene::Scene load_scene_file(const std::string& path) {
+scene::Scene load_scene_file(const std::string& path, const LoadOptions& opt) {
   const std::string text = read_text(path);
   const fs::path parent = fs::path(path).parent_path();
-  return parse_scene_json(text, (parent.empty() ? fs::path(".") : parent).string(), path);
+  return parse_scene_json(text, (parent.empty() ? fs::path(".") : parent).string(), path, opt);
 }
 
-scene::Scene load_scene(const std::string& spec) {
+namespace {
+scene::Scene with_fits(scene::Scene s, const LoadOptions& opt) {
+  if (opt.fit_spheres > 0) {
+    ProxyFitSpec spec;
+    spec.spheres = opt.fit_spheres;
+    fit_missing_proxies(s, spec, opt.cache_dir);
+  }
+  return s;
+}
+}  // namespace
+
+scene::Scene load_scene(const std::string& spec, const LoadOptions& opt) {
   if (spec.empty()) throw std::runtime_error("empty scene name: expected a built-in scene or a scene file");
-  if (spec.rfind("builtin:", 0) == 0) return scene::make_builtin(spec.substr(8));
+  if (spec.rfind("builtin:", 0) == 0) return with_fits(scene::make_builtin(spec.substr(8)), opt);
   std::string names;
   for (const scene::BuiltinInfo& b : scene::builtin_scenes()) {
-    if (b.name == spec) return scene::make_builtin(spec);
+    if (b.name == spec) return with_fits(scene::make_builtin(spec), opt);
     names += (names.empty() ? "" : ", ") + b.name;
   }
   std::error_code ec;
@@ -883,7 +990,7 @@ scene::Scene load_scene(const std::string& spec) {
   }
   std::string ext = fs::path(spec).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  if (ext != ".gltf" && ext != ".glb") return load_scene_file(spec);
+  if (ext != ".gltf" && ext != ".glb") return load_scene_file(spec, opt);
 
   // A bare glTF/GLB: its nodes under the default sky, its first animation playing, and a camera
   // framing the rest pose.
@@ -905,7 +1012,7 @@ scene::Scene load_scene(const std::string& spec) {
   } catch (const std::exception& e) {
     throw std::runtime_error(spec + ": " + e.what());
   }
-  return s;
+  return with_fits(std::move(s), opt);
 }
 
 void write_proxies_json(const std::string& path, const scene::ProxySet& proxies) {
@@ -934,6 +1041,12 @@ void write_proxies_json(const std::string& path, const scene::ProxySet& proxies)
     if (skinned) {
       js["joints"] = {proxies.joints[i].x, proxies.joints[i].y, proxies.joints[i].z, proxies.joints[i].w};
       js["weights"] = vec_json(&proxies.weights[i].x, 4);
+    }
+    if (!proxies.sphere_albedo.empty()) {
+      if (proxies.sphere_albedo.size() != proxies.spheres.size())
+        throw std::runtime_error(path + ": proxy set has " + std::to_string(proxies.sphere_albedo.size()) + " sphere albedos for " +
+                                 std::to_string(proxies.spheres.size()) + " spheres");
+      js["albedo"] = vec_json(&proxies.sphere_albedo[i].x, 3);
     }
     spheres.push_back(std::move(js));
   }

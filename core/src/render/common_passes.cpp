@@ -73,13 +73,19 @@ void add_receiver_gbuffer_pass(PassGraph& g) {
 void run_receiver_gbuffer_pass(FrameContext& ctx, const std::function<GBuffer(int scale)>& produce) {
   if (!ctx.params.has("receiver_scale"))
     throw std::invalid_argument("receiver_gbuffer: the technique declares no parameter 'receiver_scale'");
-  const int s = ctx.params.get_int("receiver_scale");
-  if (s < 1 || s > std::max(ctx.width, ctx.height))
-    throw std::invalid_argument("receiver_gbuffer: parameter 'receiver_scale' = " + std::to_string(s) + " is outside 1.." +
-                                std::to_string(std::max(ctx.width, ctx.height)) + " for a " + std::to_string(ctx.width) +
-                                "x" + std::to_string(ctx.height) + " frame");
+  const int requested = ctx.params.get_int("receiver_scale");
+  if (requested < 1)
+    throw std::invalid_argument("receiver_gbuffer: parameter 'receiver_scale' = " + std::to_string(requested) + " must be at least 1");
+  // A frame smaller than the scale (a 1x1 frame at the default 2) gets the largest scale that still
+  // leaves a whole receiver pixel, halving so a power of two stays one.
+  int s = requested;
+  while (s > 1 && s > std::max(ctx.width, ctx.height)) s /= 2;
+  if (s != requested)
+    ctx.warn("receiver_scale " + std::to_string(requested) + " exceeds the " + std::to_string(ctx.width) + "x" +
+             std::to_string(ctx.height) + " frame; the receiver buffer uses scale " + std::to_string(s));
   PassRecord& rec = ctx.record();
   rec.counters["scale"] = s;
+  rec.counters["requested_scale"] = requested;
   GBuffer gb;
   if (s == 1 && ctx.has(kGBuffer)) {  // the display G-buffer itself: no second trace
     gb = ctx.get<GBuffer>(kGBuffer);

@@ -84,6 +84,7 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
   PassGraph graph = technique.plan(scene, params, empty);
   CompiledGraph compiled = graph.compile(request.outputs, empty);
   result.pruned = compiled.pruned;
+  result.warnings = compiled.warnings;
   FrameContext ctx(scene, posed, params, w, h, result, device());
   for (int i : compiled.order) {
     const PassDesc& pass = graph.passes()[i];
@@ -135,6 +136,7 @@ SteppedFrame::SteppedFrame(Technique& technique, const scene::Scene& scene, cons
   graph_ = technique.plan(scene, params, empty);
   const CompiledGraph compiled = graph_.compile(request.outputs, empty);
   result_.pruned = compiled.pruned;
+  result_.warnings = compiled.warnings;
   for (int i : compiled.order) order_.push_back(&graph_.passes()[i]);
   ctx_ = std::make_unique<FrameContext>(scene, posed_, params, w, h, result_, device);
 }

@@ -111,6 +111,8 @@ CompiledGraph PassGraph::compile(const std::vector<std::string>& outputs, const 
     if (needed[i]) continue;
     g.pruned.push_back({passes_[i].name, state[i] == 2 ? reason[i] : "no requested output depends on it"});
   }
+  for (const auto& [resource, message] : empty_warnings_)
+    if (g.empty.count(resource)) g.warnings.push_back(message);
   return g;
 }
 

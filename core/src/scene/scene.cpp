@@ -719,6 +719,9 @@ void validate(const Scene& scene) {
     const std::string part = "proxy set " + q(p.name) + " (index " + std::to_string(pi) + ")";
     if (p.node < -1 || p.node >= n_nodes) bad(part, "node " + std::to_string(p.node) + " is out of range (" + std::to_string(n_nodes) + " nodes)");
     check_colour(part, "albedo", p.albedo);
+    if (!p.sphere_albedo.empty() && p.sphere_albedo.size() != p.spheres.size())
+      bad(part, "has " + std::to_string(p.sphere_albedo.size()) + " sphere albedos for " + std::to_string(p.spheres.size()) + " spheres");
+    for (std::size_t k = 0; k < p.sphere_albedo.size(); ++k) check_colour(part, "sphere_albedo[" + std::to_string(k) + "]", p.sphere_albedo[k]);
     if (p.joints.size() != p.weights.size() || (!p.joints.empty() && p.joints.size() != p.spheres.size()))
       bad(part, "has " + std::to_string(p.joints.size()) + " joints and " + std::to_string(p.weights.size()) + " weights for " + std::to_string(p.spheres.size()) + " spheres");
     std::size_t nj = 0;

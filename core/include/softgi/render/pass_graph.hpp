@@ -41,6 +41,8 @@ struct CompiledGraph {
   std::vector<PrunedPass> pruned;       // every pass not in `order`, with why
   std::set<std::string> empty;          // resources known empty (given, or written only by pruned passes)
   std::set<std::string> live;           // resources that will be produced
+  // PassGraph::warn_if_empty messages of the resources that are empty (FrameResult::warnings).
+  std::vector<std::string> warnings;
 };
 
 class PassGraph {
@@ -51,6 +53,10 @@ class PassGraph {
   int add(PassDesc pass);
   const std::vector<PassDesc>& passes() const { return passes_; }
   const std::set<std::string>& inputs() const { return inputs_; }
+  // Leaving out what a scene does not need is silent; leaving out what the user asked a technique
+  // for (shadows of a scene without proxy spheres) is not: when `resource` turns out empty, the
+  // compiled graph carries `message` as a frame warning.
+  void warn_if_empty(const std::string& resource, std::string message) { empty_warnings_[resource] = std::move(message); }
 
   // Builds the schedule for `outputs`. `empty` lists resources that are empty for this scene
   // (e.g. "moving_objects" for a static scene, "reradiating_proxies" when no proxy re-radiates).
@@ -61,6 +67,7 @@ class PassGraph {
  private:
   std::vector<PassDesc> passes_;
   std::set<std::string> inputs_;
+  std::map<std::string, std::string> empty_warnings_;
 };
 
 }  // namespace softgi::render

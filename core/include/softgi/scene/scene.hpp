@@ -90,6 +90,10 @@ struct ProxySet {
   std::vector<glm::u16vec4> joints;       // optional per-sphere skinning (indices into the skin)
   std::vector<glm::vec4> weights;
   glm::vec3 albedo{0.8f};                 // for re-radiated (indirect) light
+  // Optional per-sphere albedo (the surface each sphere stands for, e.g. a textured model's colours
+  // averaged over the sphere's segment); empty: every sphere has `albedo`.
+  std::vector<glm::vec3> sphere_albedo;
+  glm::vec3 albedo_of(std::size_t sphere) const { return sphere < sphere_albedo.size() ? sphere_albedo[sphere] : albedo; }
   double outside_volume_ratio = -1.0;     // E of the fit when known (paper 004 eq. 35 / volume)
 };
 
