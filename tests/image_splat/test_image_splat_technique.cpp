@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <iostream>
 #include <limits>
 #include <random>
 #include <string>
@@ -396,6 +397,8 @@ TEST(ImageSplatRender, OverlappingProxiesNeverExceedTheUnshadowedBound) {
     double worst = 0.0;  // largest I . H relative to the bound
     for (const auto& px : r.indirect.rgb)
       for (int c = 0; c < 3; ++c) worst = std::max(worst, px[c] / ground_albedo[c] / bound[c]);
+    // docs/techniques/image_splat.md quotes this line.
+    std::cout << (normalise ? "eq. 12 normalised" : "plain sum") << ": largest I . H / unshadowed bound = " << worst << "\n";
     if (normalise) {
       EXPECT_LE(worst, 1.0 + kExpTol);
       EXPECT_GT(worst, 0.1) << "the cluster must light the ground";
@@ -456,6 +459,9 @@ TEST(ImageSplatRender, SmoothClampingLeavesNoJumpAtTheBoundaryOfInfluence) {
       max_step = std::max(max_step, std::abs(s - prev));
       prev = s;
     }
+    // docs/techniques/image_splat.md quotes this line.
+    std::cout << (smooth ? "smooth clamp" : "hard cut") << ": largest shading change per step " << max_step << " (bound " << bound
+              << ", " << steps << " steps)\n";
     EXPECT_NEAR(prev, unshadowed, 1e-6 * unshadowed) << "beyond the sphere of influence the proxy has no effect";
     if (smooth) {
       EXPECT_LE(max_step, bound) << "J " << J << " rows per step " << rows_per_step;

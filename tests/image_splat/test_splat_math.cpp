@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <iostream>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -87,6 +88,13 @@ TEST(CoverageOracle, DerivedHalfAngleBoundsTheDifferenceAndIsTight) {
       for (int k = 1; k <= 12; ++k) EXPECT_LE(diff(th * k / 12.0), kThreshold + kBisectionTol) << "k " << k;
       // Tight: 2% larger already exceeds (the difference grows like theta^2: ~4% more).
       EXPECT_GT(diff(th * 1.02), kThreshold);
+      // docs/techniques/image_splat.md quotes these lines.
+      const EtaDerivation peak = indirect ? derive_eta_indirect(n, kThreshold, nullptr, LightNormalisation::UnitPeakRadiance)
+                                          : derive_eta_shadow(n, kThreshold, nullptr, LightNormalisation::UnitPeakRadiance);
+      std::cout << "order " << n << (indirect ? " indirect" : " shadow") << ": eta " << e.eta << " (theta " << e.theta_deg
+                << " deg) unit shading, " << peak.eta << " unit peak radiance; at the paper's eta ("
+                << (indirect ? 10 : 15) << ") the unit-shading difference is "
+                << (indirect ? indirect_difference(n, std::asin(0.1)) : shadow_difference(n, std::asin(1.0 / 15.0))) << "\n";
     }
   }
 }
