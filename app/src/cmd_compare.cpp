@@ -5,11 +5,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -17,7 +17,7 @@
 
 #include "commands.hpp"
 #include "frame_output.hpp"
-#include "softgi/io/image_io.hpp"
+#include "output_dir.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/metrics/image_metrics.hpp"
 #include "softgi/reference/reference.hpp"
@@ -30,8 +30,6 @@
 namespace softgi::app {
 
 namespace {
-
-namespace fs = std::filesystem;
 
 // SH order of the lighting a technique is compared against when it has no "order" parameter: the
 // order paper 004's Figure 7 uses.
@@ -124,6 +122,7 @@ struct CompareSetup {
   std::vector<std::unique_ptr<render::Technique>> techs;
   std::string reference_backend;
   std::vector<std::unique_ptr<render::Backend>> backends_used;
+  std::optional<OutputDir> out;  // DIR and its record, compare.json
   scene::Scene sc;
   int w = 0, h = 0;
 };
@@ -151,6 +150,7 @@ CompareSetup read_arguments(const CompareArgs& args) {
   for (const auto& b : backend_names) selects_device = selects_device || render::backend_info(b).selects_device;
   if (!args.device.empty() && !selects_device)
     throw std::invalid_argument("--device '" + args.device + "': none of the backends asked for selects a device");
+  cs.out.emplace(args.out, "--out", "compare.json");  // before the devices, the scene and the frames
   for (const auto& b : backend_names)
     cs.backends_used.push_back(make_backend(b, render::backend_info(b).selects_device ? args.device : "", "compare"));
 
@@ -159,7 +159,6 @@ CompareSetup read_arguments(const CompareArgs& args) {
   cs.h = args.height;
   render::resolve_resolution(cs.sc.camera, cs.w, cs.h);
   render::make_pinhole_camera(cs.sc, cs.w, cs.h, "compare");
-  make_output_dir(args.out);
   std::cerr << "compare: scene '" << cs.sc.name << "' at " << cs.w << "x" << cs.h << ", t = " << args.frame << " s, "
             << cs.techs.size() << " technique(s), reference " << args.spp << " spp\n";
 
@@ -252,7 +251,8 @@ std::vector<TechniqueRun> render_variants(const CompareSetup& cs, const CompareA
 }
 
 // Step 4, the ground truth.
-std::vector<Reference> render_references(const CompareSetup& cs, const CompareArgs& args, const std::set<int>& orders) {
+std::vector<Reference> render_references(const CompareSetup& cs, const CompareArgs& args, const std::set<int>& orders,
+                                         OutputDir& out) {
   const int w = cs.w, h = cs.h;
   const scene::Scene& sc = cs.sc;
   // Ground truth: real geometry as blockers, un-jittered (each pixel sampled at its centre, as the
@@ -272,7 +272,7 @@ std::vector<Reference> render_references(const CompareSetup& cs, const CompareAr
     opt.height = h;
     opt.jitter = false;
     ref.result = reference::render_reference(sc, opt, progress_printer("reference, " + ref.label));
-    write_image_pair(args.out, "reference_" + ref.key, ref.result.final_image);
+    out.write_image_pair("reference_" + ref.key, ref.result.final_image);
     std::cerr << "compare: reference, " << ref.label << ": " << fmt(ref.result.seconds, 3) << " s, " << ref.result.rays
               << " rays\n";
   }
@@ -281,7 +281,7 @@ std::vector<Reference> render_references(const CompareSetup& cs, const CompareAr
 
 // Step 5, the metrics of each run against the references, and its images and record.
 Json measure_runs(std::vector<TechniqueRun>& runs, const std::vector<Reference>& refs, const Surface& surf, const CompareSetup& cs,
-                  const CompareArgs& args, std::vector<std::string>& failures) {
+                  const CompareArgs& args, OutputDir& out, std::vector<std::string>& failures) {
   const scene::Scene& sc = cs.sc;
   const int w = cs.w, h = cs.h;
   const Mask& surface = surf.mask;
@@ -303,24 +303,25 @@ Json measure_runs(std::vector<TechniqueRun>& runs, const std::vector<Reference>&
       jtechs.push_back(jt);
       continue;
     }
-    const std::string dir = (fs::path(args.out) / run.label).string();
-    make_output_dir(dir);
+    // Images the record lists are those written (a failed one is in compare.json's outputs.missing).
     Json images = Json::object();
-    images["final"] = run.label + "/" + write_image_pair(dir, "final", run.frame.final_image);
-    if (!run.frame.direct.empty()) images["direct"] = run.label + "/" + write_image_pair(dir, "direct", run.frame.direct);
-    if (!run.frame.indirect.empty())
-      images["indirect"] = run.label + "/" + write_image_pair(dir, "indirect", run.frame.indirect);
+    auto save = [&](const char* name, const Image& img) {
+      const std::string base = run.label + "/" + name;
+      if (!img.empty() && out.write_image_pair(base, img)) images[name] = base + ".png";
+    };
+    save("final", run.frame.final_image);
+    save("direct", run.frame.direct);
+    save("indirect", run.frame.indirect);
     Json errors = Json::object(), direct_errors = Json::object();
     try {
       for (const Reference* ref : {static_cast<const Reference*>(&refs.front()), &ref_for_order(run.order)}) {
         if (run.vs_final.count(ref->key)) continue;
         run.vs_final[ref->key] = metrics::compare(run.frame.final_image, ref->result.final_image, surface);
         errors[ref->key] = metrics_json(run.vs_final[ref->key]);
-        const std::string map = "error_" + ref->key + ".png";
-        io::write_png_display((fs::path(dir) / map).string(),
-                              metrics::error_map(on_surface(run.frame.final_image, surface),
-                                                 on_surface(ref->result.final_image, surface)));
-        images["error_" + ref->key] = run.label + "/" + map;
+        const std::string map = run.label + "/error_" + ref->key + ".png";
+        if (out.write_png_display(map, metrics::error_map(on_surface(run.frame.final_image, surface),
+                                                          on_surface(ref->result.final_image, surface))))
+          images["error_" + ref->key] = map;
         if (!run.frame.direct.empty()) {
           run.vs_direct[ref->key] = metrics::compare(run.frame.direct, ref->result.direct, surface);
           direct_errors[ref->key] = metrics_json(run.vs_direct[ref->key]);
@@ -353,16 +354,16 @@ Json measure_runs(std::vector<TechniqueRun>& runs, const std::vector<Reference>&
     rec["backend"] = run.backend;
     rec["frame_time"] = args.frame;
     rec["resolution"] = {w, h};
-    write_json((fs::path(dir) / "record.json").string(), rec);
+    out.write_json(run.label + "/record.json", rec);
     jtechs.push_back(jt);
   }
 
   return jtechs;
 }
 
-// Step 6, the writing: compare.json and the Markdown summary.
+// Step 6, the writing: the Markdown summary, then compare.json, the record, last.
 void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Reference>& refs, const Surface& surf,
-                   const CompareSetup& cs, const CompareArgs& args, const Json& jtechs) {
+                   const CompareSetup& cs, const CompareArgs& args, const Json& jtechs, OutputDir& out) {
   const scene::Scene& sc = cs.sc;
   const int w = cs.w, h = cs.h;
   const long long surface_pixels = surf.pixels;
@@ -389,7 +390,6 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
                       {"gbuffer", {{"wall_seconds", gbr.wall_seconds}, {"counters", gbr.counters}, {"bytes", gbr.bytes}}},
                       {"references", jrefs},
                       {"techniques", jtechs}};
-  write_json((fs::path(args.out) / "compare.json").string(), j);
 
   // The Markdown summary.
   std::ostringstream md;
@@ -488,20 +488,21 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
   for (const auto& run : runs)
     for (const auto& p : run.frame.pruned) pruned += "- " + run.label + ": `" + p.name + "`: " + p.reason + "\n";
   if (!pruned.empty()) md << "\nPruned passes:\n\n" << pruned;
-  write_text((fs::path(args.out) / "summary.md").string(), md.str());
-  std::cerr << "compare: wrote " << (fs::path(args.out) / "summary.md").string() << "\n";
+  out.write_text("summary.md", md.str());
+  out.finish(j);
+  std::cerr << "compare: wrote " << out.path("summary.md") << " and " << out.path("compare.json") << "\n";
 
 }
 
 void run_compare(const CompareArgs& args) {
-  const CompareSetup cs = read_arguments(args);
+  CompareSetup cs = read_arguments(args);
   const Surface surf = measure_surface(cs, args);
   std::set<int> orders;
   std::vector<TechniqueRun> runs = render_variants(cs, args, orders);
-  const std::vector<Reference> refs = render_references(cs, args, orders);
+  const std::vector<Reference> refs = render_references(cs, args, orders, *cs.out);
   std::vector<std::string> failures;
-  const Json jtechs = measure_runs(runs, refs, surf, cs, args, failures);
-  write_results(runs, refs, surf, cs, args, jtechs);
+  const Json jtechs = measure_runs(runs, refs, surf, cs, args, *cs.out, failures);
+  write_results(runs, refs, surf, cs, args, jtechs, *cs.out);
   const scene::Scene& sc = cs.sc;
   if (!failures.empty()) {
     std::string msg = "compare: " + std::to_string(failures.size()) + " technique(s) failed on scene '" + sc.name + "':";

@@ -6,10 +6,12 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <string>
 
 #include "commands.hpp"
+#include "output_dir.hpp"
 #include "softgi/io/image_io.hpp"
 #include "softgi/metrics/image_metrics.hpp"
 
@@ -74,6 +76,12 @@ void run_diff(const DiffArgs& args) {
   check_option("--epsilon", args.relmse_epsilon, false);
   check_option("--peak", args.psnr_peak, true);
   check_option("--map-scale", args.map_scale, true);
+  // The map files are checked before the images are read.
+  if (!args.map.empty() && args.map == args.signed_map)
+    throw std::invalid_argument("--map and --signed-map name the same file '" + args.map + "'");
+  std::optional<OutputFile> map, signed_map;
+  if (!args.map.empty()) map.emplace(args.map, "--map");
+  if (!args.signed_map.empty()) signed_map.emplace(args.signed_map, "--signed-map");
   const Image test = io::read_image(args.test);
   const Image ref = io::read_image(args.reference);
   if (test.width != ref.width || test.height != ref.height)
@@ -98,8 +106,9 @@ void run_diff(const DiffArgs& args) {
 
   double map_scale = 0.0;
   if (!args.map.empty() || !args.signed_map.empty()) map_scale = metrics::error_map_scale(test, ref, args.map_scale);
-  if (!args.map.empty()) io::write_png_display(args.map, metrics::error_map(test, ref, map_scale));
-  if (!args.signed_map.empty()) io::write_png_display(args.signed_map, metrics::signed_error_map(test, ref, map_scale));
+  if (map) map->write([&](const std::string& p) { io::write_png_display(p, metrics::error_map(test, ref, map_scale)); });
+  if (signed_map)
+    signed_map->write([&](const std::string& p) { io::write_png_display(p, metrics::signed_error_map(test, ref, map_scale)); });
 
   const bool all = args.metric == "all";
   auto want = [&](const char* name) { return all || args.metric == name; };

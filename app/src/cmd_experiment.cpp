@@ -6,11 +6,11 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -19,7 +19,7 @@
 #include "commands.hpp"
 #include "experiment.hpp"
 #include "frame_output.hpp"
-#include "softgi/io/image_io.hpp"
+#include "output_dir.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/metrics/image_metrics.hpp"
 #include "softgi/reference/reference.hpp"
@@ -33,7 +33,6 @@ namespace softgi::app {
 
 namespace {
 
-namespace fs = std::filesystem;
 namespace ex = experiment;
 
 // Frames are rendered 1/30 s apart (a running 30 Hz animation: per-frame proxy and BVH refits, no
@@ -167,7 +166,7 @@ std::vector<std::pair<std::string, double>> pass_medians(const std::vector<rende
   return out;
 }
 
-void write_operator_curve(const std::string& out, Json& j, std::ostringstream& md) {
+void write_operator_curve(OutputDir& out, Json& j, std::ostringstream& md) {
   // operator_error_curve samples sin(theta) = k / samples, k = 1..samples: 20 gives 0.05, 0.10,
   // ..., 1; the figure's range [0.05, 0.95] keeps 19 of them.
   constexpr int kSamples = 20;
@@ -224,9 +223,8 @@ void write_operator_curve(const std::string& out, Json& j, std::ostringstream& m
     axes.y_step = top / 5.0;
     return axes;
   };
-  io::write_png_display((fs::path(out) / "operator_error.png").string(), ex::line_plot({point, averaged, poly}, axes_for(y_max)));
-  io::write_png_display((fs::path(out) / "operator_error_abs.png").string(),
-                        ex::line_plot({point_abs, averaged_abs, poly_abs}, axes_for(y_max_abs)));
+  out.write_png_display("operator_error.png", ex::line_plot({point, averaged, poly}, axes_for(y_max)));
+  out.write_png_display("operator_error_abs.png", ex::line_plot({point_abs, averaged_abs, poly_abs}, axes_for(y_max_abs)));
   j["operator_error"] = {{"order", kOperatorCurveOrder},
                          {"plot_relative", "operator_error.png"},
                          {"plot_absolute", "operator_error_abs.png"},
@@ -286,10 +284,10 @@ class ExperimentRunner {
   if (!def.baseline.empty() && baseline < 0)
     throw std::logic_error("experiment '" + def.name + "': baseline '" + def.baseline + "' is no variant");
 
+  out.emplace(args.out, "--out", "results.json");  // before the scene and the frames
   sc = io::load_scene(def.scene);
   print_scene_notices("experiment", sc);
   render::make_pinhole_camera(sc, w, h, "experiment");
-  make_output_dir(args.out);
   std::cerr << "experiment: " << def.name << ": scene '" << sc.name << "' at " << w << "x" << h << ", " << vars.size()
             << " variant(s), " << frames << " timed frame(s) each, reference " << spp << " spp\n";
 
@@ -387,8 +385,8 @@ class ExperimentRunner {
     opt.height = h;
     opt.jitter = false;
     r.result = reference::render_reference(sc, opt, progress_printer("reference, " + ref_label(n)));
-    write_image_pair(args.out, "reference_" + ref_key(n), r.result.final_image);
-    if (def.image == Compared::Indirect) write_image_pair(args.out, "reference_" + ref_key(n) + "_indirect", r.result.indirect);
+    out->write_image_pair("reference_" + ref_key(n), r.result.final_image);
+    if (def.image == Compared::Indirect) out->write_image_pair("reference_" + ref_key(n) + "_indirect", r.result.indirect);
     std::cerr << "experiment: reference, " << ref_label(n) << ": " << fmt(r.result.seconds, 3) << " s\n";
     refs.push_back(std::move(r));
   }
@@ -400,26 +398,25 @@ class ExperimentRunner {
   const Image* base_img = baseline >= 0 ? &vars[baseline].compared() : nullptr;
   for (auto& v : vars) {
     if (!v.error.empty()) continue;
-    const std::string dir = (fs::path(args.out) / v.def.label).string();
-    make_output_dir(dir);
-    write_image_pair(dir, "final", v.frame.final_image);
-    if (!v.frame.direct.empty()) write_image_pair(dir, "direct", v.frame.direct);
-    if (!v.frame.indirect.empty()) write_image_pair(dir, "indirect", v.frame.indirect);
+    const std::string dir = v.def.label + "/";
+    out->write_image_pair(dir + "final", v.frame.final_image);
+    if (!v.frame.direct.empty()) out->write_image_pair(dir + "direct", v.frame.direct);
+    if (!v.frame.indirect.empty()) out->write_image_pair(dir + "indirect", v.frame.indirect);
     const Image& img = v.compared();
     try {
       for (const auto& r : refs) {
         const Image& ref = r.compared(def.image);
         v.vs_ref[ref_key(r.order)] = metrics::compare(img, ref, region);
         if (&r == &refs.front()) v.rse_ref = ex::relative_squared_error(img, ref, region);
-        io::write_png_display((fs::path(dir) / ("error_" + ref_key(r.order) + ".png")).string(),
-                              metrics::error_map(ex::masked(img, region), ex::masked(ref, region)));
+        out->write_png_display(dir + "error_" + ref_key(r.order) + ".png",
+                               metrics::error_map(ex::masked(img, region), ex::masked(ref, region)));
       }
       if (base_img && &img != base_img) {
         v.vs_baseline = metrics::compare(img, *base_img, region);
         v.has_baseline = true;
         v.rse_baseline = ex::relative_squared_error(img, *base_img, region);
-        io::write_png_display((fs::path(dir) / "error_baseline.png").string(),
-                              metrics::error_map(ex::masked(img, region), ex::masked(*base_img, region)));
+        out->write_png_display(dir + "error_baseline.png",
+                               metrics::error_map(ex::masked(img, region), ex::masked(*base_img, region)));
         for (const Mask& band : bands) v.silhouette_share.push_back(ex::error_share(img, *base_img, band, region));
       }
     } catch (const std::exception& e) {
@@ -629,16 +626,16 @@ class ExperimentRunner {
     md << "\n";
   }
 
-  if (def.operator_curve) write_operator_curve(args.out, j, md);
+  if (def.operator_curve) write_operator_curve(*out, j, md);
 
   std::string pruned;
   for (const auto& v : vars)
     for (const auto& p : v.frame.pruned) pruned += "- " + v.def.label + ": `" + p.name + "`: " + p.reason + "\n";
   if (!pruned.empty()) md << "Pruned passes:\n\n" << pruned;
 
-  write_json((fs::path(args.out) / "results.json").string(), j);
-  write_text((fs::path(args.out) / "index.md").string(), md.str());
-  std::cerr << "experiment: wrote " << (fs::path(args.out) / "index.md").string() << "\n";
+  out->write_text("index.md", md.str());
+  out->finish(j);  // results.json, the record, last
+  std::cerr << "experiment: wrote " << out->path("index.md") << " and " << out->path("results.json") << "\n";
 
   if (!failures.empty()) {
     std::string msg = "experiment '" + def.name + "': " + std::to_string(failures.size()) + " variant(s) failed:";
@@ -662,6 +659,7 @@ class ExperimentRunner {
   std::vector<Mask> bands;
   std::vector<std::string> failures;
   std::vector<Reference> refs;
+  std::optional<OutputDir> out;  // DIR and its record, results.json
 };
 
 void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_given) {

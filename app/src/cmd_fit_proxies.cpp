@@ -10,6 +10,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "output_dir.hpp"
 #include "softgi/io/gltf.hpp"
 #include "softgi/io/proxy_fit.hpp"
 #include "softgi/io/scene_file.hpp"
@@ -72,6 +73,7 @@ int pick_node(const scene::Scene& s, const std::string& name, const std::string&
 }
 
 void run_fit_proxies(const FitArgs& a) {
+  OutputFile out(a.output, "-o");  // before the mesh is loaded and fitted
   scene::Scene s;
   std::string source = a.mesh;
   if (has_gltf_extension(a.mesh)) {
@@ -123,7 +125,7 @@ void run_fit_proxies(const FitArgs& a) {
   io::average_surface_albedo(s, node, ps);
   std::cout << "albedo: surface average (" << std::setprecision(3) << ps.albedo.x << ", " << ps.albedo.y << ", " << ps.albedo.z
             << "), per sphere over its segment\n";
-  io::write_proxies_json(a.output, ps);
+  out.write([&](const std::string& path) { io::write_proxies_json(path, ps); });
   std::cout << "wrote " << a.output << "\n";
 }
 

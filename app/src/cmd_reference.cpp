@@ -24,6 +24,7 @@
 
 #include "commands.hpp"
 #include "frame_output.hpp"
+#include "output_dir.hpp"
 #include "softgi/io/image_io.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/metrics/image_metrics.hpp"
@@ -58,33 +59,6 @@ int parse_light(const std::string& s) {
   }
   if (n < 1 || n > sh::kMaxOrder) throw std::invalid_argument(bad);
   return n;
-}
-
-// Creates DIR and proves it writable before any rendering time is spent.
-void prepare_out_dir(const std::string& dir) {
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw std::runtime_error("--out '" + dir + "': cannot create directory: " + ec.message());
-  if (!fs::is_directory(dir)) throw std::runtime_error("--out '" + dir + "': not a directory");
-  const fs::path probe = fs::path(dir) / ".softgi_write_probe";
-  {
-    std::ofstream f(probe);
-    if (!f || !(f << "probe") || !f.flush()) throw std::runtime_error("--out '" + dir + "': directory is not writable");
-  }
-  fs::remove(probe, ec);
-}
-
-void write_json(const fs::path& path, const nlohmann::json& j) {
-  const fs::path tmp = path.string() + ".tmp";
-  {
-    std::ofstream f(tmp);
-    if (!f) throw std::runtime_error("cannot write '" + tmp.string() + "'");
-    f << j.dump(1) << "\n";
-    if (!f) throw std::runtime_error("cannot write '" + tmp.string() + "'");
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "' to '" + path.string() + "': " + ec.message());
 }
 
 // Progress on stderr: a redrawn bar on a terminal, one line per 10% otherwise (logs, ctest).
@@ -158,7 +132,7 @@ void run_reference(const ReferenceArgs& args) {
   opt.indirect = !args.no_indirect;
   opt.jitter = !args.no_jitter;
 
-  prepare_out_dir(args.out);
+  OutputDir out(args.out, "--out", "reference.json");  // before the scene and the render
   const scene::Scene sc = load_cli_scene("reference", args.scene.spec, args.scene.fit_proxies);
 
   struct PassRecord {
@@ -176,13 +150,12 @@ void run_reference(const ReferenceArgs& args) {
   const reference::ReferenceResult res = reference::render_reference(sc, opt, [&](double f) { bar.update(f); }, on_pass);
   const double cpu = cpu_seconds() - cpu0;
 
-  const fs::path dir(args.out);
-  io::write_exr((dir / "final.exr").string(), res.final_image);
-  io::write_exr((dir / "direct.exr").string(), res.direct);
-  io::write_exr((dir / "indirect.exr").string(), res.indirect);
-  io::write_png((dir / "final.png").string(), res.final_image, args.exposure);
+  out.write_exr("final.exr", res.final_image);
+  out.write_exr("direct.exr", res.direct);
+  out.write_exr("indirect.exr", res.indirect);
+  out.write_png("final.png", res.final_image, args.exposure);
 
-  nlohmann::json j;
+  Json j;
   j["scene"] = scene_json(sc, args.scene.spec);
   j["options"] = {{"spp", opt.spp},
                   {"blockers", args.blockers},
@@ -203,21 +176,19 @@ void run_reference(const ReferenceArgs& args) {
   j["cpu_seconds_per_sample"] = cpu / opt.spp;
   j["threads"] = std::thread::hardware_concurrency();
   j["mean"] = {{"final", channel_means(res.final_image)}, {"direct", channel_means(res.direct)}, {"indirect", channel_means(res.indirect)}};
-  j["files"] = {"final.exr", "direct.exr", "indirect.exr", "final.png"};
-  write_json(dir / "reference.json", j);
 
   if (args.convergence) {
     // Error of each power-of-two estimate against the final image. The estimate at k samples shares
     // its samples with the final one at N, so for an unbiased estimator E|X_k - X_N|^2 =
     // sigma^2 (1/k - 1/N) while E|X_k - truth|^2 = sigma^2 / k: *_vs_truth_estimate rescales by
     // 1 / (1 - k/N). The final image's own error is estimated as half that of the N/2 estimate.
-    nlohmann::json rows = nlohmann::json::array();
+    Json rows = Json::array();
     double half_mse = -1.0, half_rel = -1.0;
     for (const PassRecord& p : passes) {
       const metrics::Metrics m = metrics::compare(p.final_image, res.final_image);
-      nlohmann::json row = {{"spp", p.spp},          {"seconds", p.seconds},   {"rays", p.rays},
-                            {"rmse", m.rmse},        {"relmse", m.relmse},    {"psnr", std::isinf(m.psnr) ? nlohmann::json("inf") : nlohmann::json(m.psnr)},
-                            {"ssim", m.ssim}};
+      Json row = {{"spp", p.spp},   {"seconds", p.seconds}, {"rays", p.rays},
+                  {"rmse", m.rmse}, {"relmse", m.relmse},   {"psnr", std::isinf(m.psnr) ? Json("inf") : Json(m.psnr)},
+                  {"ssim", m.ssim}};
       if (p.spp < opt.spp) {
         const double scale = 1.0 / (1.0 - static_cast<double>(p.spp) / opt.spp);
         row["rmse_vs_truth_estimate"] = m.rmse * std::sqrt(scale);
@@ -229,7 +200,7 @@ void run_reference(const ReferenceArgs& args) {
       }
       rows.push_back(row);
     }
-    nlohmann::json c;
+    Json c;
     c["scene"] = sc.name;
     c["options"] = j["options"];
     c["reference_spp"] = opt.spp;
@@ -239,8 +210,9 @@ void run_reference(const ReferenceArgs& args) {
       c["final_rmse_estimate"] = std::sqrt(half_mse / 2.0);
       c["final_relmse_estimate"] = half_rel / 2.0;
     }
-    write_json(dir / "convergence.json", c);
+    out.write_json("convergence.json", c);
   }
+  out.finish(j);  // the record last: it lists what was written (outputs.written)
 
   std::cout << "softgi reference: " << sc.name << " " << res.final_image.width << "x" << res.final_image.height << ", " << opt.spp
             << " spp, " << std::fixed << std::setprecision(2) << res.seconds << " s (" << std::setprecision(4)

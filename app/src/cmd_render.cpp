@@ -1,7 +1,6 @@
 // `softgi render`: one frame of one technique on one scene; images and a JSON run record.
 #include <CLI/CLI.hpp>
 #include <cmath>
-#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -9,6 +8,7 @@
 
 #include "commands.hpp"
 #include "frame_output.hpp"
+#include "output_dir.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/technique.hpp"
@@ -37,13 +37,13 @@ void run_render(const RenderArgs& args) {
   std::unique_ptr<render::Technique> technique = render::create_technique(args.technique);
   check_distinct_params(args.params);
   const render::ParamSet params = technique_params(*technique, args.params);
+  OutputDir out(args.out, "--out", "record.json");  // before the device, the scene and the frame
   std::unique_ptr<render::Backend> backend_ptr = make_backend(backend_name, args.device, "render");  // device errors early
   render::Backend& backend = *backend_ptr;
   const scene::Scene sc = load_cli_scene("render", args.scene.spec, args.scene.fit_proxies);
   int w = args.width, h = args.height;
   render::resolve_resolution(sc.camera, w, h);
   render::make_pinhole_camera(sc, w, h, "render");  // camera and size errors before any work
-  make_output_dir(args.out);
 
   std::cerr << "render: " << technique->name() << " on '" << sc.name << "' at " << w << "x" << h << ", t = " << args.frame
             << " s\n";
@@ -60,8 +60,12 @@ void run_render(const RenderArgs& args) {
   Json images = Json::object();
   auto save = [&](const char* name, const Image& img) {
     if (img.empty()) return;
-    write_image_pair(args.out, name, img);
-    images[name] = {{"exr", std::string(name) + ".exr"}, {"png", std::string(name) + ".png"}};
+    // Only what was written: a file that failed is listed under outputs.missing instead.
+    const std::string base = name;
+    Json files = Json::object();
+    if (out.write_exr(base + ".exr", img)) files["exr"] = base + ".exr";
+    if (out.write_png(base + ".png", img)) files["png"] = base + ".png";
+    if (!files.empty()) images[name] = files;
   };
   save("final", r.final_image);
   save("direct", r.direct);
@@ -82,7 +86,7 @@ void run_render(const RenderArgs& args) {
   std::size_t vertices = 0;
   for (const auto& v : r.vertex_radiance) vertices += v.size();
   if (vertices) rec["vertex_results"] = {{"objects", r.vertex_radiance.size()}, {"vertices", vertices}};
-  write_json((std::filesystem::path(args.out) / "record.json").string(), rec);
+  out.finish(rec);
 
   std::cerr << "render: " << r.passes.size() << " passes in " << r.total_seconds * 1e3 << " ms (";
   for (std::size_t i = 0; i < r.passes.size(); ++i)

@@ -6,8 +6,6 @@
 #include <cmath>
 #include <ctime>
 #include <iostream>
-#include <filesystem>
-#include <fstream>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -15,7 +13,6 @@
 
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
-#include "softgi/io/image_io.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "commands.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -26,8 +23,6 @@
 #endif
 
 namespace softgi::app {
-
-namespace fs = std::filesystem;
 
 void register_builtin() {
   static std::once_flag once;
@@ -196,35 +191,6 @@ std::string utc_now() {
   std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
   return buf;
 }
-
-std::string write_image_pair(const std::string& dir, const std::string& name, const Image& img) {
-  io::write_exr((fs::path(dir) / (name + ".exr")).string(), img);
-  io::write_png((fs::path(dir) / (name + ".png")).string(), img);
-  return name + ".png";
-}
-
-void make_output_dir(const std::string& dir) {
-  if (dir.empty()) throw std::invalid_argument("--out: empty output directory");
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec || !fs::is_directory(dir))
-    throw std::runtime_error("--out: cannot create directory '" + dir + "'" + (ec ? ": " + ec.message() : ""));
-}
-
-void write_text(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << text;
-    f.flush();
-    if (!f) throw std::runtime_error("cannot write '" + path + "'");
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw std::runtime_error("cannot write '" + path + "': " + ec.message());
-}
-
-void write_json(const std::string& path, const Json& j) { write_text(path, j.dump(2) + "\n"); }
 
 std::string techniques_help() {
   register_builtin();

@@ -1,4 +1,5 @@
-// What `softgi render` and `softgi compare` share: image writing, and the JSON run record generated from a FrameResult and a ParamSet.
+// What `softgi render` and `softgi compare` share: backends, parameters, and the JSON run record generated
+// from a FrameResult and a ParamSet (files are written through OutputDir, output_dir.hpp).
 #pragma once
 
 #include <memory>
@@ -56,14 +57,6 @@ void print_frame_warnings(const std::string& command, const render::FrameResult&
 // "0.1.0" and an ISO 8601 UTC timestamp.
 std::string softgi_version();
 std::string utc_now();
-
-// Writes DIR/NAME.exr and a tone-mapped DIR/NAME.png; returns the PNG's file name.
-std::string write_image_pair(const std::string& dir, const std::string& name, const Image& img);
-// Creates the directory (and parents); errors name it.
-void make_output_dir(const std::string& dir);
-// Writes JSON, pretty-printed, through a temporary file; errors name the file.
-void write_json(const std::string& path, const Json& j);
-void write_text(const std::string& path, const std::string& text);
 
 // "--help" footer: every registered technique with its parameter descriptions.
 std::string techniques_help();
