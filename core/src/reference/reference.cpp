@@ -27,12 +27,12 @@
 #include <limits>
 #include <memory>
 #include <mutex>
-#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "../embree/embree_setup.hpp"
+#include "softgi/proxies/self_shadow.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/sh/sh.hpp"
 
@@ -301,39 +301,16 @@ class EnvLight {
 
 // ---------------------------------------------------------------------------------------------
 // Sphere blockers with the self-shadowing rules of paper 004 section 6.2 (Figure 5), applied per
-// receiver p with outward normal N (tangent plane T_p):
-//  - S contains p: eliminated if its centre is behind T_p, else shrunk (same centre) until tangent to T_p;
-//  - p outside S: eliminated if S is entirely behind T_p; unaltered if entirely in front; if S
-//    straddles T_p it is replaced by S' whose diameter joins q0 (the point of S farthest in front of
-//    T_p) and q1 (q0 projected onto T_p), its radius scaled by a = min(1, (|p - q1| - d) / d) with
-//    d = sqrt(r^2 - (r - |q1 - q0|)^2), the radius of the disc S cuts from T_p, keeping S' tangent to
-//    T_p at q1. The extracted text prints max(1; ...); a factor >= 1 would not "gradually scale up"
-//    from the boundary of S, so we read min (docs/reference.md).
-// Every adjusted sphere lies inside S, so S's box bounds it for the BVH.
+// receiver p with outward normal N inside the occlusion callback: the core's definition
+// (softgi/proxies/self_shadow.hpp), the one the accumulation techniques apply, under
+// ReferenceOptions::replacement_rule. Under every rule the reference accepts, the adjusted sphere
+// lies inside S (a sphere tangent to T_p at q1 of radius at most (h + r)/2, or S shrunk about its
+// centre), so S's box bounds it for the BVH.
 struct ProxyReceiver {
   RTCIntersectContext ctx;  // first member: Embree hands this pointer back to the callbacks
   vec3 p{0.0f}, n{0.0f, 1.0f, 0.0f};
+  proxies::ReplacementRule rule = proxies::kDefaultReplacementRule;
 };
-
-std::optional<scene::Sphere> adjust_blocker(const scene::Sphere& s, const vec3& p, const vec3& n) {
-  const float r = s.radius;
-  const vec3 cp = s.center - p;
-  const float h = glm::dot(cp, n);  // signed height of the centre above T_p
-  if (h <= -r) return std::nullopt;
-  if (glm::dot(cp, cp) < r * r) {
-    if (h <= 0.0f) return std::nullopt;
-    return scene::Sphere{s.center, h};
-  }
-  if (h >= r) return s;
-  const vec3 q1 = s.center - h * n;       // q0 = c + r N projected onto T_p
-  const float full = 0.5f * (r + h);      // radius of S' (|q0 - q1| = r + h)
-  const float d = std::sqrt(std::max(0.0f, r * r - h * h));
-  float a = 1.0f;
-  if (d > 1e-6f * r) a = std::clamp((glm::length(p - q1) - d) / d, 0.0f, 1.0f);
-  const float rr = a * full;
-  if (!(rr > 0.0f)) return std::nullopt;
-  return scene::Sphere{q1 + rr * n, rr};
-}
 
 struct ProxyGeometry {
   std::vector<scene::Sphere> spheres;
@@ -364,15 +341,17 @@ void proxy_bounds(const RTCBoundsFunctionArguments* args) {
 void proxy_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* g = static_cast<const ProxyGeometry*>(args->geometryUserPtr);
   const auto* rec = reinterpret_cast<const ProxyReceiver*>(args->context);
-  const std::optional<scene::Sphere> s = adjust_blocker(g->spheres[args->primID], rec->p, rec->n);
-  if (!s) return;
+  const scene::Sphere& b = g->spheres[args->primID];
+  const proxies::AdjustedSphere a = proxies::apply_replacement_rule(rec->rule, rec->p, rec->n, b.center, b.radius);
+  if (!(a.radius > 0.0f)) return;
+  const scene::Sphere s{a.center, a.radius};
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
     RTCRayN* ray = args->ray;
     vec3 o(RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i), RTCRayN_org_z(ray, args->N, i));
     vec3 d(RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i), RTCRayN_dir_z(ray, args->N, i));
     float& tfar = RTCRayN_tfar(ray, args->N, i);
-    if (sphere_blocks(*s, o, d, RTCRayN_tnear(ray, args->N, i), tfar)) tfar = -kInf;
+    if (sphere_blocks(s, o, d, RTCRayN_tnear(ray, args->N, i), tfar)) tfar = -kInf;
   }
 }
 
@@ -534,6 +513,7 @@ class Renderer {
     embree::init_context(rec.ctx);
     rec.p = h.p;
     rec.n = h.ns;
+    rec.rule = opt_.replacement_rule;
     RTCRay ray = embree::make_ray(offset_origin(h.p, h.ng), wi, 0.0f, tfar);
     rtcOccluded1(proxy_scene_ ? proxy_scene_.get() : geom_scene_.get(), &rec.ctx, &ray);
     return embree::unoccluded(ray);
@@ -638,6 +618,10 @@ void check_options(const ReferenceOptions& opt) {
     throw std::invalid_argument("reference: light SH order " + std::to_string(opt.light_sh_order) +
                                 " is outside 1.." + std::to_string(sh::kMaxOrder) + " (0 = full environment)");
   if (!std::isfinite(opt.time)) throw std::invalid_argument("reference: time is not finite");
+  // The printed reading can grow a sphere beyond S, outside the box the BVH was built from.
+  if (opt.replacement_rule == proxies::ReplacementRule::Printed)
+    throw std::invalid_argument("reference: replacement rule 'printed' is not supported (its spheres can outgrow the proxy "
+                                "spheres the BVH bounds; expected off, continuous or clamped)");
   if (opt.width < 0 || opt.height < 0 || opt.width > kMaxDimension || opt.height > kMaxDimension)
     throw std::invalid_argument("reference: image size " + std::to_string(opt.width) + "x" + std::to_string(opt.height) +
                                 " is outside 0.." + std::to_string(kMaxDimension) + " (0 = the camera's)");
