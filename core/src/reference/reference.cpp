@@ -34,6 +34,7 @@
 #include "../embree/embree_setup.hpp"
 #include "softgi/proxies/self_shadow.hpp"
 #include "softgi/render/camera.hpp"
+#include "softgi/render/vertex_image.hpp"
 #include "softgi/sh/sh.hpp"
 
 namespace softgi::reference {
@@ -395,7 +396,9 @@ class Renderer {
     Hit h;
     ++rays;
     if (!intersect(camera_.position, dir, h)) {
-      direct = env_.radiance(dir);  // the background: the light model in use
+      // The background every technique draws too (render/vertex_image.hpp): the environment as
+      // seen, whatever light model shades the surfaces.
+      direct = render::background_radiance(scene_.environment, dir);
       return;
     }
     direct = env_direct_two_sample(h, rng, rays) + lights_direct_all(h, rng, rays);
