@@ -395,27 +395,51 @@ TEST(ShexpSingleSphere, ExponentiatedVisibilityMatchesTheCapVisibility) {
   }
 }
 
-// The projected-visibility reference (4n + 8 quadrature bands, as the technique uses) of one sphere
-// is the cap visibility rotated to the sphere's direction; the binary edge costs the quadrature
-// up to 0.036 in reconstruction at n = 4 (measured over these caps).
-constexpr double kProjectedCapTol = 0.05;
+// The projected-visibility reference (exp=projected: 4n + 8 quadrature bands, as the technique uses)
+// of one sphere is the cap visibility rotated to the sphere's direction, up to what the binary cap
+// edge costs the quadrature. Measured here over every shading order, caps of 1 to 60 degrees and
+// three directions: the worst reconstruction error (max over directions of |g~ - exact~|,
+// sh::reconstruction_error) is 0.073 (order 5; 0.071 at order 4, printed per order), the figure
+// techniques/shexp/shexp.cpp states; the tolerance leaves 25% above it, so that a coarser
+// quadrature (n + 2 bands: 0.28 to 0.56) fails.
+constexpr double kProjectedCapTol = 0.09;
 
 TEST(ShexpSingleSphere, ProjectedVisibilityIsTheCapVisibility) {
-  const int order = 4, n2 = 16;
   ReceiverSoA rec;
   rec.resize(1);
   rec.set(0, glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
-  for (double deg : {5.0, 20.0, 40.0}) {
-    const glm::dvec3 dir = glm::normalize(glm::dvec3(0.3, 1.0, 0.4));
-    BlockerList b;
-    b.order = order;
-    b.push(glm::vec3(dir * 2.0), static_cast<float>(2.0 * std::sin(deg * kDeg)), nullptr);
-    std::vector<float> g(n2);
-    project_visibility(order, 4 * order + 8, ReplacementRule::Continuous, rec, 0, 1, b, g.data());
-    std::vector<double> vis = sh::cap_visibility_zh(order, deg * kDeg), expect(n2), got(g.begin(), g.end());
-    sh::zh_rotate(order, vis.data(), sh::Vec3<double>{dir.x, dir.y, dir.z}, expect.data());
-    EXPECT_LT(sh::reconstruction_error(order, got.data(), expect.data()), kProjectedCapTol) << deg;
+  const glm::dvec3 dirs[] = {glm::normalize(glm::dvec3(0.3, 1.0, 0.4)), glm::normalize(glm::dvec3(-0.8, 0.5, 0.1)),
+                             glm::dvec3(0.0, 1.0, 0.0)};
+  double worst_all = 0.0;
+  for (int order = kMinOrder; order <= kMaxOrder; ++order) {
+    const int n2 = order * order, bands = 4 * order + 8;
+    double worst = 0.0, worst_deg = 0.0, worst_l2 = 0.0;
+    for (double deg : {1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 16.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0})
+      for (const glm::dvec3& dir : dirs) {
+        BlockerList b;
+        b.order = order;
+        b.push(glm::vec3(dir * 2.0), static_cast<float>(2.0 * std::sin(deg * kDeg)), nullptr);
+        std::vector<float> g(n2);
+        project_visibility(order, bands, ReplacementRule::Off, rec, 0, 1, b, g.data());
+        std::vector<double> vis = sh::cap_visibility_zh(order, deg * kDeg), expect(n2), got(g.begin(), g.end());
+        sh::zh_rotate(order, vis.data(), sh::Vec3<double>{dir.x, dir.y, dir.z}, expect.data());
+        const double err = sh::reconstruction_error(order, got.data(), expect.data());
+        double l2 = 0.0;
+        for (int k = 0; k < n2; ++k) l2 += (got[k] - expect[k]) * (got[k] - expect[k]);
+        worst_l2 = std::max(worst_l2, std::sqrt(l2));
+        EXPECT_LT(err, kProjectedCapTol) << "order " << order << " cap " << deg << " deg";
+        if (err > worst) {
+          worst = err;
+          worst_deg = deg;
+        }
+      }
+    std::printf("[measured] projected visibility, order %d, %d bands: worst reconstruction error %.4f (cap %.0f deg), "
+                "worst coefficient L2 error %.4f\n",
+                order, bands, worst, worst_deg, worst_l2);
+    worst_all = std::max(worst_all, worst);
   }
+  std::printf("[measured] projected visibility (4n + 8 bands), orders %d..%d: worst reconstruction error %.4f\n", kMinOrder,
+              kMaxOrder, worst_all);
 }
 
 // --- log space vs product space (section 3) -----------------------------------------------------
