@@ -2,7 +2,8 @@
 // through each pixel centre of the shared pinhole camera (softgi/render/camera.hpp), so that pixel
 // (x, y) sees what the reference renderer's un-jittered sample of (x, y) sees; and of the shared
 // "receiver_gbuffer" pass (paper 000 section 4), the same trace through every s-th display point.
-// One of the few translation units that include Embree.
+// One of the two translation units that include Embree (with the reference renderer; the set-up they
+// share, rays, geometry and the surface a hit stands for, is core/src/embree/embree_setup.hpp).
 //
 // What each plane holds (softgi/render/gbuffer.hpp):
 //   position    w p0 + b1 p1 + b2 p2 of the visible triangle (world space), so that the barycentrics
@@ -31,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "../../core/src/embree/embree_setup.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -43,25 +45,6 @@ namespace {
 
 using glm::vec3;
 constexpr int kTile = 16;  // tile edge in pixels: coherent rays per task, enough tasks for both cores
-constexpr float kInf = std::numeric_limits<float>::infinity();
-
-// Embree reports errors through a callback; the pass turns the first one into an exception.
-// The memory monitor tracks what the device holds (vertex/index copies and the BVHs).
-struct DeviceState {
-  std::mutex m;
-  std::string error;
-  std::atomic<long long> bytes{0};
-};
-void on_error(void* user, RTCError code, const char* str) {
-  auto* s = static_cast<DeviceState*>(user);
-  std::lock_guard<std::mutex> lock(s->m);
-  if (s->error.empty()) s->error = "Embree error " + std::to_string(static_cast<int>(code)) + ": " + (str ? str : "");
-}
-bool on_memory(void* user, ssize_t bytes, bool /*post*/) {
-  auto* s = static_cast<DeviceState*>(user);
-  s->bytes += static_cast<long long>(bytes);
-  return true;
-}
 
 // The Embree scene of the posed objects, kept from frame to frame: when the objects' topology (meshes,
 // vertex and triangle counts, indices) is unchanged, only the vertex buffers that moved are
@@ -70,18 +53,9 @@ class EmbreeScene {
  public:
   enum class Update { Rebuilt, Refit, Reused };
 
-  EmbreeScene() {
-    device_ = rtcNewDevice(nullptr);
-    if (!device_)
-      throw std::runtime_error("gbuffer: cannot create the Embree device (error " +
-                               std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
-    rtcSetDeviceErrorFunction(device_, on_error, &state_);
-    rtcSetDeviceMemoryMonitorFunction(device_, on_memory, &state_);
-  }
-  ~EmbreeScene() {
-    clear();
-    if (device_) rtcReleaseDevice(device_);
-  }
+  // The memory monitor tracks what the device holds (vertex/index copies and the BVHs).
+  EmbreeScene() : device_(embree::new_device(state_, "gbuffer", true)) {}
+  ~EmbreeScene() { clear(); }
   EmbreeScene(const EmbreeScene&) = delete;
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
@@ -99,16 +73,12 @@ class EmbreeScene {
       return u;
     } catch (...) {
       clear();
-      std::lock_guard<std::mutex> lock(state_.m);
-      state_.error.clear();
+      state_.clear_error();
       throw;
     }
   }
 
-  void check(const char* what) {
-    std::lock_guard<std::mutex> lock(state_.m);
-    if (!state_.error.empty()) throw std::runtime_error(std::string("gbuffer: ") + what + ": " + state_.error);
-  }
+  void check(const char* what) { state_.check("gbuffer", what); }
   RTCScene scene() const { return scene_; }
   int object_of(unsigned geom_id) const { return geom_object_[geom_id]; }
   long long bytes() const { return state_.bytes.load(); }
@@ -125,10 +95,6 @@ class EmbreeScene {
     std::size_t vertices = 0, triangles = 0;
   };
 
-  static bool traced(const scene::PosedObject& o) {
-    return o.source && !o.source->triangles.empty() && !o.positions.empty();
-  }
-
   void clear() {
     for (auto& o : objects_) rtcReleaseGeometry(o.geom);
     objects_.clear();
@@ -143,7 +109,7 @@ class EmbreeScene {
     std::size_t k = 0;
     for (std::size_t oi = 0; oi < posed.objects.size(); ++oi) {
       const scene::PosedObject& o = posed.objects[oi];
-      if (!traced(o)) continue;
+      if (!embree::traced(o)) continue;
       if (k >= objects_.size()) return false;
       const Object& c = objects_[k++];
       if (c.index != static_cast<int>(oi) || c.vertices != o.positions.size() || c.triangles != o.source->triangles.size())
@@ -155,18 +121,6 @@ class EmbreeScene {
     return k == objects_.size();
   }
 
-  static void copy_vertices(const scene::PosedObject& o, float* vb) {
-    for (std::size_t v = 0; v < o.positions.size(); ++v) {
-      const vec3& p = o.positions[v];
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-        throw std::invalid_argument("gbuffer: mesh '" + o.source->name + "': posed vertex " + std::to_string(v) +
-                                    " is not finite");
-      vb[3 * v] = p.x;
-      vb[3 * v + 1] = p.y;
-      vb[3 * v + 2] = p.z;
-    }
-  }
-
   Update refit(const scene::PosedScene& posed) {
     bool moved = false;
     for (const Object& c : objects_) {
@@ -174,7 +128,7 @@ class EmbreeScene {
       auto* vb = static_cast<float*>(rtcGetGeometryBufferData(c.geom, RTC_BUFFER_TYPE_VERTEX, 0));
       static_assert(sizeof(vec3) == 3 * sizeof(float));
       if (std::memcmp(vb, o.positions.data(), c.vertices * sizeof(vec3)) == 0) continue;
-      copy_vertices(o, vb);
+      embree::copy_vertices(o, vb, "gbuffer");
       rtcUpdateGeometryBuffer(c.geom, RTC_BUFFER_TYPE_VERTEX, 0);
       rtcCommitGeometry(c.geom);
       moved = true;
@@ -187,52 +141,33 @@ class EmbreeScene {
 
   void rebuild(const scene::PosedScene& posed) {
     clear();
-    scene_ = rtcNewScene(device_);
+    scene_ = rtcNewScene(device_.get());
     // Dynamic: one BVH per object under a top-level tree, so a moving object refits its own tree
     // only. Low quality (Embree's build for dynamic scenes): on `crowd` (115k triangles) it built
     // about 15% faster than medium quality, with the same trace time for one ray per pixel.
     rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_DYNAMIC);
     rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_LOW);
     for (std::size_t oi = 0; oi < posed.objects.size(); ++oi)
-      if (traced(posed.objects[oi])) add_object(posed.objects[oi], static_cast<int>(oi));
+      if (embree::traced(posed.objects[oi])) add_object(posed.objects[oi], static_cast<int>(oi));
     rtcCommitScene(scene_);
   }
 
   void add_object(const scene::PosedObject& o, int index) {
-    const auto& tris = o.source->triangles;
     Object c;
     c.index = index;
     c.vertices = o.positions.size();
-    c.triangles = tris.size();
-    c.geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-    objects_.push_back(c);  // owned from here on: clear() releases it on any error below
-    rtcSetGeometryBuildQuality(c.geom, RTC_BUILD_QUALITY_REFIT);
-    auto* vb = static_cast<float*>(
-        rtcSetNewGeometryBuffer(c.geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), c.vertices));
-    auto* ib = static_cast<unsigned*>(
-        rtcSetNewGeometryBuffer(c.geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), c.triangles));
-    if (!vb || !ib) {
-      check("allocating geometry buffers");
-      throw std::runtime_error("gbuffer: cannot allocate Embree buffers for mesh '" + o.source->name + "'");
-    }
-    copy_vertices(o, vb);
-    for (std::size_t t = 0; t < tris.size(); ++t)
-      for (int k = 0; k < 3; ++k) {
-        if (tris[t][k] >= o.positions.size())
-          throw std::invalid_argument("gbuffer: mesh '" + o.source->name + "': triangle " + std::to_string(t) +
-                                      " has vertex index " + std::to_string(tris[t][k]) + " >= " +
-                                      std::to_string(o.positions.size()));
-        ib[3 * t + k] = tris[t][k];
-      }
-    rtcCommitGeometry(c.geom);
+    c.triangles = o.source->triangles.size();
+    // Refit quality: moving objects refit their own BVH (refit()).
+    c.geom = embree::new_triangle_geometry(device_.get(), state_, o, "gbuffer", RTC_BUILD_QUALITY_REFIT).release();
+    objects_.push_back(c);  // owned from here on: clear() releases it
     const unsigned id = rtcAttachGeometry(scene_, c.geom);
     if (geom_object_.size() <= id) geom_object_.resize(id + 1, -1);
     geom_object_[id] = index;
-    triangles_ += static_cast<long long>(tris.size());
+    triangles_ += static_cast<long long>(c.triangles);
   }
 
-  DeviceState state_;
-  RTCDevice device_ = nullptr;
+  embree::DeviceState state_;     // outlives the device that reports to it
+  embree::DeviceHandle device_;   // released after clear() has released the scene and geometries
   RTCScene scene_ = nullptr;
   std::vector<Object> objects_;
   std::vector<int> geom_object_;
@@ -257,25 +192,8 @@ EmbreeScene& cached_scene() {
 // renderer's intersect(), so both see the same surface).
 void shade_hit(const scene::Scene& sc, const scene::PosedObject& obj, int object_index, unsigned prim, float u, float v,
                const vec3& dir, const render::PinholeCamera& cam, render::GBuffer& gb, std::size_t i) {
-  static const scene::Material kDefault{};
-  const scene::Mesh& mesh = *obj.source;
-  const glm::uvec3 tri = mesh.triangles[prim];
-  const float w = 1.0f - u - v;
-  const vec3 &p0 = obj.positions[tri.x], &p1 = obj.positions[tri.y], &p2 = obj.positions[tri.z];
-  const vec3 p = w * p0 + u * p1 + v * p2;
-  vec3 ng = glm::cross(p1 - p0, p2 - p0);
-  const float len = glm::length(ng);
-  ng = len > 0.0f ? ng / len : -dir;
-  if (glm::dot(ng, dir) > 0.0f) ng = -ng;
-  vec3 ns = ng;
-  if (obj.normals.size() == obj.positions.size()) {
-    vec3 n = w * obj.normals[tri.x] + u * obj.normals[tri.y] + v * obj.normals[tri.z];
-    const float nl = glm::length(n);
-    if (nl > 1e-12f && std::isfinite(nl)) {
-      n /= nl;
-      ns = glm::dot(n, ng) < 0.0f ? -n : n;
-    }
-  }
+  const embree::Surface sf = embree::surface_at(obj, prim, u, v, dir);
+  const vec3 p = sf.p, ns = sf.ns;
   const vec3 albedo = scene::surface_albedo(sc, obj, prim, u, v);
 
   gb.position[i] = p;
@@ -317,8 +235,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
   tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1), [&](const tbb::blocked_range<int>& range) {
     long long local_hits = 0;
     RTCIntersectContext rc;
-    rtcInitIntersectContext(&rc);
-    rc.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // neighbouring camera rays
+    embree::init_context(rc, true);  // neighbouring camera rays
     std::array<RTCRayHit, kTile * kTile> rays;
     std::array<std::size_t, kTile * kTile> pixel;
     for (int t = range.begin(); t != range.end(); ++t) {
@@ -328,23 +245,8 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
         for (int x = tx; x < std::min(W, tx + kTile); ++x) {
           // (x + 0.5) * 1 is exact in float, so s = 1 traces exactly pixel_center_direction(x, y).
           const vec3 dir = cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs);
-          RTCRayHit& rh = rays[m];
-          pixel[m++] = static_cast<std::size_t>(y) * W + x;
-          rh.ray.org_x = cam.position.x;
-          rh.ray.org_y = cam.position.y;
-          rh.ray.org_z = cam.position.z;
-          rh.ray.dir_x = dir.x;
-          rh.ray.dir_y = dir.y;
-          rh.ray.dir_z = dir.z;
-          rh.ray.tnear = 0.0f;
-          rh.ray.tfar = kInf;
-          rh.ray.time = 0.0f;
-          rh.ray.mask = 0xFFFFFFFFu;
-          rh.ray.id = 0;
-          rh.ray.flags = 0;
-          rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-          rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-          rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+          pixel[m] = static_cast<std::size_t>(y) * W + x;
+          rays[m++] = embree::make_ray_hit(cam.position, dir);
         }
       // A tile's rays as one coherent stream: Embree packetises them (measured about 15% faster
       // than one rtcIntersect1 per pixel on `spheres` at 512x512).
@@ -353,7 +255,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
         const RTCRayHit& rh = rays[k];
         const vec3 dir(rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z);
         const std::size_t i = pixel[k];
-        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+        if (!embree::is_hit(rh)) {
           gb.view_dir[i] = dir;
           continue;
         }

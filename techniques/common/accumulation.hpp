@@ -17,6 +17,7 @@
 
 #include <glm/glm.hpp>
 
+#include "softgi/proxies/self_shadow.hpp"
 #include "softgi/scene/scene.hpp"
 #include "softgi/sh/exp_log.hpp"
 #include "softgi/sh/sh.hpp"
@@ -33,40 +34,16 @@ inline constexpr int kMaxOrder = 6;
 inline constexpr int kMaxAccOrder = 8;  // accumulation may run above the shading order (Figure 7e)
 
 // ---------------------------------------------------------------------------------------------
-// Self-shadowing replacement rules (paper 004 section 6.2, Figure 5), per receiver p with outward
-// normal N and tangent plane T_p, for a blocker S = (P, r) with signed centre height h = (P - p).N:
-//  - p inside S: S is eliminated if its centre is behind T_p (h <= 0), else shrunk about its centre
-//    until tangent to T_p, i.e. radius h. That sphere touches T_p at q1 = P - h N.
-//  - p outside S: eliminated if S lies entirely behind T_p (h <= -r); unaltered if entirely in front
-//    (h >= r); otherwise replaced by S', the sphere with diameter q0 q1, where q0 = P + r N is the
-//    point of S farthest in front of T_p and q1 = q0 projected onto T_p = P - h N: radius (h + r)/2,
-//    tangent to T_p at q1.
-//  - Every replacement is therefore a sphere tangent to T_p at q1; only its radius rho differs. The
-//    paper scales S' "gradually" with p's distance to S along T_p, measured in units of
-//    d = sqrt(r^2 - (r - |q1 - q0|)^2) = sqrt(r^2 - h^2), the radius of the disc S cuts from T_p.
-//
-// The extracted text prints a = max(1, (|p - q1| - d)/d). That factor equals 1 for every p within d
-// of S and grows without bound beyond, so it neither removes the jump at the boundary of S (inside:
-// radius max(h, 0); just outside: (h + r)/2) nor keeps a distant sphere's angular size finite
-// (a (h + r)/2 grows like |p - q1|). Three readings are implemented:
-//  - Continuous (default): t = clamp((|p - q1| - d)/d, 0, 1); rho = max(h, 0) + t ((h + r)/2 - max(h, 0)).
-//    At the boundary of S (t = 0) it equals the inside rule for both signs of h, at distance >= d it
-//    is the paper's S', and every case is continuous in p (tests/shexp: ReplacementRules.*).
-//  - Clamped: rho = t (h + r)/2 outside, the inside rule inside (a = min(1, .), the reading of
-//    core/src/reference: continuous when the centre is behind T_p, a jump when it is in front).
-//  - Printed: rho = max(1, (|p - q1| - d)/d) (h + r)/2 outside, as extracted (a jump at the boundary).
-//  - Off: spheres unaltered (every receiver inside a sphere is fully shadowed).
-enum class ReplacementRule { Off, Continuous, Clamped, Printed };
+// Self-shadowing replacement rules (paper 004 section 6.2, Figure 5): the core's one definition,
+// shared with the reference renderer's proxy blockers (softgi/proxies/self_shadow.hpp has the rules
+// and the reading of the paper's scale factor). The vector kernels (kernel_body.hpp) and the GLSL
+// port (shaders/include/replacement_rule.glsl) implement the same rules and are tested against
+// apply_replacement_rule (tests/shexp: ShexpKernel.*, ShexpRules.*).
+using proxies::AdjustedSphere;
+using proxies::apply_replacement_rule;
+using proxies::ReplacementRule;
 const char* to_string(ReplacementRule r);
 ReplacementRule parse_replacement_rule(const std::string& s);  // throws naming the value
-
-struct AdjustedSphere {
-  glm::vec3 center{0.0f};
-  float radius = 0.0f;  // 0: eliminated
-};
-// Scalar reference of the rules above.
-AdjustedSphere apply_replacement_rule(ReplacementRule rule, const glm::vec3& p, const glm::vec3& n,
-                                      const glm::vec3& center, float radius);
 
 // ---------------------------------------------------------------------------------------------
 // A ZH table in float for the hot loops: per theta sample k (uniform in [0, pi/2]), the n values

@@ -39,36 +39,6 @@ ReplacementRule parse_replacement_rule(const std::string& s) {
   throw std::invalid_argument("unknown replacement rule '" + s + "' (expected off, continuous, clamped or printed)");
 }
 
-AdjustedSphere apply_replacement_rule(ReplacementRule rule, const glm::vec3& p, const glm::vec3& n, const glm::vec3& center,
-                                      float radius) {
-  if (rule == ReplacementRule::Off) return {center, radius};
-  const float r = radius;
-  const glm::vec3 cp = center - p;
-  const float h = glm::dot(cp, n);
-  if (h >= r) return {center, r};  // entirely in front (p is then outside S)
-  const bool inside = glm::dot(cp, cp) < r * r;
-  const glm::vec3 q1 = center - h * n;
-  const float rin = std::max(h, 0.0f);                 // inside: shrunk to tangency, or eliminated
-  const float rout = std::max(0.5f * (h + r), 0.0f);   // S' with diameter q0 q1; 0 when entirely behind
-  const float d = std::sqrt(std::max(0.0f, r * r - h * h));
-  const float dmin = 1e-6f * r;
-  const float ratio = (glm::length(p - q1) - d) / std::max(d, dmin);
-  float rho = 0.0f;
-  switch (rule) {
-    case ReplacementRule::Continuous: {
-      const float t = inside ? 0.0f : std::clamp(ratio, 0.0f, 1.0f);
-      rho = rin + t * (rout - rin);
-      break;
-    }
-    case ReplacementRule::Clamped: rho = inside ? rin : std::clamp(ratio, 0.0f, 1.0f) * rout; break;
-    case ReplacementRule::Printed: rho = inside ? rin : (d > dmin ? std::max(1.0f, ratio) : 1.0f) * rout; break;
-    case ReplacementRule::Off: break;
-  }
-  // A sphere that rounding shrank below 1e-6 of its radius is eliminated (the kernel does the same).
-  if (!(rho > 1e-6f * r)) rho = 0.0f;
-  return {q1 + rho * n, rho};
-}
-
 // ---------------------------------------------------------------------------------------------
 
 ZhTable make_zh_table(const sh::Table1D& table, int order, bool zero_first_row) {

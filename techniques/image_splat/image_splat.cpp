@@ -24,6 +24,7 @@
 #include "image_splat_internal.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/gbuffer.hpp"
+#include "softgi/render/vertex_image.hpp"
 
 namespace softgi::techniques::image_splat {
 
@@ -553,17 +554,6 @@ void pass_robust(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const RobustMisses>>(kRobust, rm);
 }
 
-// The background of the direct image: the SH light the technique shades with, seen along the ray
-// (the vertex_image.hpp convention); the indirect image's background is black.
-glm::vec3 background(const DirectShader& d, const glm::vec3& dir) {
-  std::array<float, sh::kMaxCoeffs> y{};
-  sh::eval_basis(d.order, sh::Vec3<float>{dir.x, dir.y, dir.z}, y.data());
-  const int n2 = d.order * d.order;
-  glm::vec3 v(0.0f);
-  for (int i = 0; i < n2; ++i) v += y[i] * glm::vec3(d.L[i], d.L[static_cast<std::size_t>(n2) + i], d.L[2 * static_cast<std::size_t>(n2) + i]);
-  return glm::max(v, glm::vec3(0.0f));
-}
-
 }  // namespace
 
 common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
@@ -642,7 +632,9 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   }
   Image img(fine.width, fine.height);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
-    for (std::size_t i = br.begin(); i != br.end(); ++i) img.rgb[i] = fine.hit(i) ? e[i] : background(shader, fine.view_dir[i]);
+    // Background: the environment as seen, as the reference draws it (render/vertex_image.hpp).
+    for (std::size_t i = br.begin(); i != br.end(); ++i)
+      img.rgb[i] = fine.hit(i) ? e[i] : render::background_radiance(ctx.scene.environment, fine.view_dir[i]);
   });
 
   // Section 4.2's cheap fallback: misses take the bilinear interpolation of the shaded coarse receivers.

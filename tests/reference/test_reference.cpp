@@ -25,6 +25,7 @@ using softgi::reference::ReferenceOptions;
 using softgi::reference::ReferenceResult;
 using softgi::reference::render_reference;
 namespace scene = softgi::scene;
+namespace proxies = softgi::proxies;
 using glm::vec3;
 
 constexpr double kPi = 3.14159265358979323846;
@@ -412,10 +413,22 @@ struct RuleCase {
   vec3 center;   // proxy sphere (world), radius 1
   float px;      // receiver at (px, 0, 0) on the plane y = 0
   double expected;
+  proxies::ReplacementRule rule = proxies::kDefaultReplacementRule;
 };
 double tangent_sphere_visibility(vec3 c, float rho, vec3 p) {
   double D = glm::length(c - p);
   return 1.0 - std::pow(rho / D, 3.0);
+}
+// Centre h = 1/2 above the plane, receiver outside at px = 1.3: d = sqrt(1 - h^2), t = (px - d)/d
+// = 0.50 lies inside the ramp of the scale factor, where the readings of softgi/proxies/self_shadow.hpp
+// differ: continuous blends from the shrunk sphere (radius h) to S' (radius (h + r)/2), clamped
+// scales S' alone.
+constexpr float kRampH = 0.5f, kRampPx = 1.3f;
+double ramp_visibility(proxies::ReplacementRule rule) {
+  const float d = std::sqrt(1.0f - kRampH * kRampH), t = (kRampPx - d) / d;
+  const float full = 0.5f * (kRampH + 1.0f);
+  const float rho = rule == proxies::ReplacementRule::Continuous ? kRampH + t * (full - kRampH) : t * full;
+  return tangent_sphere_visibility(vec3(0.0f, rho, 0.0f), rho, vec3(kRampPx, 0.0f, 0.0f));
 }
 class ProxyRule : public ::testing::TestWithParam<RuleCase> {};
 TEST_P(ProxyRule, ReceiverSeesTheAdjustedSphere) {
@@ -437,6 +450,7 @@ TEST_P(ProxyRule, ReceiverSeesTheAdjustedSphere) {
   opt.indirect = false;
   opt.jitter = false;  // every sample at the receiver point
   opt.blockers = ReferenceOptions::Blockers::Proxies;
+  opt.replacement_rule = rc.rule;
   ReferenceResult res = render_reference(s, opt);
   Stats st = channel_stats(res.direct, 0);
   // With jitter off all pixels see (nearly) the same point: the per-pixel spread still measures the
@@ -463,7 +477,12 @@ INSTANTIATE_TEST_SUITE_P(
         RuleCase{"behind", vec3(0.0f, -1.5f, 0.0f), 0.0f, 1.0},
         // Entirely in front and touching: unaltered.
         RuleCase{"in_front", vec3(0.0f, 1.0f, 0.0f), 1.0f,
-                 tangent_sphere_visibility(vec3(0.0f, 1.0f, 0.0f), 1.0f, vec3(1.0f, 0.0f, 0.0f))}),
+                 tangent_sphere_visibility(vec3(0.0f, 1.0f, 0.0f), 1.0f, vec3(1.0f, 0.0f, 0.0f))},
+        // Centre in front, receiver on the ramp of the scale factor: each reading sees its own sphere
+        // (visibility 0.919 continuous, 0.979 clamped; the default is continuous).
+        RuleCase{"ramp_centre_in_front", vec3(0.0f, kRampH, 0.0f), kRampPx, ramp_visibility(proxies::ReplacementRule::Continuous)},
+        RuleCase{"ramp_centre_in_front_clamped", vec3(0.0f, kRampH, 0.0f), kRampPx,
+                 ramp_visibility(proxies::ReplacementRule::Clamped), proxies::ReplacementRule::Clamped}),
     [](const auto& tp) { return std::string(tp.param.name); });
 
 // ---- glossy receivers --------------------------------------------------------------------------
@@ -647,6 +666,9 @@ TEST(Reference, RejectsBadOptions) {
   o = {};
   o.width = 100000;
   expect_throw(o, "size");
+  o = {};
+  o.replacement_rule = proxies::ReplacementRule::Printed;
+  expect_throw(o, "replacement rule");
   scene::Scene no_proxies = s;
   no_proxies.proxies.clear();
   o = {};

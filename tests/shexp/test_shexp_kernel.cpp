@@ -91,7 +91,32 @@ double shade(int order, const float* g, const glm::vec3& n) {
   return v;
 }
 
+// The vector kernels are tested on every instruction set this CPU runs. One it lacks is a skip that
+// names it, so that a run on a machine without AVX2 or AVX-512 says so in its output instead of
+// passing with that kernel untested; the scalar path runs everywhere.
+class IsaTest : public ::testing::TestWithParam<KernelIsa> {
+ protected:
+  void SetUp() override {
+    if (!kernel_isa_supported(GetParam()))
+      GTEST_SKIP() << "this CPU lacks " << isa_name(GetParam()) << ": the " << to_string(GetParam())
+                   << " kernels are not tested on it";
+  }
+  // What kernel_isa_supported asks the CPU for.
+  static const char* isa_name(KernelIsa isa) {
+    switch (isa) {
+      case KernelIsa::Avx512: return "AVX-512F (with AVX2 and FMA)";
+      case KernelIsa::Avx2: return "AVX2 and FMA";
+      case KernelIsa::Scalar: break;
+    }
+    return "nothing";
+  }
+};
+std::string isa_param_name(const ::testing::TestParamInfo<KernelIsa>& info) { return to_string(info.param); }
+const auto kEveryIsa = ::testing::Values(KernelIsa::Scalar, KernelIsa::Avx2, KernelIsa::Avx512);
+
 }  // namespace
+
+TEST(ShexpKernel, ScalarPathRunsOnEveryCpu) { EXPECT_TRUE(kernel_isa_supported(KernelIsa::Scalar)); }
 
 // --- the kernel ----------------------------------------------------------------------------------
 
@@ -113,7 +138,9 @@ RandomSetup coherent_setup(int order, std::size_t receivers, int blockers, unsig
   return s;
 }
 
-TEST(ShexpKernel, EveryInstructionSetMatchesTheScalarFormulas) {
+class ShexpKernel : public IsaTest {};
+TEST_P(ShexpKernel, MatchesTheScalarFormulas) {
+  const KernelIsa isa = GetParam();
   for (int order = 3; order <= kMaxAccOrder; ++order) {
     for (int resolution : {256, 12}) {  // 12 rows: too few for the windowed lookup
       sh::TableOptions o;
@@ -130,20 +157,18 @@ TEST(ShexpKernel, EveryInstructionSetMatchesTheScalarFormulas) {
           double scale = 0.0;
           for (float v : ref) scale = std::max(scale, static_cast<double>(std::abs(v)));
           ASSERT_GT(scale, coherent ? 0.1 : 1.0);
-          for (KernelIsa isa : {KernelIsa::Scalar, KernelIsa::Avx2, KernelIsa::Avx512}) {
-            if (!kernel_isa_supported(isa)) continue;
-            std::vector<float> out(ref.size(), -7.0f);
-            accumulate_log(isa, t, rule, s.rec, 0, s.rec.size(), s.blockers, out.data());
-            double err = 0.0;
-            for (std::size_t k = 0; k < ref.size(); ++k) err = std::max(err, static_cast<double>(std::abs(out[k] - ref[k])));
-            EXPECT_LT(err, kKernelRelTol * scale) << "order " << order << " rule " << to_string(rule) << " isa "
-                                                   << to_string(isa) << " resolution " << resolution << " coherent " << coherent;
-          }
+          std::vector<float> out(ref.size(), -7.0f);
+          accumulate_log(isa, t, rule, s.rec, 0, s.rec.size(), s.blockers, out.data());
+          double err = 0.0;
+          for (std::size_t k = 0; k < ref.size(); ++k) err = std::max(err, static_cast<double>(std::abs(out[k] - ref[k])));
+          EXPECT_LT(err, kKernelRelTol * scale) << "order " << order << " rule " << to_string(rule) << " isa "
+                                                 << to_string(isa) << " resolution " << resolution << " coherent " << coherent;
         }
       }
     }
   }
 }
+INSTANTIATE_TEST_SUITE_P(Isa, ShexpKernel, kEveryIsa, isa_param_name);
 
 TEST(ShexpKernel, SubRangesWriteOnlyTheirReceivers) {
   const int order = 4;
@@ -191,7 +216,9 @@ TEST(ShexpKernel, FlopCountGrowsWithOrderAndRules) {
 // product sums differs (fused multiply-adds, four partial sums): 1e-5 of the largest coefficient.
 constexpr double kBatchRelTol = 1e-5;
 
-TEST(ShexpBatch, ExponentialsMatchShExpPerReceiver) {
+class ShexpBatch : public IsaTest {};
+TEST_P(ShexpBatch, ExponentialsMatchShExpPerReceiver) {
+  const KernelIsa isa = GetParam();
   for (int order : {3, 4, 6, 8}) {
     sh::TableOptions o;
     o.order = order;
@@ -220,25 +247,22 @@ TEST(ShexpBatch, ExponentialsMatchShExpPerReceiver) {
       be.degree = degree;
       be.tables = &tables;
       be.plan = &ProductPlan::get(order);
-      for (KernelIsa isa : {KernelIsa::Scalar, KernelIsa::Avx2, KernelIsa::Avx512}) {
-        if (!kernel_isa_supported(isa)) continue;
-        std::vector<float> got(f.size(), -1.0f);
-        sh::ExpStats st;
-        exp_batch(isa, be, f.data(), got.data(), in.size(), 0, st);
-        double err = 0.0, scale = 0.0;
-        for (std::size_t k = 0; k < f.size(); ++k) {
-          // The plain series cancels catastrophically (terms far above the result) beyond a few
-          // caps (docs/sh.md): there the rounding of either side is the whole answer; compare it
-          // where it converges.
-          if (method == sh::ExpMethod::PS && in[k / n2].caps > 5) continue;
-          err = std::max(err, static_cast<double>(std::abs(got[k] - ref[k])));
-          scale = std::max(scale, static_cast<double>(std::abs(ref[k])));
-        }
-        EXPECT_LT(err, kBatchRelTol * scale) << "order " << order << " method " << sh::to_string(method) << degree << " " << to_string(isa);
-        EXPECT_EQ(st.squarings, ref_stats.squarings);
-        EXPECT_EQ(st.squares, ref_stats.squares);
-        EXPECT_EQ(st.products, ref_stats.products);
+      std::vector<float> got(f.size(), -1.0f);
+      sh::ExpStats st;
+      exp_batch(isa, be, f.data(), got.data(), in.size(), 0, st);
+      double err = 0.0, scale = 0.0;
+      for (std::size_t k = 0; k < f.size(); ++k) {
+        // The plain series cancels catastrophically (terms far above the result) beyond a few
+        // caps (docs/sh.md): there the rounding of either side is the whole answer; compare it
+        // where it converges.
+        if (method == sh::ExpMethod::PS && in[k / n2].caps > 5) continue;
+        err = std::max(err, static_cast<double>(std::abs(got[k] - ref[k])));
+        scale = std::max(scale, static_cast<double>(std::abs(ref[k])));
       }
+      EXPECT_LT(err, kBatchRelTol * scale) << "order " << order << " method " << sh::to_string(method) << degree << " " << to_string(isa);
+      EXPECT_EQ(st.squarings, ref_stats.squarings);
+      EXPECT_EQ(st.squares, ref_stats.squares);
+      EXPECT_EQ(st.products, ref_stats.products);
     }
   }
 }
@@ -263,7 +287,8 @@ TEST(ShexpBatch, NonFiniteLogVectorsAreReportedWithTheReceiver) {
   }
 }
 
-TEST(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
+TEST_P(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
+  const KernelIsa isa = GetParam();
   for (int order : {3, 4, 6}) {
     const int n2 = order * order;
     RandomSetup s = random_setup(order, 21, 1, 4);
@@ -285,23 +310,21 @@ TEST(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
     b.hcoef = hcoef.data();
     b.gwin = gwin.data();
     b.g = g.data();
-    for (KernelIsa isa : {KernelIsa::Scalar, KernelIsa::Avx2, KernelIsa::Avx512}) {
-      if (!kernel_isa_supported(isa)) continue;
-      std::vector<glm::vec3> out(21);
-      shade_batch(isa, b, s.rec, 0, 21, out.data());
-      for (int i = 0; i < 21; ++i) {
-        std::array<double, sh::kMaxCoeffs> H{}, gd{}, Lc{};
-        sh::irradiance_weight(order, sh::Vec3<double>{s.rec.nx[i], s.rec.ny[i], s.rec.nz[i]}, H.data());
-        for (int k = 0; k < n2; ++k) gd[k] = g[i * n2 + k] * gwin[k];
-        for (int c = 0; c < 3; ++c) {
-          for (int k = 0; k < n2; ++k) Lc[k] = L[c * n2 + k];
-          const double expect = sh::TripleProduct::get(order).triple_integral(H.data(), gd.data(), Lc.data());
-          EXPECT_NEAR(out[i][c], expect, 1e-5 * (1.0 + std::abs(expect))) << "order " << order << " " << to_string(isa);
-        }
+    std::vector<glm::vec3> out(21);
+    shade_batch(isa, b, s.rec, 0, 21, out.data());
+    for (int i = 0; i < 21; ++i) {
+      std::array<double, sh::kMaxCoeffs> H{}, gd{}, Lc{};
+      sh::irradiance_weight(order, sh::Vec3<double>{s.rec.nx[i], s.rec.ny[i], s.rec.nz[i]}, H.data());
+      for (int k = 0; k < n2; ++k) gd[k] = g[i * n2 + k] * gwin[k];
+      for (int c = 0; c < 3; ++c) {
+        for (int k = 0; k < n2; ++k) Lc[k] = L[c * n2 + k];
+        const double expect = sh::TripleProduct::get(order).triple_integral(H.data(), gd.data(), Lc.data());
+        EXPECT_NEAR(out[i][c], expect, 1e-5 * (1.0 + std::abs(expect))) << "order " << order << " " << to_string(isa);
       }
     }
   }
 }
+INSTANTIATE_TEST_SUITE_P(Isa, ShexpBatch, kEveryIsa, isa_param_name);
 
 // --- single sphere over a plane (eq. 34) -----------------------------------------------------------
 
@@ -372,27 +395,51 @@ TEST(ShexpSingleSphere, ExponentiatedVisibilityMatchesTheCapVisibility) {
   }
 }
 
-// The projected-visibility reference (4n + 8 quadrature bands, as the technique uses) of one sphere
-// is the cap visibility rotated to the sphere's direction; the binary edge costs the quadrature
-// up to 0.036 in reconstruction at n = 4 (measured over these caps).
-constexpr double kProjectedCapTol = 0.05;
+// The projected-visibility reference (exp=projected: 4n + 8 quadrature bands, as the technique uses)
+// of one sphere is the cap visibility rotated to the sphere's direction, up to what the binary cap
+// edge costs the quadrature. Measured here over every shading order, caps of 1 to 60 degrees and
+// three directions: the worst reconstruction error (max over directions of |g~ - exact~|,
+// sh::reconstruction_error) is 0.073 (order 5; 0.071 at order 4, printed per order), the figure
+// techniques/shexp/shexp.cpp states; the tolerance leaves 25% above it, so that a coarser
+// quadrature (n + 2 bands: 0.28 to 0.56) fails.
+constexpr double kProjectedCapTol = 0.09;
 
 TEST(ShexpSingleSphere, ProjectedVisibilityIsTheCapVisibility) {
-  const int order = 4, n2 = 16;
   ReceiverSoA rec;
   rec.resize(1);
   rec.set(0, glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
-  for (double deg : {5.0, 20.0, 40.0}) {
-    const glm::dvec3 dir = glm::normalize(glm::dvec3(0.3, 1.0, 0.4));
-    BlockerList b;
-    b.order = order;
-    b.push(glm::vec3(dir * 2.0), static_cast<float>(2.0 * std::sin(deg * kDeg)), nullptr);
-    std::vector<float> g(n2);
-    project_visibility(order, 4 * order + 8, ReplacementRule::Continuous, rec, 0, 1, b, g.data());
-    std::vector<double> vis = sh::cap_visibility_zh(order, deg * kDeg), expect(n2), got(g.begin(), g.end());
-    sh::zh_rotate(order, vis.data(), sh::Vec3<double>{dir.x, dir.y, dir.z}, expect.data());
-    EXPECT_LT(sh::reconstruction_error(order, got.data(), expect.data()), kProjectedCapTol) << deg;
+  const glm::dvec3 dirs[] = {glm::normalize(glm::dvec3(0.3, 1.0, 0.4)), glm::normalize(glm::dvec3(-0.8, 0.5, 0.1)),
+                             glm::dvec3(0.0, 1.0, 0.0)};
+  double worst_all = 0.0;
+  for (int order = kMinOrder; order <= kMaxOrder; ++order) {
+    const int n2 = order * order, bands = 4 * order + 8;
+    double worst = 0.0, worst_deg = 0.0, worst_l2 = 0.0;
+    for (double deg : {1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 16.0, 20.0, 25.0, 30.0, 40.0, 50.0, 60.0})
+      for (const glm::dvec3& dir : dirs) {
+        BlockerList b;
+        b.order = order;
+        b.push(glm::vec3(dir * 2.0), static_cast<float>(2.0 * std::sin(deg * kDeg)), nullptr);
+        std::vector<float> g(n2);
+        project_visibility(order, bands, ReplacementRule::Off, rec, 0, 1, b, g.data());
+        std::vector<double> vis = sh::cap_visibility_zh(order, deg * kDeg), expect(n2), got(g.begin(), g.end());
+        sh::zh_rotate(order, vis.data(), sh::Vec3<double>{dir.x, dir.y, dir.z}, expect.data());
+        const double err = sh::reconstruction_error(order, got.data(), expect.data());
+        double l2 = 0.0;
+        for (int k = 0; k < n2; ++k) l2 += (got[k] - expect[k]) * (got[k] - expect[k]);
+        worst_l2 = std::max(worst_l2, std::sqrt(l2));
+        EXPECT_LT(err, kProjectedCapTol) << "order " << order << " cap " << deg << " deg";
+        if (err > worst) {
+          worst = err;
+          worst_deg = deg;
+        }
+      }
+    std::printf("[measured] projected visibility, order %d, %d bands: worst reconstruction error %.4f (cap %.0f deg), "
+                "worst coefficient L2 error %.4f\n",
+                order, bands, worst, worst_deg, worst_l2);
+    worst_all = std::max(worst_all, worst);
   }
+  std::printf("[measured] projected visibility (4n + 8 bands), orders %d..%d: worst reconstruction error %.4f\n", kMinOrder,
+              kMaxOrder, worst_all);
 }
 
 // --- log space vs product space (section 3) -----------------------------------------------------
@@ -431,7 +478,9 @@ TEST(ShexpOrder, LogSpaceIgnoresBlockerOrderProductSpaceDoesNot) {
 // The vectorised product pass computes what the scalar per-receiver product does (same visibility
 // vectors, same left-to-right order), up to float rounding of the repeated products (1e-4 of the
 // largest coefficient after 40 products).
-TEST(ShexpOrder, BatchedProductMatchesThePerReceiverProduct) {
+class ShexpProduct : public IsaTest {};
+TEST_P(ShexpProduct, BatchedProductMatchesThePerReceiverProduct) {
+  const KernelIsa isa = GetParam();
   for (int order : {3, 4, 6}) {
     sh::TableOptions o;
     o.order = order;
@@ -445,17 +494,15 @@ TEST(ShexpOrder, BatchedProductMatchesThePerReceiverProduct) {
       const long long pref = accumulate_product(tvis, ReplacementRule::Continuous, s.rec, 0, 37, s.blockers, ref.data());
       double scale = 0.0;
       for (float v : ref) scale = std::max(scale, static_cast<double>(std::abs(v)));
-      for (KernelIsa isa : {KernelIsa::Scalar, KernelIsa::Avx2, KernelIsa::Avx512}) {
-        if (!kernel_isa_supported(isa)) continue;
-        const long long p = accumulate_product_batch(isa, tvis, ReplacementRule::Continuous, s.rec, 0, 37, s.blockers, got.data());
-        EXPECT_EQ(p, pref) << to_string(isa);
-        double err = 0.0;
-        for (std::size_t k = 0; k < ref.size(); ++k) err = std::max(err, static_cast<double>(std::abs(got[k] - ref[k])));
-        EXPECT_LT(err, 1e-4 * scale) << "order " << order << " " << to_string(isa) << " coherent " << coherent;
-      }
+      const long long p = accumulate_product_batch(isa, tvis, ReplacementRule::Continuous, s.rec, 0, 37, s.blockers, got.data());
+      EXPECT_EQ(p, pref) << to_string(isa);
+      double err = 0.0;
+      for (std::size_t k = 0; k < ref.size(); ++k) err = std::max(err, static_cast<double>(std::abs(got[k] - ref[k])));
+      EXPECT_LT(err, 1e-4 * scale) << "order " << order << " " << to_string(isa) << " coherent " << coherent;
     }
   }
 }
+INSTANTIATE_TEST_SUITE_P(Isa, ShexpProduct, kEveryIsa, isa_param_name);
 
 // --- replacement rules (section 6.2) ----------------------------------------------------------------
 

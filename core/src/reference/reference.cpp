@@ -1,5 +1,5 @@
-// Monte Carlo ground truth with Embree 3 (docs/reference.md). The only translation unit that
-// includes Embree.
+// Monte Carlo ground truth with Embree 3 (docs/reference.md). One of the two translation units that
+// include Embree (with the CPU G-buffer pass; the set-up they share is core/src/embree/embree_setup.hpp).
 //
 // Estimator per pixel sample (all directions world space, pointing away from the receiver):
 //   primary ray -> first hit x (two-sided: the normal faces the camera)
@@ -27,12 +27,14 @@
 #include <limits>
 #include <memory>
 #include <mutex>
-#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "../embree/embree_setup.hpp"
+#include "softgi/proxies/self_shadow.hpp"
 #include "softgi/render/camera.hpp"
+#include "softgi/render/vertex_image.hpp"
 #include "softgi/sh/sh.hpp"
 
 namespace softgi::reference {
@@ -300,39 +302,16 @@ class EnvLight {
 
 // ---------------------------------------------------------------------------------------------
 // Sphere blockers with the self-shadowing rules of paper 004 section 6.2 (Figure 5), applied per
-// receiver p with outward normal N (tangent plane T_p):
-//  - S contains p: eliminated if its centre is behind T_p, else shrunk (same centre) until tangent to T_p;
-//  - p outside S: eliminated if S is entirely behind T_p; unaltered if entirely in front; if S
-//    straddles T_p it is replaced by S' whose diameter joins q0 (the point of S farthest in front of
-//    T_p) and q1 (q0 projected onto T_p), its radius scaled by a = min(1, (|p - q1| - d) / d) with
-//    d = sqrt(r^2 - (r - |q1 - q0|)^2), the radius of the disc S cuts from T_p, keeping S' tangent to
-//    T_p at q1. The extracted text prints max(1; ...); a factor >= 1 would not "gradually scale up"
-//    from the boundary of S, so we read min (docs/reference.md).
-// Every adjusted sphere lies inside S, so S's box bounds it for the BVH.
+// receiver p with outward normal N inside the occlusion callback: the core's definition
+// (softgi/proxies/self_shadow.hpp), the one the accumulation techniques apply, under
+// ReferenceOptions::replacement_rule. Under every rule the reference accepts, the adjusted sphere
+// lies inside S (a sphere tangent to T_p at q1 of radius at most (h + r)/2, or S shrunk about its
+// centre), so S's box bounds it for the BVH.
 struct ProxyReceiver {
   RTCIntersectContext ctx;  // first member: Embree hands this pointer back to the callbacks
   vec3 p{0.0f}, n{0.0f, 1.0f, 0.0f};
+  proxies::ReplacementRule rule = proxies::kDefaultReplacementRule;
 };
-
-std::optional<scene::Sphere> adjust_blocker(const scene::Sphere& s, const vec3& p, const vec3& n) {
-  const float r = s.radius;
-  const vec3 cp = s.center - p;
-  const float h = glm::dot(cp, n);  // signed height of the centre above T_p
-  if (h <= -r) return std::nullopt;
-  if (glm::dot(cp, cp) < r * r) {
-    if (h <= 0.0f) return std::nullopt;
-    return scene::Sphere{s.center, h};
-  }
-  if (h >= r) return s;
-  const vec3 q1 = s.center - h * n;       // q0 = c + r N projected onto T_p
-  const float full = 0.5f * (r + h);      // radius of S' (|q0 - q1| = r + h)
-  const float d = std::sqrt(std::max(0.0f, r * r - h * h));
-  float a = 1.0f;
-  if (d > 1e-6f * r) a = std::clamp((glm::length(p - q1) - d) / d, 0.0f, 1.0f);
-  const float rr = a * full;
-  if (!(rr > 0.0f)) return std::nullopt;
-  return scene::Sphere{q1 + rr * n, rr};
-}
 
 struct ProxyGeometry {
   std::vector<scene::Sphere> spheres;
@@ -363,15 +342,17 @@ void proxy_bounds(const RTCBoundsFunctionArguments* args) {
 void proxy_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* g = static_cast<const ProxyGeometry*>(args->geometryUserPtr);
   const auto* rec = reinterpret_cast<const ProxyReceiver*>(args->context);
-  const std::optional<scene::Sphere> s = adjust_blocker(g->spheres[args->primID], rec->p, rec->n);
-  if (!s) return;
+  const scene::Sphere& b = g->spheres[args->primID];
+  const proxies::AdjustedSphere a = proxies::apply_replacement_rule(rec->rule, rec->p, rec->n, b.center, b.radius);
+  if (!(a.radius > 0.0f)) return;
+  const scene::Sphere s{a.center, a.radius};
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
     RTCRayN* ray = args->ray;
     vec3 o(RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i), RTCRayN_org_z(ray, args->N, i));
     vec3 d(RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i), RTCRayN_dir_z(ray, args->N, i));
     float& tfar = RTCRayN_tfar(ray, args->N, i);
-    if (sphere_blocks(*s, o, d, RTCRayN_tnear(ray, args->N, i), tfar)) tfar = -kInf;
+    if (sphere_blocks(s, o, d, RTCRayN_tnear(ray, args->N, i), tfar)) tfar = -kInf;
   }
 }
 
@@ -379,27 +360,6 @@ void proxy_occluded(const RTCOccludedFunctionNArguments* args) {
 void proxy_intersect(const RTCIntersectFunctionNArguments*) {}
 
 // ---------------------------------------------------------------------------------------------
-struct EmbreeError {
-  std::mutex m;
-  std::string message;
-};
-void embree_error(void* user, RTCError code, const char* str) {
-  auto* e = static_cast<EmbreeError*>(user);
-  std::lock_guard<std::mutex> lock(e->m);
-  if (e->message.empty()) e->message = "Embree error " + std::to_string(static_cast<int>(code)) + ": " + (str ? str : "");
-}
-
-// Owning handles, so that an exception thrown half-way through the Renderer's constructor still
-// releases what Embree allocated.
-struct DeviceDeleter {
-  void operator()(RTCDevice d) const { rtcReleaseDevice(d); }
-};
-struct SceneDeleter {
-  void operator()(RTCScene s) const { rtcReleaseScene(s); }
-};
-using DeviceHandle = std::unique_ptr<RTCDeviceTy, DeviceDeleter>;
-using SceneHandle = std::unique_ptr<RTCSceneTy, SceneDeleter>;
-
 struct Hit {
   vec3 p, ng, ns;  // position, geometric and shading normal, both facing the incoming ray
   Brdf brdf;
@@ -410,10 +370,7 @@ class Renderer {
   Renderer(const scene::Scene& sc, const ReferenceOptions& opt)
       : scene_(sc), opt_(opt), posed_(scene::evaluate(sc, opt.time)), env_(sc.environment, opt.light_sh_order) {
     setup_camera();
-    device_.reset(rtcNewDevice(nullptr));
-    if (!device_) throw std::runtime_error("reference: cannot create the Embree device (error " +
-                                           std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
-    rtcSetDeviceErrorFunction(device_.get(), embree_error, &error_);
+    device_ = embree::new_device(state_, "reference", false);
     build_geometry();
     if (opt_.blockers == ReferenceOptions::Blockers::Proxies) build_proxies();
     check_embree("building the scene");
@@ -423,10 +380,7 @@ class Renderer {
 
   int width() const { return camera_.width; }
   int height() const { return camera_.height; }
-  void check_embree(const char* what) {
-    std::lock_guard<std::mutex> lock(error_.m);
-    if (!error_.message.empty()) throw std::runtime_error(std::string("reference: ") + what + ": " + error_.message);
-  }
+  void check_embree(const char* what) { state_.check("reference", what); }
 
   // One pixel sample: direct and indirect outgoing radiance towards the camera.
   void sample(int x, int y, int k, vec3& direct, vec3& indirect, long long& rays) const {
@@ -442,7 +396,9 @@ class Renderer {
     Hit h;
     ++rays;
     if (!intersect(camera_.position, dir, h)) {
-      direct = env_.radiance(dir);  // the background: the light model in use
+      // The background every technique draws too (render/vertex_image.hpp): the environment as
+      // seen, whatever light model shades the surfaces.
+      direct = render::background_radiance(scene_.environment, dir);
       return;
     }
     direct = env_direct_two_sample(h, rng, rays) + lights_direct_all(h, rng, rays);
@@ -464,49 +420,21 @@ class Renderer {
 
  private:
   // --- scene setup ---------------------------------------------------------------------------
-  // One Embree triangle geometry for posed object oi, or nullptr when it has no triangles.
-  RTCGeometry triangle_geometry(std::size_t oi) {
+  // The Embree triangle geometry of posed object oi (the set-up the G-buffer pass shares), or none
+  // when it has no triangles.
+  embree::GeometryHandle triangle_geometry(std::size_t oi) {
     const scene::PosedObject& o = posed_.objects[oi];
-    if (!o.source || o.source->triangles.empty() || o.positions.empty()) return nullptr;
-    const auto& tris = o.source->triangles;
-    RTCGeometry g = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                           3 * sizeof(float), o.positions.size()));
-    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                              3 * sizeof(unsigned), tris.size()));
-    if (!vb || !ib) {
-      rtcReleaseGeometry(g);
-      check_embree("allocating geometry buffers");
-      throw std::runtime_error("reference: cannot allocate Embree buffers for object " + std::to_string(oi));
-    }
-    for (std::size_t v = 0; v < o.positions.size(); ++v) {
-      vb[3 * v] = o.positions[v].x;
-      vb[3 * v + 1] = o.positions[v].y;
-      vb[3 * v + 2] = o.positions[v].z;
-    }
-    for (std::size_t t = 0; t < tris.size(); ++t) {
-      for (int c = 0; c < 3; ++c) {
-        if (tris[t][c] >= o.positions.size()) {
-          rtcReleaseGeometry(g);
-          throw std::invalid_argument("reference: mesh '" + o.source->name + "': triangle " + std::to_string(t) +
-                                      " has vertex index " + std::to_string(tris[t][c]) + " >= " +
-                                      std::to_string(o.positions.size()));
-        }
-        ib[3 * t + c] = tris[t][c];
-      }
-    }
-    rtcCommitGeometry(g);
-    return g;
+    if (!embree::traced(o)) return nullptr;
+    return embree::new_triangle_geometry(device_.get(), state_, o, "reference");
   }
 
   void build_geometry() {
     geom_scene_.reset(rtcNewScene(device_.get()));
     rtcSetSceneBuildQuality(geom_scene_.get(), RTC_BUILD_QUALITY_HIGH);
     for (std::size_t oi = 0; oi < posed_.objects.size(); ++oi) {
-      RTCGeometry g = triangle_geometry(oi);
+      embree::GeometryHandle g = triangle_geometry(oi);
       if (!g) continue;
-      unsigned id = rtcAttachGeometry(geom_scene_.get(), g);
-      rtcReleaseGeometry(g);
+      unsigned id = rtcAttachGeometry(geom_scene_.get(), g.get());
       if (geom_object_.size() <= id) geom_object_.resize(id + 1, -1);
       geom_object_[id] = static_cast<int>(oi);
     }
@@ -527,22 +455,21 @@ class Renderer {
     if (proxies_.spheres.empty())
       throw std::invalid_argument("reference: blockers = proxies, but scene '" + scene_.name + "' has no proxy spheres");
     proxy_scene_.reset(rtcNewScene(device_.get()));
-    RTCGeometry g = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER);
-    rtcSetGeometryUserPrimitiveCount(g, static_cast<unsigned>(proxies_.spheres.size()));
-    rtcSetGeometryUserData(g, &proxies_);
-    rtcSetGeometryBoundsFunction(g, proxy_bounds, nullptr);
-    rtcSetGeometryIntersectFunction(g, proxy_intersect);
-    rtcSetGeometryOccludedFunction(g, proxy_occluded);
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(proxy_scene_.get(), g);
-    rtcReleaseGeometry(g);
+    embree::GeometryHandle g(rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER));
+    check_embree("creating the proxy geometry");
+    rtcSetGeometryUserPrimitiveCount(g.get(), static_cast<unsigned>(proxies_.spheres.size()));
+    rtcSetGeometryUserData(g.get(), &proxies_);
+    rtcSetGeometryBoundsFunction(g.get(), proxy_bounds, nullptr);
+    rtcSetGeometryIntersectFunction(g.get(), proxy_intersect);
+    rtcSetGeometryOccludedFunction(g.get(), proxy_occluded);
+    rtcCommitGeometry(g.get());
+    rtcAttachGeometry(proxy_scene_.get(), g.get());
     for (std::size_t oi = 0; oi < posed_.objects.size(); ++oi) {
       const int node = posed_.objects[oi].node;
       if (node >= 0 && node < static_cast<int>(proxied.size()) && proxied[node]) continue;
-      RTCGeometry t = triangle_geometry(oi);
+      embree::GeometryHandle t = triangle_geometry(oi);
       if (!t) continue;
-      rtcAttachGeometry(proxy_scene_.get(), t);
-      rtcReleaseGeometry(t);
+      rtcAttachGeometry(proxy_scene_.get(), t.get());
     }
     rtcCommitScene(proxy_scene_.get());
   }
@@ -561,46 +488,16 @@ class Renderer {
   // --- tracing -------------------------------------------------------------------------------
   bool intersect(const vec3& o, const vec3& d, Hit& h) const {
     RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRayHit rh;
-    rh.ray.org_x = o.x;
-    rh.ray.org_y = o.y;
-    rh.ray.org_z = o.z;
-    rh.ray.dir_x = d.x;
-    rh.ray.dir_y = d.y;
-    rh.ray.dir_z = d.z;
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = kInf;
-    rh.ray.time = 0.0f;
-    rh.ray.mask = 0xFFFFFFFFu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    embree::init_context(ctx);
+    RTCRayHit rh = embree::make_ray_hit(o, d);
     rtcIntersect1(geom_scene_.get(), &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    if (!embree::is_hit(rh)) return false;
     const scene::PosedObject& obj = posed_.objects[geom_object_[rh.hit.geomID]];
-    const scene::Mesh& mesh = *obj.source;
-    const glm::uvec3 tri = mesh.triangles[rh.hit.primID];
-    const float u = rh.hit.u, v = rh.hit.v, w = 1.0f - u - v;
-    const vec3 &p0 = obj.positions[tri.x], &p1 = obj.positions[tri.y], &p2 = obj.positions[tri.z];
-    h.p = w * p0 + u * p1 + v * p2;
-    vec3 ng = glm::cross(p1 - p0, p2 - p0);
-    float len = glm::length(ng);
-    ng = len > 0.0f ? ng / len : -d;
-    if (glm::dot(ng, d) > 0.0f) ng = -ng;  // two-sided: face the incoming ray
-    vec3 ns = ng;
-    if (obj.normals.size() == obj.positions.size()) {
-      vec3 n = w * obj.normals[tri.x] + u * obj.normals[tri.y] + v * obj.normals[tri.z];
-      float nl = glm::length(n);
-      if (nl > 1e-12f && std::isfinite(nl)) {
-        n /= nl;
-        ns = glm::dot(n, ng) < 0.0f ? -n : n;
-      }
-    }
-    h.ng = ng;
-    h.ns = ns;
+    const float u = rh.hit.u, v = rh.hit.v;
+    const embree::Surface sf = embree::surface_at(obj, rh.hit.primID, u, v, d);  // the G-buffer's surface rules
+    h.p = sf.p;
+    h.ng = sf.ng;
+    h.ns = sf.ns;
     static const scene::Material kDefault{};
     const scene::Material& m =
         obj.material >= 0 && obj.material < static_cast<int>(scene_.materials.size()) ? scene_.materials[obj.material] : kDefault;
@@ -608,7 +505,7 @@ class Renderer {
     h.brdf.glossy = m.phong_ns > 0.0f ? std::clamp(m.glossy, 0.0f, 1.0f) : 0.0f;
     h.brdf.ns = m.phong_ns;
     const vec3 wo = -d;
-    h.brdf.reflect_dir = 2.0f * glm::dot(ns, wo) * ns - wo;
+    h.brdf.reflect_dir = 2.0f * glm::dot(h.ns, wo) * h.ns - wo;
     return true;
   }
 
@@ -616,25 +513,13 @@ class Renderer {
   bool visible(const Hit& h, const vec3& wi, float tfar, long long& rays) const {
     ++rays;
     ProxyReceiver rec;
-    rtcInitIntersectContext(&rec.ctx);
+    embree::init_context(rec.ctx);
     rec.p = h.p;
     rec.n = h.ns;
-    const vec3 o = offset_origin(h.p, h.ng);
-    RTCRay ray;
-    ray.org_x = o.x;
-    ray.org_y = o.y;
-    ray.org_z = o.z;
-    ray.dir_x = wi.x;
-    ray.dir_y = wi.y;
-    ray.dir_z = wi.z;
-    ray.tnear = 0.0f;
-    ray.tfar = tfar;
-    ray.time = 0.0f;
-    ray.mask = 0xFFFFFFFFu;
-    ray.id = 0;
-    ray.flags = 0;
+    rec.rule = opt_.replacement_rule;
+    RTCRay ray = embree::make_ray(offset_origin(h.p, h.ng), wi, 0.0f, tfar);
     rtcOccluded1(proxy_scene_ ? proxy_scene_.get() : geom_scene_.get(), &rec.ctx, &ray);
-    return ray.tfar >= 0.0f;
+    return embree::unoccluded(ray);
   }
 
   // --- direct light --------------------------------------------------------------------------
@@ -721,10 +606,10 @@ class Renderer {
   const ReferenceOptions& opt_;
   scene::PosedScene posed_;
   EnvLight env_;
-  EmbreeError error_;       // outlives the device that reports to it
-  ProxyGeometry proxies_;   // user data of the proxy geometry: outlives the scenes
-  DeviceHandle device_;     // declared before the scenes: released after them
-  SceneHandle geom_scene_, proxy_scene_;
+  embree::DeviceState state_;     // outlives the device that reports to it
+  ProxyGeometry proxies_;         // user data of the proxy geometry: outlives the scenes
+  embree::DeviceHandle device_;   // declared before the scenes: released after them
+  embree::SceneHandle geom_scene_, proxy_scene_;
   std::vector<int> geom_object_;
   render::PinholeCamera camera_;
 };
@@ -736,6 +621,10 @@ void check_options(const ReferenceOptions& opt) {
     throw std::invalid_argument("reference: light SH order " + std::to_string(opt.light_sh_order) +
                                 " is outside 1.." + std::to_string(sh::kMaxOrder) + " (0 = full environment)");
   if (!std::isfinite(opt.time)) throw std::invalid_argument("reference: time is not finite");
+  // The printed reading can grow a sphere beyond S, outside the box the BVH was built from.
+  if (opt.replacement_rule == proxies::ReplacementRule::Printed)
+    throw std::invalid_argument("reference: replacement rule 'printed' is not supported (its spheres can outgrow the proxy "
+                                "spheres the BVH bounds; expected off, continuous or clamped)");
   if (opt.width < 0 || opt.height < 0 || opt.width > kMaxDimension || opt.height > kMaxDimension)
     throw std::invalid_argument("reference: image size " + std::to_string(opt.width) + "x" + std::to_string(opt.height) +
                                 " is outside 0.." + std::to_string(kMaxDimension) + " (0 = the camera's)");

@@ -59,8 +59,10 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
   return out;
 }
 
+glm::vec3 background_radiance(const scene::Environment& env, const glm::vec3& ray_dir) { return env.radiance(ray_dir); }
+
 BackgroundFn environment_background(const scene::Environment& env) {
-  return [&env](const glm::vec3& d) { return env.radiance(d); };
+  return [&env](const glm::vec3& d) { return background_radiance(env, d); };
 }
 
 }  // namespace softgi::render

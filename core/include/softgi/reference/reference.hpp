@@ -6,6 +6,7 @@
 #include <string>
 
 #include "softgi/image.hpp"
+#include "softgi/proxies/self_shadow.hpp"
 #include "softgi/scene/scene.hpp"
 
 namespace softgi::reference {
@@ -13,6 +14,9 @@ namespace softgi::reference {
 struct ReferenceOptions {
   int spp = 64;                 // samples per pixel
   enum class Blockers { Geometry, Proxies } blockers = Blockers::Geometry;  // what casts shadows
+  // Proxies mode: what a sphere becomes for a receiver near it (paper 004 section 6.2), the rules
+  // the accumulation techniques apply (softgi/proxies/self_shadow.hpp); printed is rejected.
+  proxies::ReplacementRule replacement_rule = proxies::kDefaultReplacementRule;
   int light_sh_order = 0;       // 0: full environment; n: its order-n SH projection (paper 004 Fig. 7)
   bool indirect = true;         // one-bounce diffuse indirect
   double time = 0.0;            // animation time (seconds)
@@ -38,7 +42,7 @@ using PassCallback = std::function<void(int spp_done, const ReferenceResult& run
 // Renders the scene at options.time (docs/reference.md). progress(fraction) and on_pass are called
 // from the calling thread. Throws std::invalid_argument naming the option or scene field for bad
 // input (spp <= 0, SH order outside 1..8, absurd sizes, non-finite time, proxies requested for a
-// scene without proxy sets, degenerate camera).
+// scene without proxy sets, the printed replacement rule, degenerate camera).
 ReferenceResult render_reference(const scene::Scene& scene, const ReferenceOptions& opt,
                                  const std::function<void(double)>& progress = {},
                                  const PassCallback& on_pass = {});

@@ -23,10 +23,12 @@ using BackgroundFn = std::function<glm::vec3(const glm::vec3& ray_dir)>;
 // v = per_vertex (one vector per posed object, one value per vertex of its mesh). Background pixels
 // get background(view_dir), or black when `background` is empty.
 //
-// Convention: techniques leave the indirect image's background black and put the light they shade
-// with (environment radiance, or its SH projection when they shade with SH lighting) into the
-// direct image's background, as the reference renderer does for its light model; `softgi compare`
-// measures error on surface pixels only, so the background choice never enters the error numbers.
+// Convention: techniques leave the indirect image's background black and put background_radiance
+// (the environment as the camera sees it) into the direct image's background, the function the
+// reference renderer calls for its background pixels, whatever light model shades the surfaces
+// (full environment or its SH projection), so that technique and reference images show the same
+// sky; `softgi compare` measures error on surface pixels only, so the background never enters the
+// error numbers.
 //
 // Throws std::invalid_argument naming the object when per_vertex does not match the posed scene (an
 // object seen by a pixel without per-vertex values, or with fewer values than vertices), or when a
@@ -35,7 +37,10 @@ Image interpolate_vertex_values(const GBuffer& gbuffer, const scene::PosedScene&
                                 const std::vector<std::vector<glm::vec3>>& per_vertex,
                                 const BackgroundFn& background = {});
 
-// The environment's radiance along the ray: BackgroundFn for the full environment light.
+// The background of every image, techniques' and reference's alike: the environment's radiance
+// along the camera ray, Environment::radiance(ray_dir).
+glm::vec3 background_radiance(const scene::Environment& env, const glm::vec3& ray_dir);
+// background_radiance as a BackgroundFn (env must outlive it).
 BackgroundFn environment_background(const scene::Environment& env);
 
 }  // namespace softgi::render
