@@ -14,7 +14,11 @@ void register_cpu_backend() {
     info.name = cpu::kBackendName;
     info.description = "CPU reference: host code on every core (TBB), Embree primary visibility";
     info.unavailable = [] { return std::string(); };
-    info.create = [](const render::BackendOptions&) -> std::unique_ptr<render::Backend> { return std::make_unique<CpuBackend>(); };
+    info.create = [](const render::BackendOptions& o) -> std::unique_ptr<render::Backend> {
+      auto b = std::make_unique<CpuBackend>();
+      b->set_memory_limit(o.memory_limit);
+      return b;
+    };
     render::register_backend(std::move(info));
     register_cpu_shared_passes();
   });

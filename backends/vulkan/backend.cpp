@@ -21,7 +21,9 @@ vulkan::ContextOptions to_options(const VulkanBackendOptions& o) {
 }  // namespace
 
 VulkanBackend::VulkanBackend(const VulkanBackendOptions& options)
-    : VulkanBackend(std::make_shared<vulkan::Context>(to_options(options))) {}
+    : VulkanBackend(std::make_shared<vulkan::Context>(to_options(options))) {
+  set_memory_limit(options.memory_limit);
+}
 
 VulkanBackend::VulkanBackend(std::shared_ptr<vulkan::Context> context) : ctx_(std::move(context)) {
   if (!ctx_) throw std::invalid_argument("VulkanBackend: null context");
@@ -49,6 +51,31 @@ std::map<std::string, std::string> VulkanBackend::device_record() const {
           {"vendor_id", vendor.str()},
           {"device_id", device.str()},
           {"validation", ctx_->validation_enabled() ? "on" : "off"}};
+}
+
+render::MemoryLimits VulkanBackend::memory_limits() const {
+  render::MemoryLimits l = render::host_memory_limits(memory_limit());
+  if (!l.checked) return l;
+  const vulkan::DeviceInfo& d = ctx_->device_info();
+  l.max_storage_buffer = d.limits.maxStorageBufferRange;
+  l.max_allocation = static_cast<std::size_t>(d.max_allocation_bytes);
+  l.device_is_host_memory = d.type == VK_PHYSICAL_DEVICE_TYPE_CPU;
+  // A CPU device's memory is the host's: the host check counts host and device items together.
+  if (l.device_is_host_memory) return l;
+  if (l.declared) {
+    l.device = l.host;
+    l.device_source = l.host_source;
+  } else {
+    l.device = static_cast<std::size_t>(d.device_local_bytes);
+    l.device_source = "the largest device-local memory heap";
+  }
+  return l;
+}
+
+void VulkanBackend::add_backend_memory(const std::vector<const render::PassDesc*>& passes, const scene::Scene& scene,
+                                       const render::ParamSet& params, int width, int height,
+                                       std::vector<render::MemoryItem>& items) const {
+  gbuffer_raster_memory(passes, scene, params, width, height, items);
 }
 
 void VulkanBackend::execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) {
@@ -85,6 +112,7 @@ void register_vulkan_backend() {
       VulkanBackendOptions vo;
       vo.device = o.device;
       vo.validation = o.validation;
+      vo.memory_limit = o.memory_limit;
       return std::make_unique<VulkanBackend>(vo);
     };
     render::register_backend(std::move(info));

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "softgi/render/backend.hpp"
 #include "softgi/render/frame.hpp"
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -180,7 +181,9 @@ DeviceInfo describe_device(VkPhysicalDevice pd, int index) {
   d.index = index;
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
   VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+  VkPhysicalDeviceMaintenance3Properties maint3{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_MAINTENANCE_3_PROPERTIES};
   driver.pNext = &subgroup;
+  subgroup.pNext = &maint3;
   VkPhysicalDeviceProperties2 p2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
   VkPhysicalDeviceProperties base{};
   vkGetPhysicalDeviceProperties(pd, &base);
@@ -190,6 +193,7 @@ DeviceInfo describe_device(VkPhysicalDevice pd, int index) {
     d.driver_name = driver.driverName;
     d.driver_info = driver.driverInfo;
     d.subgroup_size = subgroup.subgroupSize;
+    d.max_allocation_bytes = maint3.maxMemoryAllocationSize;
   }
   d.name = base.deviceName;
   d.type = base.deviceType;
@@ -490,8 +494,19 @@ std::uint32_t Context::memory_type(std::uint32_t bits, VkMemoryPropertyFlags wan
   return static_cast<std::uint32_t>(best);
 }
 
+namespace {
+std::string size_text(VkDeviceSize b) {
+  std::ostringstream os;
+  os << b << " bytes (" << render::format_bytes(static_cast<std::size_t>(b)) << ")";
+  return os.str();
+}
+}  // namespace
+
 VkDeviceMemory Context::allocate(const VkMemoryRequirements& req, VkMemoryPropertyFlags want, VkMemoryPropertyFlags prefer,
-                                 bool& host_visible) {
+                                 bool& host_visible, const std::string& what) {
+  if (info_.max_allocation_bytes > 0 && req.size > info_.max_allocation_bytes)
+    throw std::invalid_argument("vulkan: " + what + " needs " + size_text(req.size) + " in one allocation, more than the " +
+                                "maxMemoryAllocationSize of " + size_text(info_.max_allocation_bytes) + " of device '" + info_.name + "'");
   const std::uint32_t type = memory_type(req.memoryTypeBits, want, prefer);
   const VkMemoryPropertyFlags f = memory_.memoryTypes[type].propertyFlags;
   host_visible = (f & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) && (f & VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
@@ -499,16 +514,20 @@ VkDeviceMemory Context::allocate(const VkMemoryRequirements& req, VkMemoryProper
   ai.allocationSize = req.size;
   ai.memoryTypeIndex = type;
   VkDeviceMemory mem = VK_NULL_HANDLE;
-  check(vkAllocateMemory(device_, &ai, nullptr, &mem), "vkAllocateMemory");
+  const VkResult r = vkAllocateMemory(device_, &ai, nullptr, &mem);
+  if (r != VK_SUCCESS) {
+    const std::uint32_t heap = memory_.memoryTypes[type].heapIndex;
+    const VkMemoryHeap& h = memory_.memoryHeaps[heap];
+    throw VulkanError("vkAllocateMemory for " + what + " of " + size_text(req.size) + " from memory heap " + std::to_string(heap) +
+                          " of " + size_text(h.size) + ((h.flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT) ? ", device-local" : ", host") +
+                          ", of device '" + info_.name + "' (buffers alive: " + size_text(allocated_) + ")",
+                      r);
+  }
   return mem;
 }
 
 Buffer Context::create_buffer(VkDeviceSize bytes, VkBufferUsageFlags usage, MemoryKind kind, const std::string& name) {
-  auto mib = [](VkDeviceSize b) {
-    std::ostringstream os;
-    os << b << " bytes (" << static_cast<double>(b) / (1024.0 * 1024.0) << " MiB)";
-    return os.str();
-  };
+  const auto mib = size_text;
   if (bytes == 0) throw std::invalid_argument("vulkan: buffer '" + name + "' of size 0");
   if ((usage & VK_BUFFER_USAGE_STORAGE_BUFFER_BIT) && bytes > info_.limits.maxStorageBufferRange)
     throw std::invalid_argument("vulkan: buffer '" + name + "' needs " + mib(bytes) + ", more than the maxStorageBufferRange of " +
@@ -527,18 +546,19 @@ Buffer Context::create_buffer(VkDeviceSize bytes, VkBufferUsageFlags usage, Memo
   bi.size = bytes;
   bi.usage = usage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-  check(vkCreateBuffer(device_, &bi, nullptr, &b.buffer_), "vkCreateBuffer");
+  const std::string what = "buffer '" + name + "'";
+  check(vkCreateBuffer(device_, &bi, nullptr, &b.buffer_), ("vkCreateBuffer for " + what + " of " + mib(bytes)).c_str());
   VkMemoryRequirements req{};
   vkGetBufferMemoryRequirements(device_, b.buffer_, &req);
   bool host = false;
   const VkMemoryPropertyFlags hv = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
   if (kind == MemoryKind::Device)
-    b.memory_ = allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT | hv, host);
+    b.memory_ = allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT | hv, host, what);
   else
-    b.memory_ = allocate(req, hv, hv | VK_MEMORY_PROPERTY_HOST_CACHED_BIT, host);
+    b.memory_ = allocate(req, hv, hv | VK_MEMORY_PROPERTY_HOST_CACHED_BIT, host, what);
   allocated_ += static_cast<std::size_t>(bytes);
-  check(vkBindBufferMemory(device_, b.buffer_, b.memory_, 0), "vkBindBufferMemory");
-  if (host) check(vkMapMemory(device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_), "vkMapMemory");
+  check(vkBindBufferMemory(device_, b.buffer_, b.memory_, 0), ("vkBindBufferMemory for " + what + " of " + mib(bytes)).c_str());
+  if (host) check(vkMapMemory(device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_), ("vkMapMemory for " + what).c_str());
   set_name(VK_OBJECT_TYPE_BUFFER, reinterpret_cast<std::uint64_t>(b.buffer_), name);
   return b;
 }
@@ -581,11 +601,62 @@ void Context::download(const Buffer& src, void* dst, std::size_t bytes, std::siz
   std::memcpy(dst, staging.mapped(), bytes);
 }
 
+namespace {
+// Bytes per texel of the uncompressed formats softgi and its tests use (0: not known here, and the
+// driver alone judges the image's size).
+std::uint64_t texel_bytes(VkFormat f) {
+  switch (f) {
+    case VK_FORMAT_R8_UNORM:
+    case VK_FORMAT_R8_UINT:
+      return 1;
+    case VK_FORMAT_R8G8B8A8_UNORM:
+    case VK_FORMAT_R8G8B8A8_SRGB:
+    case VK_FORMAT_B8G8R8A8_UNORM:
+    case VK_FORMAT_B8G8R8A8_SRGB:
+    case VK_FORMAT_R32_SFLOAT:
+    case VK_FORMAT_R32_SINT:
+    case VK_FORMAT_R32_UINT:
+    case VK_FORMAT_D32_SFLOAT:
+    case VK_FORMAT_R16G16_SFLOAT:
+      return 4;
+    case VK_FORMAT_R32G32_SFLOAT:
+    case VK_FORMAT_R32G32_SINT:
+    case VK_FORMAT_R32G32_UINT:
+    case VK_FORMAT_R16G16B16A16_SFLOAT:
+      return 8;
+    case VK_FORMAT_R32G32B32_SFLOAT:
+      return 12;
+    case VK_FORMAT_R32G32B32A32_SFLOAT:
+    case VK_FORMAT_R32G32B32A32_SINT:
+    case VK_FORMAT_R32G32B32A32_UINT:
+      return 16;
+    default:
+      return 0;
+  }
+}
+}  // namespace
+
 Image Context::create_image(std::uint32_t width, std::uint32_t height, VkFormat format, VkImageUsageFlags usage,
                             VkImageAspectFlags aspect, const std::string& name) {
   if (width == 0 || height == 0 || width > info_.limits.maxImageDimension2D || height > info_.limits.maxImageDimension2D)
     throw std::invalid_argument("vulkan: image '" + name + "' of " + std::to_string(width) + "x" + std::to_string(height) +
                                 " outside 1.." + std::to_string(info_.limits.maxImageDimension2D) + " of device '" + info_.name + "'");
+  // Sizes the device cannot hold are named here, before vkCreateImage (which validation would
+  // flag, and a driver may answer with a bare VK_ERROR_OUT_OF_DEVICE_MEMORY at bind time).
+  if (const std::uint64_t texel = texel_bytes(format)) {
+    const std::uint64_t bytes = texel * width * height;
+    const std::string what = "vulkan: image '" + name + "' (" + std::to_string(width) + "x" + std::to_string(height) + ") needs " +
+                             size_text(bytes);
+    if (info_.max_allocation_bytes > 0 && bytes > info_.max_allocation_bytes)
+      throw std::invalid_argument(what + " in one allocation, more than the maxMemoryAllocationSize of " +
+                                  size_text(info_.max_allocation_bytes) + " of device '" + info_.name + "'");
+    VkImageFormatProperties fp{};
+    if (vkGetPhysicalDeviceImageFormatProperties(physical_, format, VK_IMAGE_TYPE_2D, VK_IMAGE_TILING_OPTIMAL, usage, 0, &fp) ==
+            VK_SUCCESS &&
+        bytes > fp.maxResourceSize)
+      throw std::invalid_argument(what + ", more than the maxResourceSize of " + size_text(fp.maxResourceSize) + " of device '" +
+                                  info_.name + "' for its format and usage");
+  }
   Image im;
   im.ctx_ = this;
   im.name_ = name;
@@ -603,12 +674,13 @@ Image Context::create_image(std::uint32_t width, std::uint32_t height, VkFormat 
   ii.usage = usage;
   ii.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-  check(vkCreateImage(device_, &ii, nullptr, &im.image_), "vkCreateImage");
+  const std::string what = "image '" + name + "' (" + std::to_string(width) + "x" + std::to_string(height) + ")";
+  check(vkCreateImage(device_, &ii, nullptr, &im.image_), ("vkCreateImage for " + what).c_str());
   VkMemoryRequirements req{};
   vkGetImageMemoryRequirements(device_, im.image_, &req);
   bool host = false;
-  im.memory_ = allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, host);
-  check(vkBindImageMemory(device_, im.image_, im.memory_, 0), "vkBindImageMemory");
+  im.memory_ = allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, host, what);
+  check(vkBindImageMemory(device_, im.image_, im.memory_, 0), ("vkBindImageMemory for " + what + " of " + size_text(req.size)).c_str());
   VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   vi.image = im.image_;
   vi.viewType = VK_IMAGE_VIEW_TYPE_2D;

@@ -556,6 +556,44 @@ render::GBuffer produce_gbuffer(render::FrameContext& fc, int s, const char* pas
 
 }  // namespace
 
+void gbuffer_raster_memory(const std::vector<const render::PassDesc*>& passes, const scene::Scene& scene,
+                           const render::ParamSet& params, int width, int height, std::vector<render::MemoryItem>& items) {
+  bool display = false;
+  int receiver_scale = 0;
+  for (const render::PassDesc* p : passes) {
+    if (p->name == "gbuffer") display = true;
+    if (p->name == "receiver_gbuffer") receiver_scale = params.has("receiver_scale") ? params.get_int("receiver_scale") : 1;
+  }
+  // At scale 1 the receiver buffer is a copy of the display G-buffer: nothing is rasterised.
+  if (receiver_scale == 1 && display) receiver_scale = 0;
+  if (!display && receiver_scale == 0) return;
+  auto targets = [&](const char* pass, int scale) {
+    const int w = render::scaled_size(width, scale), h = render::scaled_size(height, scale);
+    const std::size_t n = render::pixel_count(w, h);
+    const std::string size = std::to_string(w) + "x" + std::to_string(h);
+    for (std::size_t a = 0; a < kTexelBytes.size(); ++a) {
+      items.push_back({"gbuffer_raster attachment " + std::to_string(a) + " " + size, n * kTexelBytes[a], render::MemoryPlace::Device,
+                       pass, false, false});
+      items.push_back({"gbuffer_raster readback " + std::to_string(a) + " " + size, n * kTexelBytes[a], render::MemoryPlace::Device,
+                       pass, false, false});
+    }
+    items.push_back({"gbuffer_raster depth " + size, n * sizeof(float), render::MemoryPlace::Device, pass, false, false});
+  };
+  if (display) targets("gbuffer", 1);
+  if (receiver_scale > 0) targets("receiver_gbuffer", receiver_scale);
+  // Every object's vertices and triangles, uploaded once for both passes (rasterise()).
+  std::size_t vertices = 0, triangles = 0;
+  for (const auto& node : scene.nodes)
+    if (node.mesh >= 0 && node.mesh < static_cast<int>(scene.meshes.size())) {
+      vertices += scene.meshes[node.mesh].positions.size();
+      triangles += scene.meshes[node.mesh].triangles.size();
+    }
+  const char* pass = display ? "gbuffer" : "receiver_gbuffer";
+  items.push_back({"gbuffer_raster positions", vertices * 3 * sizeof(float), render::MemoryPlace::Device, pass, false, true});
+  items.push_back({"gbuffer_raster normals", vertices * 3 * sizeof(float), render::MemoryPlace::Device, pass, false, true});
+  items.push_back({"gbuffer_raster indices", triangles * 3 * sizeof(std::uint32_t), render::MemoryPlace::Device, pass, false, true});
+}
+
 void register_gbuffer_raster_passes() { render::register_gbuffer_pass_impls(vulkan::kBackendName, produce_gbuffer); }
 
 }  // namespace softgi::backends

@@ -3,7 +3,16 @@
 // G-buffer (gbuffer_raster.cpp). Private to softgi::vulkan; register_vulkan_backend calls it.
 #pragma once
 
+#include <vector>
+
+#include "softgi/render/backend.hpp"
+
 namespace softgi::backends {
+
+// The device memory the rasteriser allocates for the frame's "gbuffer" and "receiver_gbuffer"
+// passes (attachments, readback buffers, geometry), for render::Backend::estimate_memory.
+void gbuffer_raster_memory(const std::vector<const render::PassDesc*>& passes, const scene::Scene& scene,
+                           const render::ParamSet& params, int width, int height, std::vector<render::MemoryItem>& items);
 
 // Registers "gbuffer" and "receiver_gbuffer" for the Vulkan backend (render::register_shared_pass_impl).
 void register_gbuffer_raster_passes();

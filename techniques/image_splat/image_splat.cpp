@@ -711,6 +711,67 @@ void pass_shade_indirect(const Settings& s, FrameContext& ctx) {
   ctx.put<Image>(render::kIndirect, std::move(img));
 }
 
+// The frame's large resources (render::Technique::estimate_memory) at display resolution P = w x h
+// and receiver resolution C = ceil(w/s) x ceil(h/s), as the passes above and the Vulkan kernels
+// (image_splat_vulkan*.cpp, upsample_vulkan.cpp, shade_vulkan.cpp) allocate them. Every pixel is
+// taken to hit a surface (receivers = C, surface pixels = P): the bound the scene cannot exceed.
+// Left out: tables, the proxy bins (they grow with proxies x tiles), the robust misses (a scene-
+// dependent fraction of P) and per-block scratch.
+std::vector<render::MemoryItem> memory_items(const render::ParamSet& params, int w, int h) {
+  using render::MemoryPlace;
+  const Settings s = read_settings(params);
+  const std::size_t np = render::pixel_count(w, h);
+  const std::size_t nc = render::pixel_count(render::scaled_size(w, s.receiver_scale), render::scaled_size(h, s.receiver_scale));
+  const std::size_t f = sizeof(float), i32 = sizeof(std::int32_t), n2 = static_cast<std::size_t>(s.order) * s.order;
+  std::vector<render::MemoryItem> m;
+  auto host = [&](std::string name, std::size_t bytes, const char* pass, bool transient = false, bool host_only = false) {
+    m.push_back({std::move(name), bytes, MemoryPlace::Host, pass, transient, false, host_only});
+  };
+  auto device = [&](std::string name, std::size_t bytes, const char* pass) {
+    m.push_back({std::move(name), bytes, MemoryPlace::Device, pass, false, true, false});
+  };
+  // Receivers (ReceiverBuffer): SoA position and normal and pixel per receiver, receiver per pixel.
+  host(kReceivers, nc * (6 * f + i32) + nc * i32, "receivers");
+  host(kLogOcclusion, nc * n2 * f, "accumulate_log", false, true);
+  host(kOcclusion, nc * n2 * f, "exponentiate");
+  host(kIndirectSums, nc * 4 * f, "accumulate_indirect");
+  host(kIndirectNorm, nc * 3 * f, "normalize_indirect");
+  // Upsampled: the eq. 11 taps, weights and miss flags per display pixel, the surface pixels, O_p
+  // per coarse pixel (when there is O_p), the upsampled indirect shading (when there is indirect).
+  host("image_splat.upsample_weights", np * (4 * i32 + 4 * f + 1), "upsample");
+  host("image_splat.surface_pixels", np * i32, "upsample");
+  host("image_splat.coarse_occlusion", nc * n2 * f, "exponentiate");
+  host("image_splat.upsampled_indirect", np * 3 * f, "normalize_indirect");
+  host("image_splat upsample input", nc * 3 * f, "upsample", true);
+  // Shading: the irradiance of surface pixels and of every pixel while they are gathered, then the
+  // images.
+  host("image_splat direct scratch", np * 2 * sizeof(glm::vec3), "shade_direct", true);
+  host(render::kDirect, render::image_bytes(w, h), "shade_direct");
+  host("image_splat indirect scratch", np * 3 * f, "shade_indirect", true);
+  host(render::kIndirect, render::image_bytes(w, h), "shade_indirect");
+  device("image_splat receivers", nc * 6 * f, "accumulate_log");
+  device("image_splat log occlusion", nc * n2 * f, "accumulate_log");
+  device("image_splat occlusion", nc * n2 * f, "exponentiate");
+  device("image_splat indirect receivers", nc * 6 * f, "accumulate_indirect");
+  device("image_splat indirect sums", nc * 4 * f, "accumulate_indirect");
+  device("upsample display depth", np * f, "upsample");
+  device("upsample display normals", np * 3 * f, "upsample");
+  device("upsample receiver depth", nc * f, "upsample");
+  device("upsample receiver normals", nc * 3 * f, "upsample");
+  device("upsample taps", np * 4 * i32, "upsample");
+  device("upsample weights", np * 4 * f, "upsample");
+  device("upsample misses", np * 2 * i32, "upsample");
+  device("upsample input", nc * 3 * f, "upsample");
+  device("upsample output", np * 3 * f, "upsample");
+  device("shade receivers", np * 6 * f, "shade_direct");
+  device("shade visibility", nc * n2 * f, "shade_direct");
+  device("shade tap pixels", np * i32, "shade_direct");
+  device("shade tap index", np * 4 * i32, "shade_direct");
+  device("shade tap weights", np * 4 * f, "shade_direct");
+  device("shading", np * 4 * f, "shade_direct");
+  return m;
+}
+
 // --- the technique -------------------------------------------------------------------------------
 
 class ImageSplat final : public render::Technique {
@@ -724,6 +785,11 @@ class ImageSplat final : public render::Technique {
   std::vector<ParamDesc> params() const override { return param_descs(); }
 
   std::vector<render::ExperimentDef> experiments() const override { return image_splat::experiments(); }
+
+  std::vector<render::MemoryItem> estimate_memory(const scene::Scene&, const render::ParamSet& params, int width,
+                                                  int height) const override {
+    return memory_items(params, width, height);
+  }
 
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);

@@ -639,6 +639,45 @@ common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
   return r;
 }
 
+// The frame's large resources (render::Technique::estimate_memory): per vertex of the scene V and
+// per display pixel, as the passes above and the Vulkan kernels (shexp_vulkan.cpp, shade_vulkan.cpp)
+// allocate them. Left out: tables, hierarchies and cuts (they grow with the blockers, not with the
+// frame), and per-block scratch.
+std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const render::ParamSet& params, int w, int h) {
+  using render::MemoryPlace;
+  const Settings s = read_settings(params);
+  const std::size_t v = render::scene_vertex_count(scene), f = sizeof(float);
+  const std::size_t n2 = static_cast<std::size_t>(s.order) * s.order, n2a = static_cast<std::size_t>(s.acc_order) * s.acc_order;
+  const char* vis_pass = s.mode == Mode::Projected ? "project_visibility" : s.mode == Mode::Product ? "product_accumulate" : "exponentiate";
+  std::vector<render::MemoryItem> m;
+  auto host = [&](std::string name, std::size_t bytes, const char* pass, bool transient = false, bool host_only = false) {
+    m.push_back({std::move(name), bytes, MemoryPlace::Host, pass, transient, false, host_only});
+  };
+  auto device = [&](std::string name, std::size_t bytes, const char* pass) {
+    m.push_back({std::move(name), bytes, MemoryPlace::Device, pass, false, true, false});
+  };
+  // Receivers: SoA position and normal, object, vertex and index; the clusters kept for the next
+  // frame (assignment and last positions), and Lloyd's assignment while it runs.
+  host(kReceivers, v * (6 * f + 3 * sizeof(int)), "receiver_setup");
+  host("shexp receiver clusters", v * (sizeof(int) + sizeof(glm::vec3)), "receiver_setup");
+  host("shexp Lloyd assignment", v * sizeof(int), "receiver_setup", true);
+  host(kLogVisibility, v * n2a * f, "accumulate_log", false, true);
+  host(kVisibility, v * n2 * f, vis_pass, false, true);
+  if (s.mode == Mode::Product) host("shexp product accumulator", v * n2a * f, "product_accumulate", true);
+  // Shading: the per-receiver result while it is scattered, irradiance and radiance per vertex.
+  host("shexp shade scratch", v * sizeof(glm::vec3), "shade", true);
+  host(kShading, v * sizeof(glm::vec3), "shade");
+  host("vertex radiance", v * sizeof(glm::vec3), "shade");
+  // The direct image, in the frame and in the result.
+  host(render::kDirect, render::image_bytes(w, h), "to_image");
+  host("direct (frame result)", render::image_bytes(w, h), "to_image");
+  device("shexp receivers", v * 6 * f, "accumulate_log");
+  device("shexp log vectors", v * n2a * f, "accumulate_log");
+  device("shexp visibility", v * n2 * f, "exponentiate");
+  device("shade receivers", v * 6 * f, "shade");
+  device("shading", v * 4 * f, "shade");
+  return m;
+}
 
 class Shexp final : public render::Technique {
  public:
@@ -677,6 +716,11 @@ class Shexp final : public render::Technique {
   }
 
   std::vector<render::ExperimentDef> experiments() const override { return shexp::experiments(); }
+
+  std::vector<render::MemoryItem> estimate_memory(const scene::Scene& scene, const render::ParamSet& params, int width,
+                                                  int height) const override {
+    return memory_items(scene, params, width, height);
+  }
 
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);

@@ -1,8 +1,16 @@
+#include <sys/resource.h>
+
 #include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <mutex>
+#include <sstream>
 #include <stdexcept>
 #include <utility>
 
@@ -68,6 +76,247 @@ std::unique_ptr<Technique> create_technique(const std::string& name) {
 
 ParamSet default_params(const Technique& t) { return ParamSet(t.params()); }
 
+// --- Frame memory -------------------------------------------------------------------------------
+
+std::size_t pixel_count(int width, int height) {
+  return static_cast<std::size_t>(std::max(width, 0)) * static_cast<std::size_t>(std::max(height, 0));
+}
+
+std::size_t gbuffer_bytes(int width, int height) {
+  // The planes GBuffer::background allocates.
+  return pixel_count(width, height) *
+         (4 * sizeof(glm::vec3) + sizeof(float) + 2 * sizeof(std::int32_t) + sizeof(glm::vec2));
+}
+
+std::size_t image_bytes(int width, int height) { return pixel_count(width, height) * sizeof(glm::vec3); }
+
+int scaled_size(int size, int scale) { return scale > 0 ? (size + scale - 1) / scale : size; }
+
+std::size_t scene_vertex_count(const scene::Scene& scene) {
+  std::size_t n = 0;
+  for (const auto& node : scene.nodes)
+    if (node.mesh >= 0 && node.mesh < static_cast<int>(scene.meshes.size())) n += scene.meshes[node.mesh].positions.size();
+  return n;
+}
+
+std::size_t FrameMemory::bytes(MemoryPlace place) const {
+  std::size_t persistent = 0;
+  std::map<std::string, std::size_t> transient;
+  for (const auto& it : items) {
+    if (it.place != place) continue;
+    if (it.transient) transient[it.pass] += it.bytes;
+    else persistent += it.bytes;
+  }
+  std::size_t peak = 0;
+  for (const auto& [pass, b] : transient) peak = std::max(peak, b);
+  return persistent + peak;
+}
+
+const MemoryItem* FrameMemory::largest(MemoryPlace place) const {
+  const MemoryItem* best = nullptr;
+  for (const auto& it : items)
+    if (it.place == place && (!best || it.bytes > best->bytes)) best = &it;
+  return best;
+}
+
+std::string format_bytes(std::size_t bytes) {
+  const double b = static_cast<double>(bytes);
+  char buf[64];
+  if (b >= 1024.0 * 1024.0 * 1024.0 * 1024.0) std::snprintf(buf, sizeof buf, "%.1f TiB", b / (1024.0 * 1024.0 * 1024.0 * 1024.0));
+  else if (b >= 1024.0 * 1024.0 * 1024.0) std::snprintf(buf, sizeof buf, "%.1f GiB", b / (1024.0 * 1024.0 * 1024.0));
+  else if (b >= 1024.0 * 1024.0) std::snprintf(buf, sizeof buf, "%.1f MiB", b / (1024.0 * 1024.0));
+  else if (b >= 1024.0) std::snprintf(buf, sizeof buf, "%.1f KiB", b / 1024.0);
+  else std::snprintf(buf, sizeof buf, "%zu bytes", bytes);
+  return buf;
+}
+
+std::size_t parse_memory_size(const std::string& text, const std::string& what) {
+  auto fail = [&] {
+    return std::invalid_argument(what + ": '" + text + "' is not a memory size (expected e.g. 4GiB, 512M, 1.5GB or 1073741824)");
+  };
+  std::size_t i = 0;
+  while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+  const std::size_t start = i;
+  while (i < text.size() && (std::isdigit(static_cast<unsigned char>(text[i])) || text[i] == '.')) ++i;
+  if (i == start) throw fail();
+  double value = 0.0;
+  try {
+    std::size_t used = 0;
+    value = std::stod(text.substr(start, i - start), &used);
+    if (used != i - start) throw fail();
+  } catch (const std::invalid_argument&) {
+    throw fail();
+  } catch (const std::out_of_range&) {
+    throw fail();
+  }
+  while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+  std::string unit;
+  for (; i < text.size(); ++i) unit += static_cast<char>(std::tolower(static_cast<unsigned char>(text[i])));
+  double mult = 1.0;
+  if (unit.empty() || unit == "b") mult = 1.0;
+  else {
+    const char p = unit[0];
+    const int power = p == 'k' ? 1 : p == 'm' ? 2 : p == 'g' ? 3 : p == 't' ? 4 : 0;
+    const std::string rest = unit.substr(1);
+    if (power == 0 || !(rest.empty() || rest == "i" || rest == "ib" || rest == "b")) throw fail();
+    mult = std::pow(rest == "b" ? 1000.0 : 1024.0, power);
+  }
+  const double bytes = value * mult;
+  if (!std::isfinite(bytes) || bytes < 1.0 || bytes > 9.0e18) throw fail();
+  return static_cast<std::size_t>(bytes);
+}
+
+namespace {
+
+// A number from /proc or /sys ("max" and unreadable files: none).
+bool read_size_file(const std::string& path, std::size_t& out) {
+  std::ifstream f(path);
+  std::string v;
+  if (!(f >> v) || v == "max") return false;
+  try {
+    out = static_cast<std::size_t>(std::stoull(v));
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+// `key` of /proc/meminfo or /proc/self/status, in bytes (the files give kB).
+bool read_kb_field(const std::string& path, const std::string& key, std::size_t& out) {
+  std::ifstream f(path);
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind(key, 0) == 0) {
+      try {
+        out = static_cast<std::size_t>(std::stoull(line.substr(key.size()))) * 1024;
+        return true;
+      } catch (const std::exception&) {
+        return false;
+      }
+    }
+  return false;
+}
+
+void take_smaller(MemoryLimits& l, std::size_t bytes, const std::string& source) {
+  if (l.host == 0 || bytes < l.host) {
+    l.host = bytes;
+    l.host_source = source;
+  }
+}
+
+// Limits of the process's memory cgroup and its ancestors: each one's limit less its usage.
+void cgroup_limits(MemoryLimits& l) {
+  std::ifstream f("/proc/self/cgroup");
+  std::string line;
+  while (std::getline(f, line)) {
+    // v2: "0::/path"; v1: "N:memory:/path" (or with other controllers listed beside memory).
+    const std::size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
+    if (b == std::string::npos) continue;
+    const std::string controllers = line.substr(a + 1, b - a - 1);
+    std::string path = line.substr(b + 1);
+    const bool v2 = controllers.empty();
+    bool v1 = false;
+    for (std::size_t p = 0; !v2 && p != std::string::npos;) {
+      const std::size_t q = controllers.find(',', p);
+      if (controllers.substr(p, q == std::string::npos ? q : q - p) == "memory") v1 = true;
+      p = q == std::string::npos ? q : q + 1;
+    }
+    if (!v2 && !v1) continue;
+    const std::string root = v2 ? "/sys/fs/cgroup" : "/sys/fs/cgroup/memory";
+    for (;;) {
+      const std::string dir = root + (path == "/" ? "" : path);
+      std::size_t max = 0, current = 0;
+      const bool limited = v2 ? read_size_file(dir + "/memory.max", max) && read_size_file(dir + "/memory.current", current)
+                              : read_size_file(dir + "/memory.limit_in_bytes", max) &&
+                                    read_size_file(dir + "/memory.usage_in_bytes", current);
+      // cgroup v1 reports "no limit" as a huge number (PAGE_COUNTER_MAX pages).
+      if (limited && max < (std::size_t{1} << 60))
+        take_smaller(l, max > current ? max - current : 0,
+                     (v2 ? "memory.max less memory.current of cgroup " : "memory.limit_in_bytes less memory.usage_in_bytes of cgroup ") +
+                         path);
+      if (path.empty() || path == "/") break;
+      const std::size_t slash = path.rfind('/');
+      path = slash == 0 || slash == std::string::npos ? "/" : path.substr(0, slash);
+    }
+  }
+}
+
+}  // namespace
+
+MemoryLimits host_memory_limits(std::size_t declared) {
+  MemoryLimits l;
+  if (declared > 0) {
+    l.host = declared;
+    l.host_source = "declared limit";
+    l.declared = true;
+    return l;
+  }
+  if (const char* env = std::getenv("SOFTGI_MEMORY_LIMIT"); env && *env) {
+    std::string v = env;
+    std::string lower;
+    for (char c : v) lower += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (lower == "none") {
+      l.checked = false;
+      return l;
+    }
+    l.host = parse_memory_size(v, "SOFTGI_MEMORY_LIMIT");
+    l.host_source = "SOFTGI_MEMORY_LIMIT=" + v;
+    l.declared = true;
+    return l;
+  }
+  std::size_t avail = 0;
+  if (read_kb_field("/proc/meminfo", "MemAvailable:", avail)) take_smaller(l, avail, "MemAvailable in /proc/meminfo");
+  rlimit as{};
+  if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
+    std::size_t used = 0;
+    read_kb_field("/proc/self/status", "VmSize:", used);
+    const std::size_t cap = static_cast<std::size_t>(as.rlim_cur);
+    take_smaller(l, cap > used ? cap - used : 0, "RLIMIT_AS less the address space in use");
+  }
+  cgroup_limits(l);
+  return l;
+}
+
+void check_frame_memory(const FrameMemory& m, const MemoryLimits& limits, const std::string& device_name) {
+  if (!limits.checked) return;
+  const std::string frame = "render: " + m.technique + " at " + std::to_string(m.width) + "x" + std::to_string(m.height);
+  const std::string who = "the " + m.backend + " backend" + (device_name.empty() ? "" : " (device '" + device_name + "')");
+  for (const auto& it : m.items) {
+    if (it.place != MemoryPlace::Device) continue;
+    if (it.storage_buffer && limits.max_storage_buffer > 0 && it.bytes > limits.max_storage_buffer)
+      throw FrameMemoryError(frame + " needs a storage buffer '" + it.name + "' of " + format_bytes(it.bytes) + " (" +
+                                 std::to_string(it.bytes) + " bytes); " + who + " allows at most " +
+                                 format_bytes(limits.max_storage_buffer) + " per storage buffer (maxStorageBufferRange)",
+                             it.name, it.bytes, limits.max_storage_buffer);
+    if (limits.max_allocation > 0 && it.bytes > limits.max_allocation)
+      throw FrameMemoryError(frame + " needs '" + it.name + "' of " + format_bytes(it.bytes) + " (" + std::to_string(it.bytes) +
+                                 " bytes) in one allocation; " + who + " allows at most " + format_bytes(limits.max_allocation) +
+                                 " per allocation (maxMemoryAllocationSize)",
+                             it.name, it.bytes, limits.max_allocation);
+  }
+  auto with_margin = [](std::size_t b) { return static_cast<std::size_t>(std::ceil(static_cast<double>(b) * (1.0 + kMemoryMargin))); };
+  const int margin_pct = static_cast<int>(std::lround(kMemoryMargin * 100.0));
+  auto refuse = [&](const char* kind, std::size_t need, const MemoryItem* big, std::size_t limit, const std::string& source) {
+    std::ostringstream os;
+    os << frame << " needs about " << format_bytes(need) << " of " << kind << " (largest: '" << (big ? big->name : "?") << "' "
+       << format_bytes(big ? big->bytes : 0) << "; the estimate plus " << margin_pct << "%); " << who << " has "
+       << format_bytes(limit) << " available (" << source << ")";
+    throw FrameMemoryError(os.str(), big ? big->name : "", big ? big->bytes : 0, limit);
+  };
+  const std::size_t device = m.bytes(MemoryPlace::Device), host = m.bytes(MemoryPlace::Host);
+  if (limits.device > 0 && device > 0 && with_margin(device) > limits.device)
+    refuse("device memory", with_margin(device), m.largest(MemoryPlace::Device), limits.device, limits.device_source);
+  if (limits.host > 0) {
+    const std::size_t need = with_margin(host + (limits.device_is_host_memory ? device : 0));
+    if (need > limits.host) {
+      const MemoryItem* big = m.largest(MemoryPlace::Host);
+      const MemoryItem* dbig = limits.device_is_host_memory ? m.largest(MemoryPlace::Device) : nullptr;
+      if (dbig && (!big || dbig->bytes > big->bytes)) big = dbig;
+      refuse(limits.device_is_host_memory ? "memory (host and device)" : "host memory", need, big, limits.host, limits.host_source);
+    }
+  }
+}
+
 FrameResult Backend::render(Technique& technique, const scene::Scene& scene, const ParamSet& params,
                             const RenderRequest& request) {
   auto t0 = std::chrono::steady_clock::now();
@@ -79,10 +328,12 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
   const int h = request.height > 0 ? request.height : scene.camera.height;
   if (w < 1 || h < 1 || w > 16384 || h > 16384)
     throw std::invalid_argument("render: resolution " + std::to_string(w) + "x" + std::to_string(h) + " outside 1..16384");
-  scene::PosedScene posed = scene::evaluate(scene, request.time);
   std::set<std::string> empty;
   PassGraph graph = technique.plan(scene, params, empty);
   CompiledGraph compiled = graph.compile(request.outputs, empty);
+  // Before anything large is allocated (the posed scene included).
+  check_frame_memory(estimate_compiled(technique, scene, params, graph, compiled, w, h), memory_limits(), memory_device_name());
+  scene::PosedScene posed = scene::evaluate(scene, request.time);
   result.pruned = compiled.pruned;
   result.warnings = compiled.warnings;
   FrameContext ctx(scene, posed, params, w, h, result, device());
@@ -107,6 +358,56 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
   result.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.peak_rss_bytes = peak_rss_bytes();
   return result;
+}
+
+FrameMemory Backend::estimate_compiled(Technique& technique, const scene::Scene& scene, const ParamSet& params,
+                                       const PassGraph& graph, const CompiledGraph& compiled, int w, int h) {
+  FrameMemory m;
+  m.technique = technique.name();
+  m.backend = name();
+  m.width = w;
+  m.height = h;
+  std::vector<const PassDesc*> order;
+  std::map<std::string, const PassDesc*> runs;
+  for (int i : compiled.order) {
+    order.push_back(&graph.passes()[i]);
+    runs[graph.passes()[i].name] = &graph.passes()[i];
+  }
+  // The posed scene: world-space positions and normals of every vertex (scene::evaluate).
+  m.items.push_back({"posed scene", scene_vertex_count(scene) * 2 * sizeof(glm::vec3), MemoryPlace::Host, "", false, false});
+  // The shared passes' resources, whatever implementation runs them.
+  if (runs.count("gbuffer")) m.items.push_back({kGBuffer, gbuffer_bytes(w, h), MemoryPlace::Host, "gbuffer", false, false});
+  if (runs.count("receiver_gbuffer")) {
+    const int s = params.has("receiver_scale") ? params.get_int("receiver_scale") : 1;
+    m.items.push_back({kReceiverGBuffer, gbuffer_bytes(scaled_size(w, s), scaled_size(h, s)), MemoryPlace::Host, "receiver_gbuffer",
+                       false, false});
+  }
+  if (runs.count("compose")) m.items.push_back({kFinal, image_bytes(w, h), MemoryPlace::Host, "compose", false, false});
+  const bool has_device = device() != nullptr;
+  for (MemoryItem& it : technique.estimate_memory(scene, params, w, h)) {
+    if (!it.pass.empty()) {
+      auto p = runs.find(it.pass);
+      if (p == runs.end()) continue;
+      // A device item is the backend's kernels' allocation: not made where the host code runs the pass.
+      const bool own = has_device && (p->second->impl.count(name()) || find_shared_pass_impl(it.pass, name()));
+      if (it.place == MemoryPlace::Device ? !own : (it.host_only && own)) continue;
+    } else if (it.place == MemoryPlace::Device && !has_device) {
+      continue;
+    }
+    m.items.push_back(std::move(it));
+  }
+  add_backend_memory(order, scene, params, w, h, m.items);
+  return m;
+}
+
+FrameMemory Backend::estimate_memory(Technique& technique, const scene::Scene& scene, const ParamSet& params,
+                                     const RenderRequest& request) {
+  const int w = request.width > 0 ? request.width : scene.camera.width;
+  const int h = request.height > 0 ? request.height : scene.camera.height;
+  std::set<std::string> empty;
+  PassGraph graph = technique.plan(scene, params, empty);
+  const CompiledGraph compiled = graph.compile(request.outputs, empty);
+  return estimate_compiled(technique, scene, params, graph, compiled, w, h);
 }
 
 const PassFn* find_pass_impl(const PassDesc& pass, const std::string& backend) {

@@ -2,6 +2,7 @@
 // benchmark sweeps read.
 #pragma once
 
+#include <cstddef>
 #include <functional>
 #include <memory>
 #include <set>
@@ -15,6 +16,47 @@
 
 namespace softgi::render {
 
+// --- Frame memory -------------------------------------------------------------------------------
+// What a frame allocates, estimated before the first pass so that a frame too large for the backend
+// fails at once with an error naming the resource, its size and the limit (Backend::render), not
+// with std::bad_alloc or an unnamed driver error after minutes of work. Only the large resources are
+// listed: those that grow with the resolution, the receivers or the vertices.
+enum class MemoryPlace {
+  Host,   // process memory (std::vector and friends)
+  Device  // memory a device backend allocates through its API (buffers, images)
+};
+struct MemoryItem {
+  std::string name;  // as errors name it: a frame resource ("gbuffer"), or a device buffer's name
+  std::size_t bytes = 0;
+  MemoryPlace place = MemoryPlace::Host;
+  // The pass that allocates it, or whose result it holds ("" = always counted). Host items count
+  // when the pass runs at all; device items only on a backend that runs the pass with an
+  // implementation of its own (its kernels), never on the host fallback.
+  std::string pass;
+  // Freed when `pass` ends (scratch of one pass): the frame needs the persistent items plus the
+  // largest pass's transient ones, not the sum of all.
+  bool transient = false;
+  // Device items: one storage buffer (the device's maxStorageBufferRange applies) rather than an
+  // image or a transfer buffer (only maxMemoryAllocationSize applies). Every device item is one
+  // allocation.
+  bool storage_buffer = false;
+  // Host items: made by the pass's host implementation only; a device backend's kernels keep it in
+  // device memory (a deferred resource), so it is not counted where they run the pass.
+  bool host_only = false;
+};
+
+// Sizes of the common image-sized resources, the closed forms technique estimates are made of.
+std::size_t pixel_count(int width, int height);
+// A render::GBuffer of width x height pixels (every plane: position, normal, albedo, view_dir,
+// depth, object, primitive, barycentric).
+std::size_t gbuffer_bytes(int width, int height);
+// A render::Image (linear RGB float).
+std::size_t image_bytes(int width, int height);
+// ceil(size / scale): the receiver buffer's edge (common_passes.hpp, add_receiver_gbuffer_pass).
+int scaled_size(int size, int scale);
+// Vertices of every object of the scene (nodes with a mesh): the per-vertex receivers.
+std::size_t scene_vertex_count(const scene::Scene& scene);
+
 class Technique {
  public:
   virtual ~Technique() = default;
@@ -27,6 +69,16 @@ class Technique {
   // The paper figures this technique reproduces, for `softgi experiment` (none by default). Their
   // variants may name other registered techniques (a comparison figure).
   virtual std::vector<ExperimentDef> experiments() const { return {}; }
+  // The large resources of a frame of width x height of this scene with these parameters, as
+  // allocated by the technique's own passes (the shared passes' G-buffers and the composed image
+  // are the framework's, a device backend's own buffers for the shared passes are the backend's).
+  // Items of passes the compiled graph leaves out are not counted. None by default: such a
+  // technique's frames are checked for the shared resources only.
+  virtual std::vector<MemoryItem> estimate_memory(const scene::Scene& scene, const ParamSet& params, int width,
+                                                  int height) const {
+    (void)scene, (void)params, (void)width, (void)height;
+    return {};
+  }
 };
 
 using TechniqueFactory = std::function<std::unique_ptr<Technique>()>;

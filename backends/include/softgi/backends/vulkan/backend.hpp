@@ -6,10 +6,12 @@
 // Deliberately free of <vulkan/vulkan.h> (the application includes this header).
 #pragma once
 
+#include <cstddef>
 #include <functional>
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "softgi/render/backend.hpp"
 
@@ -25,6 +27,7 @@ struct VulkanBackendOptions {
   std::string device;                  // vulkan::ContextOptions::device ("" = $SOFTGI_VULKAN_DEVICE, else the best)
   int validation = -1;                 // vulkan::ContextOptions::validation
   double fence_timeout_seconds = 120.0;
+  std::size_t memory_limit = 0;        // render::Backend::set_memory_limit (0: the machine's, or SOFTGI_MEMORY_LIMIT)
 };
 
 class VulkanBackend : public render::Backend {
@@ -40,10 +43,21 @@ class VulkanBackend : public render::Backend {
   // For run records: name, type, driver, driver_info, api_version, vendor_id, device_id, index.
   std::map<std::string, std::string> device_record() const override;
   std::string device_name() const;
+  // The host's limits (render::host_memory_limits) and the device's: maxStorageBufferRange per
+  // storage buffer, maxMemoryAllocationSize per allocation, and the largest device-local heap for
+  // the total, except on a CPU device (lavapipe), whose memory is process memory: there the host's
+  // limit covers host and device items together (lavapipe's heap size is not enforced). A declared
+  // limit (set_memory_limit, SOFTGI_MEMORY_LIMIT) replaces the host's and the heap's totals.
+  render::MemoryLimits memory_limits() const override;
 
  protected:
   void execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) override;
   render::TransferBytes transfer_total() const override;
+  // The rasteriser's attachments, readback and geometry buffers for "gbuffer" and
+  // "receiver_gbuffer" (gbuffer_raster.cpp).
+  void add_backend_memory(const std::vector<const render::PassDesc*>& passes, const scene::Scene& scene, const render::ParamSet& params,
+                          int width, int height, std::vector<render::MemoryItem>& items) const override;
+  std::string memory_device_name() const override { return device_name(); }
 
  private:
   std::shared_ptr<vulkan::Context> ctx_;

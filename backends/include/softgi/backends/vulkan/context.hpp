@@ -88,6 +88,7 @@ struct DeviceInfo {
   std::uint32_t subgroup_size = 0;
   std::uint32_t timestamp_valid_bits = 0;  // of the compute queue family; 0: no timestamps
   std::uint64_t device_local_bytes = 0;    // largest device-local heap
+  std::uint64_t max_allocation_bytes = 0;  // maxMemoryAllocationSize (0: the device does not say)
   bool is_gpu() const;
   std::string api_version_text() const;   // "1.3.230"
   std::string describe() const;            // "llvmpipe (LLVM 15.0.6, 256 bits) [cpu; llvmpipe Mesa ...; Vulkan 1.3.230]"
@@ -364,9 +365,10 @@ class Context : public render::Device {
   std::uint32_t queue_family() const { return queue_family_; }  // graphics + compute + transfer
   double fence_timeout_seconds() const { return fence_timeout_; }
 
-  // Storage buffers larger than the device's maxStorageBufferRange, and any size 0, are
-  // std::invalid_argument naming the buffer, the size and the limit (never a driver error).
-  // usage gets TRANSFER_SRC | TRANSFER_DST added.
+  // Storage buffers larger than the device's maxStorageBufferRange, buffers larger than its
+  // maxMemoryAllocationSize or its device memory, and any size 0, are std::invalid_argument naming
+  // the buffer, the size and the limit (never a driver error); a failed allocation is a VulkanError
+  // naming the buffer, its size and the memory heap. usage gets TRANSFER_SRC | TRANSFER_DST added.
   Buffer create_buffer(VkDeviceSize bytes, VkBufferUsageFlags usage, MemoryKind kind, const std::string& name);
   // Reallocates `b` only when it is smaller than `bytes` (per-frame buffers reused across frames).
   void ensure_buffer(Buffer& b, VkDeviceSize bytes, VkBufferUsageFlags usage, MemoryKind kind, const std::string& name);
@@ -378,6 +380,9 @@ class Context : public render::Device {
     if (!v.empty()) upload(b, v.data(), v.size() * sizeof(T));
     return b;
   }
+  // Images beyond maxImageDimension2D, or whose texels exceed maxMemoryAllocationSize or the
+  // format's maxResourceSize, are std::invalid_argument naming the image, the size and the limit; a
+  // failed allocation is a VulkanError naming the image, its size and the memory heap.
   Image create_image(std::uint32_t width, std::uint32_t height, VkFormat format, VkImageUsageFlags usage,
                      VkImageAspectFlags aspect, const std::string& name);
   Owned<VkShaderModule> create_shader_module(std::span<const std::uint32_t> spirv, const std::string& name);
@@ -422,8 +427,9 @@ class Context : public render::Device {
   friend class Image;
   friend class Recorder;
   std::uint32_t memory_type(std::uint32_t type_bits, VkMemoryPropertyFlags want, VkMemoryPropertyFlags prefer) const;
+  // `what` names the allocation in errors ("buffer 'shexp visibility'").
   VkDeviceMemory allocate(const VkMemoryRequirements& req, VkMemoryPropertyFlags want, VkMemoryPropertyFlags prefer,
-                          bool& host_visible);
+                          bool& host_visible, const std::string& what);
   VkDescriptorSet allocate_set(VkDescriptorSetLayout layout);
   void note_free(VkDeviceSize bytes) { allocated_ -= static_cast<std::size_t>(bytes); }
   // After a timed-out submission: waits (once, up to max(timeout, 30 s)) for it to finish before
