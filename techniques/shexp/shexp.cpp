@@ -186,7 +186,7 @@ void pass_hierarchy(State& st, FrameContext& ctx) {
         st.trees.push_back(nullptr);
         continue;
       }
-      st.trees.push_back(std::make_unique<proxies::SphereHierarchy>(proxies::SphereHierarchy::build(set, 4, 1)));
+      st.trees.push_back(std::make_unique<proxies::SphereHierarchy>(proxies::SphereHierarchy::build(set, 4)));
     }
     st.hierarchy_key = key;
     st.hierarchy_build_seconds = common::seconds_since(t0);

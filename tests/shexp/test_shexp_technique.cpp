@@ -292,7 +292,7 @@ TEST(ShexpHierarchy, RatioVectorsKeepTheCutCloseToTheFlatList) {
   for (unsigned seed : {1u, 2u}) {
     Crowd c = make_crowd(seed);
     std::vector<proxies::SphereHierarchy> trees;
-    for (const auto& s : c.sets) trees.push_back(proxies::SphereHierarchy::build(s, 4, seed));
+    for (const auto& s : c.sets) trees.push_back(proxies::SphereHierarchy::build(s, 4));
     std::vector<const proxies::SphereHierarchy*> tp;
     for (const auto& tr : trees) tp.push_back(&tr);
     const BlockerList flat = flat_list(c.sets, order);
