@@ -1,5 +1,6 @@
 // softgi::Progress: quiet within the delay, throttled, ends at 100 % or where the work stopped,
-// off or redirected by the process-wide setting; ProgressBar's stderr lines.
+// off or redirected by the process-wide setting; ProgressBar's stderr lines; the sphere-set fit's
+// report.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -10,7 +11,9 @@
 #include <thread>
 #include <vector>
 
+#include "../proxies/meshes.hpp"
 #include "softgi/progress.hpp"
+#include "softgi/proxies/sphere_fit.hpp"
 
 namespace softgi {
 namespace {
@@ -128,6 +131,30 @@ TEST(ProgressBar, DisabledPrintsNothing) {
   bar.update(1.0);
   std::cerr.rdbuf(old);
   EXPECT_TRUE(err.str().empty());
+}
+
+TEST(Progress, SphereSetFitReportsWithoutACallbackOnly) {
+  const proxies::TriMesh box = proxies::test::box_mesh({0, 0, 0}, {2, 1, 1});
+  proxies::FitOptions opt;
+  opt.spheres = 4;
+  opt.grid_resolution = 6;
+  opt.max_iterations = 4;
+  {
+    Capture cap(0.0);
+    proxies::fit_sphere_set(box, opt);
+    ASSERT_GE(cap.events.size(), 2u);
+    EXPECT_EQ(cap.events.front().label, "sphere-set fit (4 spheres)");
+    EXPECT_TRUE(cap.events.back().done);
+    EXPECT_EQ(cap.events.back().fraction, 1.0);
+  }
+  {
+    // A caller following the iterations itself (softgi fit-proxies prints each) gets no bar.
+    Capture cap(0.0);
+    int calls = 0;
+    proxies::fit_sphere_set(box, opt, [&](const proxies::FitProgress&) { ++calls; });
+    EXPECT_GT(calls, 0);
+    EXPECT_TRUE(cap.events.empty());
+  }
 }
 
 }  // namespace
