@@ -28,6 +28,7 @@
 #include "softgi/io/image_io.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/metrics/image_metrics.hpp"
+#include "softgi/progress.hpp"
 #include "softgi/reference/reference.hpp"
 #include "softgi/sh/sh.hpp"
 
@@ -61,41 +62,6 @@ int parse_light(const std::string& s) {
   return n;
 }
 
-// Progress on stderr: a redrawn bar on a terminal, one line per 10% otherwise (logs, ctest).
-class ProgressBar {
- public:
-  ProgressBar(std::string label, bool enabled) : label_(std::move(label)), enabled_(enabled), tty_(isatty(fileno(stderr)) != 0) {}
-  void update(double f) {
-    if (!enabled_) return;
-    const double t = std::chrono::duration<double>(clock::now() - start_).count();
-    if (tty_) {
-      if (f < 1.0 && t - last_draw_ < 0.1) return;
-      last_draw_ = t;
-      constexpr int kWidth = 30;
-      const int filled = static_cast<int>(f * kWidth);
-      std::ostringstream os;
-      os << "\r" << label_ << " [" << std::string(filled, '#') << std::string(kWidth - filled, '-') << "] " << std::setw(3)
-         << static_cast<int>(100.0 * f) << "%  " << std::fixed << std::setprecision(1) << t << " s";
-      if (f > 0.0 && f < 1.0) os << "  eta " << t * (1.0 - f) / f << " s";
-      os << "   ";
-      std::cerr << os.str() << std::flush;
-      if (f >= 1.0) std::cerr << "\n";
-    } else {
-      const int decile = static_cast<int>(f * 10.0 + 1e-9);
-      if (decile <= last_decile_) return;
-      last_decile_ = decile;
-      std::cerr << label_ << " " << decile * 10 << "% (" << std::fixed << std::setprecision(1) << t << " s)\n";
-    }
-  }
-
- private:
-  using clock = std::chrono::steady_clock;
-  std::string label_;
-  bool enabled_, tty_;
-  clock::time_point start_ = clock::now();
-  double last_draw_ = -1.0;
-  int last_decile_ = -1;
-};
 
 // User + system CPU seconds of this process: with other jobs on the machine, CPU time per sample is
 // a steadier measure than wall time.

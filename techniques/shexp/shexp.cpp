@@ -5,11 +5,14 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <mutex>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
@@ -118,13 +121,65 @@ std::string receivers_signature(const scene::Scene& scene, const scene::PosedSce
   return os.str();
 }
 
-std::string hierarchy_signature(const scene::Scene& scene) {
-  std::ostringstream os;
-  os << &scene << '|' << scene.source << '|' << scene.name;
-  for (const auto& p : scene.proxies) {
-    os << '|' << p.node << ':' << p.spheres.size();
-    if (!p.spheres.empty()) os << ':' << p.spheres[0].center.x << ',' << p.spheres[0].radius;
+// The hierarchy options SHEXP builds with (paper 004 section 6.3: branching 4).
+proxies::HierarchyBuildOptions hierarchy_options() { return proxies::HierarchyBuildOptions{}; }
+
+// 64-bit FNV-1a over 32-bit words in four independent lanes (x, y, z, radius of each sphere, so
+// that the multiplications do not wait on each other). Every step is a bijection of the lane's
+// state, so sets that differ in one word always get different hashes; sets that differ in several
+// collide with probability about 2^-64.
+class SphereHash {
+ public:
+  void word(std::uint32_t w, int lane = 0) { h_[lane] = (h_[lane] ^ w) * kPrime; }
+  void spheres(const std::vector<scene::Sphere>& set) {
+    word(static_cast<std::uint32_t>(set.size()));
+    for (const scene::Sphere& sp : set) {
+      word(std::bit_cast<std::uint32_t>(sp.center.x), 0);
+      word(std::bit_cast<std::uint32_t>(sp.center.y), 1);
+      word(std::bit_cast<std::uint32_t>(sp.center.z), 2);
+      word(std::bit_cast<std::uint32_t>(sp.radius), 3);
+    }
   }
+  std::uint64_t value() const {
+    std::uint64_t v = h_[0];
+    for (int l = 1; l < 4; ++l) v = (v ^ h_[l]) * kPrime;
+    return v;
+  }
+
+ private:
+  static constexpr std::uint64_t kPrime = 1099511628211ull;
+  std::uint64_t h_[4] = {14695981039346656037ull, 14695981039346656037ull ^ 1, 14695981039346656037ull ^ 2,
+                         14695981039346656037ull ^ 3};
+};
+
+// What the trees depend on: the build options and every set's rest-pose spheres, node and skin
+// binding (all of them: an edit anywhere in a set must rebuild). Animated scenes refit the trees to
+// each frame's spheres (proxy_update), so their pose is not part of the key; a static scene runs
+// no refit and uses the bounds as built, so its posed spheres are (an edited node transform must
+// rebuild too).
+std::string hierarchy_signature(const scene::Scene& scene, const scene::PosedScene& posed, const proxies::HierarchyBuildOptions& opt) {
+  SphereHash h;
+  for (const auto& p : scene.proxies) {
+    h.word(static_cast<std::uint32_t>(p.node));
+    h.spheres(p.spheres);
+    h.word(static_cast<std::uint32_t>(p.joints.size()));
+    for (const glm::u16vec4& j : p.joints) {
+      h.word(static_cast<std::uint32_t>(j.x) | static_cast<std::uint32_t>(j.y) << 16);
+      h.word(static_cast<std::uint32_t>(j.z) | static_cast<std::uint32_t>(j.w) << 16);
+    }
+    h.word(static_cast<std::uint32_t>(p.weights.size()));
+    for (const glm::vec4& w : p.weights)
+      for (int c = 0; c < 4; ++c) h.word(std::bit_cast<std::uint32_t>(w[c]));
+  }
+  std::set<std::string> empty;
+  render::add_scene_facts(scene, empty);
+  const bool refit_per_frame = empty.count(render::kMovingObjects) == 0;
+  if (!refit_per_frame)
+    for (const auto& set : posed.proxies) h.spheres(set);
+  std::ostringstream os;
+  os << "sets " << scene.proxies.size() << " posed " << !refit_per_frame << " branching " << opt.branching << " max_children "
+     << opt.max_children << " lloyd " << opt.lloyd_iterations << " fit " << opt.fit_evaluations << " hash " << std::hex
+     << h.value();
   return os.str();
 }
 
@@ -173,7 +228,8 @@ void pass_light_tables(State& st, const Settings& s, FrameContext& ctx) { st.lig
 void check_proxies(const FrameContext& ctx) { common::check_proxy_spheres("shexp", ctx, false); }
 
 void pass_hierarchy(State& st, FrameContext& ctx) {
-  const std::string key = hierarchy_signature(ctx.scene);
+  const proxies::HierarchyBuildOptions opt = hierarchy_options();
+  const std::string key = hierarchy_signature(ctx.scene, ctx.posed, opt);
   bool cached = true;
   std::lock_guard<std::mutex> lock(st.m);
   if (st.hierarchy_key != key) {
@@ -186,7 +242,7 @@ void pass_hierarchy(State& st, FrameContext& ctx) {
         st.trees.push_back(nullptr);
         continue;
       }
-      st.trees.push_back(std::make_unique<proxies::SphereHierarchy>(proxies::SphereHierarchy::build(set, 4, 1)));
+      st.trees.push_back(std::make_unique<proxies::SphereHierarchy>(proxies::SphereHierarchy::build(set, opt)));
     }
     st.hierarchy_key = key;
     st.hierarchy_build_seconds = common::seconds_since(t0);

@@ -14,6 +14,7 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <queue>
 #include <random>
 #include <sstream>
@@ -22,6 +23,7 @@
 #include <unordered_map>
 
 #include "detail.hpp"
+#include "softgi/progress.hpp"
 
 namespace softgi::proxies {
 
@@ -1102,6 +1104,9 @@ FitResult fit_sphere_set(const TriMesh& mesh, const FitOptions& opt,
                          const std::function<void(const FitProgress&)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   validate_options(opt);
+  // A caller that follows the iterations itself (fit-proxies prints each one) gets no second report.
+  std::optional<Progress> bar;
+  if (!progress) bar.emplace("sphere-set fit (" + std::to_string(opt.spheres) + " spheres)");
   const Solid solid(mesh, "fit_sphere_set");
   const Samples samples = make_samples(solid, opt, "fit_sphere_set");
   const size_t N = samples.p.size();
@@ -1124,8 +1129,10 @@ FitResult fit_sphere_set(const TriMesh& mesh, const FitOptions& opt,
       st.centre.push_back(samples.p[idx[i]]);
     }
   }
+  // Iterations against the cap: a fit that converges early jumps to 100 %.
   auto report = [&](int it, double E, const char* phase) {
     if (progress) progress(FitProgress{it, E, phase});
+    if (bar) bar->update(static_cast<double>(it) / opt.max_iterations);
   };
 
   // Teleport attempts per stall before the fit counts as converged.
@@ -1195,6 +1202,7 @@ FitResult fit_sphere_set(const TriMesh& mesh, const FitOptions& opt,
   }
   res.E = sum / solid.volume();
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (bar) bar->done();
   return res;
 }
 

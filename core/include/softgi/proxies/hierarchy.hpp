@@ -14,11 +14,29 @@ struct SphereNode {
   int parent = -1;
 };
 
+// How SphereHierarchy::build clusters each level. The defaults follow the paper; the limits keep
+// the build O(n log n) for sets of 100k spheres.
+struct HierarchyBuildOptions {
+  // Average children per parent: each level has about n / branching clusters (paper: 4). [2, 64].
+  int branching = 4;
+  // A cluster with more members is split in space into groups of about `branching` (0: 4 x
+  // branching). Lloyd clustering gives this only on degenerate input (many coincident centres,
+  // which all have the same closest cluster); on proxy sets it never binds. >= 2 x branching.
+  int max_children = 0;
+  // Lloyd iterations per level; a level stops earlier once no sphere changes cluster. [1, 1000].
+  int lloyd_iterations = 50;
+  // Evaluations of the radius that Powell's method may spend on one cluster's bounding sphere,
+  // over all its stages. [100, 100000].
+  int fit_evaluations = 1500;
+};
+
 class SphereHierarchy {
  public:
   // Levels built leaves-up by Lloyd clustering (assignment to the closest cluster centre, centre
-  // optimised to minimise the bounding radius) with average branching ratio `branching` (paper: 4).
-  static SphereHierarchy build(const std::vector<scene::Sphere>& leaves, int branching = 4, unsigned seed = 1);
+  // optimised to minimise the bounding radius). Deterministic: the same leaves and options give
+  // the same tree. Long builds report on softgi::Progress (softgi/progress.hpp).
+  static SphereHierarchy build(const std::vector<scene::Sphere>& leaves, const HierarchyBuildOptions& options);
+  static SphereHierarchy build(const std::vector<scene::Sphere>& leaves, int branching = 4);
   // Moves the leaves and refits every parent bottom-up with a sphere-pair bound merging each child in
   // turn (section 6.3, during animation). `leaves` must have the same size as at build time.
   void update(const std::vector<scene::Sphere>& leaves);

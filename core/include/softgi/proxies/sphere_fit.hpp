@@ -54,7 +54,9 @@ std::vector<glm::dvec3> fit_sample_points(const TriMesh& mesh, const FitOptions&
 
 // Variational fit: surface and interior points, flood-fill clustering, per-cluster sphere update
 // minimising outside volume while bounding the cluster (Powell's method), cluster teleportation.
-// Every point of fit_sample_points(mesh, opt) is inside some sphere on return.
+// Every point of fit_sample_points(mesh, opt) is inside some sphere on return. Without a
+// `progress` callback, a fit that runs past the delay reports on softgi::Progress
+// (softgi/progress.hpp); with one, only the callback hears of the iterations.
 FitResult fit_sphere_set(const TriMesh& mesh, const FitOptions& opt,
                          const std::function<void(const FitProgress&)>& progress = {});
 
