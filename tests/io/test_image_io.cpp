@@ -1,7 +1,9 @@
 // Image files: EXR (float, half) and PNG round trips, and the errors for missing, corrupt,
-// non-finite and absurdly sized images.
+// non-finite and absurdly sized images; environment maps read as radiance (negative components
+// clamped and counted, NaN, infinity and values above the limit refused).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -12,6 +14,7 @@
 
 #include "softgi/image.hpp"
 #include "softgi/io/image_io.hpp"
+#include "test_hdr_files.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -180,6 +183,74 @@ TEST(io_image, AbsurdSizesAndBadArgumentsAreErrors) {
   EXPECT_NE(e.find("e.png: exposure"), std::string::npos) << e;
   e = error_of([&] { io::write_exr(dir.file("no_such_dir/a.exr"), Image(2, 2)); });
   EXPECT_NE(e.find("no_such_dir/a.exr"), std::string::npos) << e;
+}
+
+// The scene-file radiance limit (docs/scene_format.md: radiance up to 10^9).
+constexpr float kRadianceLimit = 1e9f;
+
+TEST(io_image, EnvironmentMapClampsAndCountsNegativeComponents) {
+  ScratchDir dir;
+  constexpr int w = 4, h = 3;
+  std::vector<float> rgb(w * h * 3);
+  for (std::size_t i = 0; i < rgb.size(); ++i) rgb[i] = 0.125f * float(i);
+  rgb[3 * (1 * w + 2) + 0] = -0.57f;  // pixel (2, 1): the lowest
+  rgb[3 * (1 * w + 2) + 1] = -0.01f;
+  rgb[3 * (2 * w + 3) + 2] = -0.25f;  // pixel (3, 2)
+  rgb[3 * (0 * w + 1) + 1] = kRadianceLimit;  // at the limit: allowed
+  softgi::test::write_raw_exr(dir.file("neg.exr"), w, h, rgb);
+  const io::EnvironmentMap m = io::read_environment_map(dir.file("neg.exr"), kRadianceLimit);
+  ASSERT_EQ(m.width, w);
+  ASSERT_EQ(m.height, h);
+  ASSERT_EQ(m.rgb.size(), rgb.size());
+  EXPECT_EQ(m.negative_clamped, 3u);
+  EXPECT_EQ(m.lowest, -0.57f);
+  EXPECT_EQ(m.lowest_x, 2);
+  EXPECT_EQ(m.lowest_y, 1);
+  for (std::size_t i = 0; i < rgb.size(); ++i) EXPECT_EQ(m.rgb[i], std::max(rgb[i], 0.0f)) << "component " << i;
+  // read_rgb_float is the raw read: the values as stored.
+  int rw = 0, rh = 0;
+  std::vector<float> raw;
+  io::read_rgb_float(dir.file("neg.exr"), rw, rh, raw);
+  EXPECT_EQ(raw, rgb);
+  // Nothing negative: nothing counted.
+  rgb[3 * (1 * w + 2) + 0] = rgb[3 * (1 * w + 2) + 1] = rgb[3 * (2 * w + 3) + 2] = 0.0f;
+  softgi::test::write_raw_exr(dir.file("pos.exr"), w, h, rgb);
+  const io::EnvironmentMap p = io::read_environment_map(dir.file("pos.exr"), kRadianceLimit);
+  EXPECT_EQ(p.negative_clamped, 0u);
+  EXPECT_EQ(p.lowest_x, -1);
+  EXPECT_EQ(p.rgb, rgb);
+}
+
+TEST(io_image, EnvironmentMapRefusesNonFiniteNamingFileAndPixel) {
+  ScratchDir dir;
+  std::vector<float> rgb(5 * 2 * 3, 1.0f);
+  rgb[3 * (1 * 5 + 3) + 1] = std::nanf("");
+  softgi::test::write_raw_exr(dir.file("nan.exr"), 5, 2, rgb);
+  std::string e = error_of([&] { io::read_environment_map(dir.file("nan.exr"), kRadianceLimit); });
+  EXPECT_NE(e.find("nan.exr: pixel (3, 1) channel 1 is nan"), std::string::npos) << e;
+  rgb[3 * (1 * 5 + 3) + 1] = -INFINITY;
+  softgi::test::write_raw_exr(dir.file("inf.exr"), 5, 2, rgb);
+  e = error_of([&] { io::read_environment_map(dir.file("inf.exr"), kRadianceLimit); });
+  EXPECT_NE(e.find("inf.exr: pixel (3, 1) channel 1 is -inf"), std::string::npos) << e;
+}
+
+TEST(io_image, EnvironmentMapRefusesRadianceAboveTheLimit) {
+  ScratchDir dir;
+  std::vector<float> rgb(3 * 2 * 3, 0.5f);
+  rgb[3 * (0 * 3 + 1) + 2] = 3e38f;
+  softgi::test::write_raw_exr(dir.file("huge.exr"), 3, 2, rgb);
+  std::string e = error_of([&] { io::read_environment_map(dir.file("huge.exr"), kRadianceLimit); });
+  EXPECT_NE(e.find("huge.exr: pixel (1, 0) channel 2 is 3e+38, above the radiance limit 1e+09"), std::string::npos) << e;
+  // Radiance HDR (RGBE) too: 2^34 = 1.7e10 is just above the limit and exact in RGBE.
+  std::vector<float> hdr = {0.5f, 0.25f, 1.0f, 4.0f, 2.0f, 1.0f, 17179869184.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+  softgi::test::write_rgbe_hdr(dir.file("ok.hdr"), 2, 1, hdr);
+  const io::EnvironmentMap ok = io::read_environment_map(dir.file("ok.hdr"), kRadianceLimit);
+  ASSERT_EQ(ok.width, 2);
+  // RGBE keeps 8 bits per channel against the pixel's largest: within 1/256 of it.
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(ok.rgb[k], hdr[k], (k < 3 ? 1.0f : 4.0f) / 256.0f) << "component " << k;
+  softgi::test::write_rgbe_hdr(dir.file("huge.hdr"), 2, 2, hdr);
+  e = error_of([&] { io::read_environment_map(dir.file("huge.hdr"), kRadianceLimit); });
+  EXPECT_NE(e.find("huge.hdr: pixel (0, 1) channel 0 is 1.71799e+10, above the radiance limit 1e+09"), std::string::npos) << e;
 }
 
 }  // namespace

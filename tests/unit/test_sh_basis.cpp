@@ -200,7 +200,7 @@ TEST(Windowing, CosineFilter) {
 
 TEST(Projection, LatLongRoundTrip) {
   // A map sampled from a known order-3 function projects back to its coefficients; the error is
-  // the midpoint rule's O(1/H^2) on a 512x256 map.
+  // that of the bilinear reconstruction of the samples, O(1/H^2) on a 512x256 map.
   const int order = 3, w = 512, h = 256;
   std::vector<double> coef = {1.0, 0.3, -0.2, 0.5, 0.1, -0.4, 0.25, 0.05, -0.15};
   std::vector<float> img(static_cast<std::size_t>(w) * h * 2);

@@ -214,6 +214,45 @@ void read_rgb_float(const std::string& path, int& width, int& height, std::vecto
   }
 }
 
+EnvironmentMap read_environment_map(const std::string& path, float max_radiance) {
+  if (!(max_radiance > 0.0f) || !std::isfinite(max_radiance)) {
+    std::ostringstream s;
+    s << "the radiance limit must be finite and positive, got " << max_radiance;
+    fail(path, s.str());
+  }
+  // read_image has already refused NaN and infinity, naming the pixel.
+  const Image img = read_image(path);
+  EnvironmentMap map;
+  map.width = img.width;
+  map.height = img.height;
+  map.rgb.resize(img.rgb.size() * 3);
+  for (int y = 0; y < img.height; ++y) {
+    for (int x = 0; x < img.width; ++x) {
+      const glm::vec3& c = img.at(x, y);
+      for (int k = 0; k < 3; ++k) {
+        float v = c[k];
+        if (v > max_radiance) {
+          std::ostringstream s;
+          s << "pixel (" << x << ", " << y << ") channel " << k << " is " << v << ", above the radiance limit "
+            << max_radiance;
+          fail(path, s.str());
+        }
+        if (v < 0.0f) {
+          ++map.negative_clamped;
+          if (v < map.lowest) {
+            map.lowest = v;
+            map.lowest_x = x;
+            map.lowest_y = y;
+          }
+          v = 0.0f;
+        }
+        map.rgb[3 * (std::size_t(y) * std::size_t(img.width) + std::size_t(x)) + std::size_t(k)] = v;
+      }
+    }
+  }
+  return map;
+}
+
 void write_exr(const std::string& path, const Image& img, bool half) {
   check_image(path, img);
   check_finite(path, img);

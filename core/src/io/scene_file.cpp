@@ -20,6 +20,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/gtc/constants.hpp>
@@ -590,17 +591,22 @@ class SceneParser {
       const std::string file = r_.resolve(r_.string(v["map"], p));
       e.kind = scene::Environment::Kind::Map;
       e.map_path = file;
+      EnvironmentMap map;
       try {
-        read_rgb_float(file, e.map_width, e.map_height, e.map_rgb);
+        map = read_environment_map(file, static_cast<float>(kMaxRadiance));
       } catch (const std::exception& ex) {
         r_.fail(p, ex.what());
       }
-      for (std::size_t k = 0; k < e.map_rgb.size(); ++k) {
-        if (e.map_rgb[k] < 0.0f) {
-          const std::size_t px = k / 3;
-          r_.fail(p, file + ": pixel (" + std::to_string(px % std::size_t(e.map_width)) + ", " +
-                         std::to_string(px / std::size_t(e.map_width)) + ") has negative radiance " + number_text(e.map_rgb[k]));
-        }
+      e.map_width = map.width;
+      e.map_height = map.height;
+      e.map_rgb = std::move(map.rgb);
+      if (map.negative_clamped > 0) {
+        std::ostringstream s;
+        s.precision(3);
+        s << "environment map '" << file << "': " << map.negative_clamped << " negative pixel component"
+          << (map.negative_clamped == 1 ? "" : "s") << " (lowest " << map.lowest << " at pixel (" << map.lowest_x << ", "
+          << map.lowest_y << ")) clamped to 0";
+        s_.notices.push_back(s.str());
       }
     }
   }

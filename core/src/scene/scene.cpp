@@ -65,7 +65,8 @@ glm::vec3 map_texel(const Environment& env, int u, int v) {
 
 // Bilinear lookup in the lat-long map, inverse of sh::latlong_direction: pixel (u, v) centre holds
 // theta = pi (v + 1/2) / H from +y and phi = 2 pi (u + 1/2) / W with d = (sin t cos p, cos t, -sin t sin p).
-// Wraps in u, clamps in v.
+// Wraps in u, clamps in v. This is sh::LatLongFilter::Bilinear, the function environment_sh projects:
+// renderers that read radiance() and techniques that read the SH light see the same map at any size.
 glm::vec3 map_lookup(const Environment& env, const glm::vec3& d) {
   const int w = env.map_width, h = env.map_height;
   if (w <= 0 || h <= 0 || env.map_rgb.size() != static_cast<std::size_t>(w) * h * 3) return glm::vec3(0.0f);
@@ -146,7 +147,9 @@ std::vector<glm::vec3> environment_sh(const Environment& env, int order) {
          << " floats (expected width * height * 3 > 0)";
       throw std::invalid_argument(os.str());
     }
-    std::vector<double> c = sh::project_latlong(order, env.map_rgb.data(), w, h, 3);  // channel-major
+    // Integrates map_lookup's bilinear reconstruction exactly over every texel (not centre samples),
+    // so a 1x1 or 2x1 map projects as correctly as a 512x256 one.
+    std::vector<double> c = sh::project_latlong(order, env.map_rgb.data(), w, h, 3, sh::LatLongFilter::Bilinear);  // channel-major
     if (env.rotation_y != 0.0f) {
       // ShRotation(R) gives f'(s) = f(R^T s): the map turned by R = R_y(rotation_y), as radiance() reads it.
       const sh::ShRotation rot(order, rotation_y_mat3(env.rotation_y));
@@ -778,6 +781,9 @@ void validate(const Scene& scene) {
         bad(mpart, "size " + std::to_string(e.map_width) + "x" + std::to_string(e.map_height) + " is not a valid lat-long map");
       if (e.map_rgb.size() != static_cast<std::size_t>(e.map_width) * e.map_height * 3)
         bad(mpart, "has " + std::to_string(e.map_rgb.size()) + " floats for " + std::to_string(e.map_width) + "x" + std::to_string(e.map_height) + "x3");
+      // Radiance is never negative. A scene file's map has been clamped by its loader (lossy HDR
+      // compression rings below zero; the loader reports it in Scene::notices); a map built in code
+      // that still holds a negative value is a bug of its maker, and an error here.
       for (std::size_t k = 0; k < e.map_rgb.size(); ++k)
         if (!std::isfinite(e.map_rgb[k]) || e.map_rgb[k] < 0.0f)
           bad(mpart, "pixel (" + std::to_string(k / 3 % e.map_width) + ", " + std::to_string(k / 3 / e.map_width) + ") channel " +

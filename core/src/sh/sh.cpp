@@ -220,42 +220,4 @@ SphereQuadrature make_sphere_quadrature(int bands) {
   return q;
 }
 
-Vec3<double> latlong_direction(double u, double v, int width, int height) {
-  double theta = kPi * (v + 0.5) / height;
-  double phi = 2.0 * kPi * (u + 0.5) / width;
-  double st = std::sin(theta);
-  return {st * std::cos(phi), std::cos(theta), -st * std::sin(phi)};
-}
-
-std::vector<double> project_latlong(int order, const float* pixels, int width, int height, int channels) {
-  check_order(order, "project_latlong");
-  if (width < 1 || height < 1 || width > 65536 || height > 65536 || channels < 1 || channels > 4) {
-    std::ostringstream os;
-    os << "project_latlong: image size " << width << "x" << height << "x" << channels << " is not a valid lat-long map";
-    throw std::invalid_argument(os.str());
-  }
-  const int n2 = num_coeffs(order);
-  std::vector<double> out(static_cast<std::size_t>(channels) * n2, 0.0);
-  std::array<double, kMaxCoeffs> y{};
-  for (int v = 0; v < height; ++v) {
-    // Exact solid angle of a pixel row: (cos theta0 - cos theta1) * 2 pi / W.
-    double d_omega = (std::cos(kPi * v / height) - std::cos(kPi * (v + 1) / height)) * 2.0 * kPi / width;
-    for (int u = 0; u < width; ++u) {
-      eval_basis(order, latlong_direction(u, v, width, height), y.data());
-      const float* px = pixels + (static_cast<std::size_t>(v) * width + u) * channels;
-      for (int c = 0; c < channels; ++c) {
-        if (!std::isfinite(px[c])) {
-          std::ostringstream os;
-          os << "project_latlong: pixel (" << u << ", " << v << ") channel " << c << " is " << px[c];
-          throw std::invalid_argument(os.str());
-        }
-        double w = px[c] * d_omega;
-        double* o = out.data() + static_cast<std::size_t>(c) * n2;
-        for (int i = 0; i < n2; ++i) o[i] += w * y[i];
-      }
-    }
-  }
-  return out;
-}
-
 }  // namespace softgi::sh

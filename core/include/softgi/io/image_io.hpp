@@ -1,7 +1,9 @@
 // Image files through OpenImageIO (the only translation unit that includes OIIO: core/src/io/image_io.cpp).
 #pragma once
 
+#include <cstddef>
 #include <string>
+#include <vector>
 
 #include "softgi/image.hpp"
 
@@ -10,8 +12,23 @@ namespace softgi::io {
 // Reads EXR, HDR, PNG, ... as linear float RGB (sRGB 8-bit files are linearised). Throws
 // std::runtime_error naming the file and the reason (missing, unreadable, no RGB channels, absurd size).
 Image read_image(const std::string& path);
-// Raw lat-long read for environment maps: width*height*3 floats. Same errors.
+// Raw read as width*height*3 floats, row 0 at the top, values as stored. Same errors.
 void read_rgb_float(const std::string& path, int& width, int& height, std::vector<float>& rgb);
+
+// A lat-long environment map read as radiance. Lossy HDR compression (DWAB/DWAA/PXR24 EXR, as in
+// the Poly Haven maps of assets/hdri) rings slightly below zero next to bright sources; radiance cannot
+// be negative, so such components are clamped to 0 and counted for the caller to report.
+struct EnvironmentMap {
+  int width = 0, height = 0;
+  std::vector<float> rgb;            // width * height * 3, row 0 at the top
+  std::size_t negative_clamped = 0;  // components that were < 0 and now are 0
+  float lowest = 0.0f;               // the most negative component before clamping; 0 when none
+  int lowest_x = -1, lowest_y = -1;  // its pixel; -1 when none
+};
+// Reads any format read_image reads. Throws std::runtime_error naming the file, the pixel and the
+// channel for a NaN or infinite component, or one above max_radiance (a broken map, not a bright one),
+// besides read_image's errors.
+EnvironmentMap read_environment_map(const std::string& path, float max_radiance);
 
 // Writes a float EXR (half when `half` is true). Writes to PATH.tmp and renames, so an existing file is
 // never left truncated. Throws std::runtime_error naming the file on failure.

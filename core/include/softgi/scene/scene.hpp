@@ -117,7 +117,8 @@ struct Environment {
   glm::vec3 sun_direction = glm::normalize(glm::vec3(0.5f, 0.8f, 0.3f));
   float sun_radius = 0.05f;  // radians (about 2.9 degrees: soft but directional)
   glm::vec3 sun_radiance{60.0f, 55.0f, 48.0f};
-  // Map: lat-long, row 0 at the top, mapping of sh::latlong_direction (docs/sh.md).
+  // Map: lat-long, row 0 at the top, mapping of sh::latlong_direction (docs/sh.md); finite and
+  // non-negative (validate; the scene-file loader clamps negative components and says so in notices).
   std::string map_path;
   int map_width = 0, map_height = 0;
   std::vector<float> map_rgb;  // width * height * 3
@@ -184,8 +185,9 @@ PosedScene evaluate(const Scene& scene, double t);
 // std::invalid_argument on the first problem ("mesh 'bunny': triangle 12 has zero area").
 void validate(const Scene& scene);
 
-// Order-n SH projection of the environment's radiance, per RGB channel (n*n vec3): solid-angle
-// weighted for maps (sh::project_latlong), by a fine quadrature for the sky (the sun disk is
+// Order-n SH projection of the environment's radiance, per RGB channel (n*n vec3): for maps the
+// exact integral of radiance()'s bilinear lookup over every texel at any map size
+// (sh::project_latlong, LatLongFilter::Bilinear), for the sky a fine quadrature (the sun disk is
 // supersampled so its energy is exact to 1e-3).
 std::vector<glm::vec3> environment_sh(const Environment& env, int order);
 

@@ -119,8 +119,19 @@ std::vector<double> project(int order, const SphereQuadrature& q, F&& fn) {
 // top. Pixel (u, v) centre maps to theta = pi (v + 0.5) / H measured from +y (up), phi = 2 pi (u + 0.5) / W,
 // direction (sin theta cos phi, cos theta, -sin theta sin phi): the +y-up convention of glTF scenes.
 Vec3<double> latlong_direction(double u, double v, int width, int height);
-// Solid-angle weighted projection: each pixel weighs by its exact solid angle
-// (cos theta0 - cos theta1) * 2 pi / W. Returns channels * n*n coefficients, channel-major.
-std::vector<double> project_latlong(int order, const float* pixels, int width, int height, int channels);
+
+// The continuous function a lat-long map stands for.
+//  - Nearest: piecewise constant, pixel (u, v) on the spherical rectangle phi in 2 pi [u, u+1]/W,
+//    theta in pi [v, v+1]/H (solid angle (phi1 - phi0)(cos theta0 - cos theta1)).
+//  - Bilinear: bilinear in (phi, theta) between pixel centres, wrapping in u and clamping in v (above
+//    the first and below the last row centre the row itself): the lookup of scene::Environment::radiance.
+enum class LatLongFilter { Nearest, Bilinear };
+
+// Projection of the map's `filter` reconstruction onto the basis (paper 004 eq. 1), integrated exactly
+// over every pixel (closed form in phi, Gauss-Legendre in theta to double rounding) for every map size:
+// a constant map gives (sqrt(4 pi) c, 0, ...) even at 1x1. Returns channels * n*n coefficients,
+// channel-major. Throws std::invalid_argument for a bad size or order, or a non-finite pixel (named).
+std::vector<double> project_latlong(int order, const float* pixels, int width, int height, int channels,
+                                    LatLongFilter filter = LatLongFilter::Bilinear);
 
 }  // namespace softgi::sh
