@@ -17,6 +17,7 @@
 #include "softgi/image.hpp"
 #include "softgi/io/gltf.hpp"
 #include "softgi/io/image_io.hpp"
+#include "softgi/io/scene_file.hpp"
 #include "softgi/scene/builtin.hpp"
 #include "softgi/scene/scene.hpp"
 #include "test_support.hpp"
@@ -173,17 +174,129 @@ TEST(io_gltf, ShearedMatrixIsAnError) {
   EXPECT_TRUE(s.meshes.empty() && s.nodes.empty()) << "a failed load must leave the scene unchanged";
 }
 
-TEST(io_gltf, MissingNormalsIsAnErrorNamingMeshAndPrimitive) {
+// ---- flat normals (glTF 2.0 section 3.7.2.1: a primitive without NORMAL is flat shaded) ----
+
+// A tetrahedron with 4 shared vertices, each face counter-clockwise seen from outside, plus two
+// degenerate triangles (a repeated index; a collinear one through the midpoint vertex 4), with a
+// TEXCOORD_0 and COLOR_0 that tell the original vertices apart.
+const std::vector<float> kTetPos = {0.1f, -0.2f, 0.3f, 1.7f, 0.1f, -0.4f, 0.3f, 1.3f, 0.2f, 0.6f, 0.4f, 1.9f,
+                                    0.9f, -0.05f, -0.05f};
+const std::vector<std::uint16_t> kTetIdx = {0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2, 0, 1, 1, 0, 4, 1};
+constexpr int kTetFaces = 4;
+
+void add_tet_mesh(GltfBuilder& b, bool reverse_winding) {
+  std::vector<float> uv, col;
+  for (int i = 0; i < 5; ++i) {
+    uv.insert(uv.end(), {0.1f * float(i), 0.05f * float(i * i)});
+    col.insert(col.end(), {0.2f * float(i), 1.0f - 0.2f * float(i), 0.5f});
+  }
+  std::vector<std::uint16_t> idx = kTetIdx;
+  if (reverse_winding) {
+    for (std::size_t t = 0; t < idx.size(); t += 3) std::swap(idx[t + 1], idx[t + 2]);
+  }
+  nlohmann::json attrs = {{"POSITION", b.floats(kTetPos, "VEC3", 3)},
+                          {"TEXCOORD_0", b.floats(uv, "VEC2", 2)},
+                          {"COLOR_0", b.floats(col, "VEC3", 3)}};
+  b.doc["meshes"] = {{{"name", "tet"}, {"primitives", {{{"attributes", attrs}, {"indices", b.ushorts(idx, "SCALAR", 1)}}}}}};
+  b.doc["nodes"] = {{{"name", "tet_node"}, {"mesh", 0}}};
+  b.doc["scenes"] = {{{"nodes", {0}}}};
+  b.doc["scene"] = 0;
+}
+
+glm::dvec3 tet_vertex(int i) { return glm::dvec3(kTetPos[3 * i], kTetPos[3 * i + 1], kTetPos[3 * i + 2]); }
+
+// The flat normals are the face normals normalize((p1 - p0) x (p2 - p0)) (counter-clockwise is the
+// front face, glTF 2.0 section 3.7.2.1), each triangle has its own 3 vertices and they keep the
+// uv and colour of the shared vertex they came from.
+TEST(io_gltf, MissingNormalsGetFlatNormalsOnSplitVertices) {
+  // Normals are computed in double and rounded to float once: a few float ulps.
+  constexpr float kFlatNormalTolerance = 1e-6f;
+  for (const bool reversed : {false, true}) {
+    ScratchDir dir;
+    GltfBuilder b;
+    add_tet_mesh(b, reversed);
+    b.write_glb(dir.file("tet.glb"));
+    Scene s;
+    load_gltf(dir.file("tet.glb"), s);
+    ASSERT_EQ(s.meshes.size(), 1u);
+    const auto& m = s.meshes[0];
+    ASSERT_EQ(m.triangles.size(), std::size_t(kTetFaces)) << "the two degenerate triangles are dropped";
+    ASSERT_EQ(m.positions.size(), 3 * m.triangles.size());
+    ASSERT_EQ(m.normals.size(), m.positions.size());
+    ASSERT_EQ(m.uvs.size(), m.positions.size());
+    ASSERT_EQ(m.colors.size(), m.positions.size());
+    const glm::dvec3 centroid = 0.25 * (tet_vertex(0) + tet_vertex(1) + tet_vertex(2) + tet_vertex(3));
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      const auto f = std::uint32_t(3 * t);
+      EXPECT_EQ(m.triangles[t], glm::uvec3(f, f + 1, f + 2));
+      // The original triangle, in the file's order.
+      int orig[3];
+      for (int k = 0; k < 3; ++k) {
+        std::uint16_t i = kTetIdx[3 * t + std::size_t(k)];
+        if (reversed && k > 0) i = kTetIdx[3 * t + std::size_t(3 - k)];
+        orig[k] = i;
+        EXPECT_EQ(m.positions[f + std::uint32_t(k)], glm::vec3(tet_vertex(i))) << "triangle " << t << " corner " << k;
+        EXPECT_EQ(m.uvs[f + std::uint32_t(k)], glm::vec2(0.1f * float(i), 0.05f * float(i * i)));
+        EXPECT_EQ(m.colors[f + std::uint32_t(k)], glm::vec3(0.2f * float(i), 1.0f - 0.2f * float(i), 0.5f));
+      }
+      const glm::dvec3 p0 = tet_vertex(orig[0]), p1 = tet_vertex(orig[1]), p2 = tet_vertex(orig[2]);
+      const glm::dvec3 expect = glm::normalize(glm::cross(p1 - p0, p2 - p0));
+      const glm::dvec3 outward = (p0 + p1 + p2) / 3.0 - centroid;
+      for (int k = 0; k < 3; ++k) {
+        const glm::vec3 nk = m.normals[f + std::uint32_t(k)];
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(nk[c], expect[c], kFlatNormalTolerance) << "triangle " << t;
+        // The faces are wound counter-clockwise seen from outside: the normals point out, or in
+        // when the file's winding is reversed.
+        EXPECT_EQ(glm::dot(glm::dvec3(nk), outward) > 0.0, !reversed) << "triangle " << t;
+      }
+    }
+    ASSERT_EQ(s.notices.size(), 1u);
+    EXPECT_NE(s.notices[0].find("tet.glb: mesh 0 'tet' primitive 0 has no NORMAL: flat normals"), std::string::npos)
+        << s.notices[0];
+    EXPECT_NE(s.notices[0].find("5 vertices split into 12"), std::string::npos) << s.notices[0];
+    EXPECT_NO_THROW(softgi::scene::validate(s));
+  }
+}
+
+TEST(io_gltf, MissingNormalsOnAllDegenerateTrianglesIsAnError) {
   ScratchDir dir;
   GltfBuilder b;
-  add_quad_mesh(b, false);
-  b.write_glb(dir.file("nonormals.glb"));
+  add_tet_mesh(b, false);
+  b.doc["meshes"][0]["primitives"][0]["indices"] = b.ushorts({0, 1, 1, 0, 4, 1}, "SCALAR", 1);
+  b.write_glb(dir.file("sliver.glb"));
   Scene s;
-  const std::string e = error_of([&] { load_gltf(dir.file("nonormals.glb"), s); });
-  EXPECT_NE(e.find("nonormals.glb"), std::string::npos) << e;
-  EXPECT_NE(e.find("mesh 0 'quad' primitive 0"), std::string::npos) << e;
-  EXPECT_NE(e.find("NORMAL"), std::string::npos) << e;
+  const std::string e = error_of([&] { load_gltf(dir.file("sliver.glb"), s); });
+  EXPECT_NE(e.find("sliver.glb: mesh 0 'tet' primitive 0: no non-degenerate triangles"), std::string::npos) << e;
+  EXPECT_TRUE(s.meshes.empty() && s.notices.empty()) << "a failed load must leave the scene unchanged";
 }
+
+// The quad with normals given and without: the flat normals equal the given ones (+y, from the
+// counter-clockwise winding) and the split vertices repeat the welded ones triangle by triangle.
+TEST(io_gltf, FlatNormalsOfTheQuadMatchItsGivenNormals) {
+  ScratchDir dir;
+  GltfBuilder with, without;
+  add_quad_mesh(with, true);
+  add_quad_mesh(without, false);
+  with.write_glb(dir.file("with.glb"));
+  without.write_glb(dir.file("nonormals.glb"));
+  Scene a, b;
+  load_gltf(dir.file("with.glb"), a);
+  load_gltf(dir.file("nonormals.glb"), b);
+  const auto &ma = a.meshes[0], &mb = b.meshes[0];
+  ASSERT_EQ(ma.positions.size(), 4u);
+  ASSERT_EQ(mb.positions.size(), 6u);
+  ASSERT_EQ(mb.triangles.size(), ma.triangles.size());
+  for (std::size_t t = 0; t < ma.triangles.size(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(mb.positions[mb.triangles[t][k]], ma.positions[ma.triangles[t][k]]);
+      EXPECT_EQ(mb.normals[mb.triangles[t][k]], ma.normals[ma.triangles[t][k]]);
+    }
+  }
+  EXPECT_TRUE(a.notices.empty());
+  ASSERT_EQ(b.notices.size(), 1u);
+  EXPECT_NE(b.notices[0].find("nonormals.glb: mesh 0 'quad' primitive 0 has no NORMAL"), std::string::npos) << b.notices[0];
+}
+
 
 TEST(io_gltf, TruncatedGlbIsAnError) {
   ScratchDir dir;
@@ -411,6 +524,144 @@ TEST(io_gltf, JointOutsideSkinIsAnError) {
   EXPECT_NE(e.find("uses joint 1 of a skin with 1"), std::string::npos) << e;
 }
 
+// The skinned strip without NORMAL: split into 3 vertices per triangle, each keeping the joints and
+// weights of its shared vertex, so the posed (skinned) positions and normals equal those of the
+// file with normals (whose normals, +z, are the strip's flat normals) corner by corner.
+TEST(io_gltf, SkinnedFileWithoutNormalsStillPoses) {
+  ScratchDir dir;
+  GltfBuilder with, without;
+  write_skinned(with);
+  write_skinned(without);
+  without.doc["meshes"][0]["primitives"][0]["attributes"].erase("NORMAL");
+  with.write_glb(dir.file("skinned.glb"));
+  without.write_glb(dir.file("skinned_flat.glb"));
+  Scene a, b;
+  load_gltf(dir.file("skinned.glb"), a);
+  load_gltf(dir.file("skinned_flat.glb"), b);
+  a.active_clip = 0;
+  b.active_clip = 0;
+  ASSERT_NO_THROW(softgi::scene::validate(b));
+  const auto &ma = a.meshes[0], &mb = b.meshes[0];
+  ASSERT_TRUE(mb.skinned());
+  ASSERT_EQ(mb.positions.size(), 3 * mb.triangles.size());
+  ASSERT_EQ(mb.triangles.size(), ma.triangles.size());
+  for (const double t : {0.0, 0.5, 1.0, 1.75}) {
+    const auto pa = softgi::scene::evaluate(a, t), pb = softgi::scene::evaluate(b, t);
+    ASSERT_EQ(pa.objects.size(), 1u);
+    ASSERT_EQ(pb.objects.size(), 1u);
+    const auto &oa = pa.objects[0], &ob = pb.objects[0];
+    for (std::size_t tri = 0; tri < ma.triangles.size(); ++tri) {
+      for (int k = 0; k < 3; ++k) {
+        const std::uint32_t va = ma.triangles[tri][k], vb = mb.triangles[tri][k];
+        EXPECT_EQ(mb.joints[vb], ma.joints[va]);
+        EXPECT_EQ(mb.weights[vb], ma.weights[va]);
+        // The same float operations on the same inputs: bit-exact.
+        EXPECT_EQ(ob.positions[vb], oa.positions[va]) << "t = " << t << ", triangle " << tri << " corner " << k;
+        EXPECT_EQ(ob.normals[vb], oa.normals[va]) << "t = " << t << ", triangle " << tri << " corner " << k;
+      }
+    }
+  }
+  // The pose moves the tip: the comparison above is not of two rest poses.
+  const auto rest = softgi::scene::evaluate(b, 0.0), bent = softgi::scene::evaluate(b, 1.0);
+  EXPECT_GT(glm::length(bent.objects[0].positions.back() - rest.objects[0].positions.back()), 0.1f);
+}
+
+// ---- base colour texture without TEXCOORD_0 ----
+
+// Two primitives share a textured material; the second has no TEXCOORD_0. Rule: that primitive
+// gets a copy of the material without the texture (named "NAME (untextured)"), so it shows the
+// base colour factor, and a notice names the file, mesh and primitive.
+TEST(io_gltf, TexturedMaterialWithoutTexcoordUsesTheBaseColourFactor) {
+  ScratchDir dir;
+  softgi::Image img(1, 1);
+  img.at(0, 0) = glm::vec3(1.0f, 0.0f, 0.0f);
+  softgi::io::write_png_display(dir.file("red.png"), img);
+  const std::vector<unsigned char> png = softgi::test::read_bytes(dir.file("red.png"));
+  GltfBuilder b;
+  add_quad_mesh(b, true);
+  nlohmann::json textured = b.doc["meshes"][0]["primitives"][0];
+  textured["attributes"]["TEXCOORD_0"] = b.floats({0, 0, 1, 0, 1, 1, 0, 1}, "VEC2", 2);
+  nlohmann::json bare = b.doc["meshes"][0]["primitives"][0];
+  b.doc["meshes"][0]["primitives"] = {textured, bare};
+  const int pv = b.view(png.data(), png.size());
+  b.doc["images"] = {{{"bufferView", pv}, {"mimeType", "image/png"}}};
+  b.doc["textures"] = {{{"source", 0}}};
+  b.doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", 0}};
+  b.write_glb(dir.file("uvless.glb"));
+  Scene s;
+  load_gltf(dir.file("uvless.glb"), s);
+  ASSERT_EQ(s.meshes.size(), 2u);
+  const auto &m0 = s.materials[std::size_t(s.meshes[0].material)], &m1 = s.materials[std::size_t(s.meshes[1].material)];
+  EXPECT_EQ(m0.albedo_texture, 0);
+  EXPECT_EQ(m1.albedo_texture, -1);
+  EXPECT_EQ(m1.name, "paint (untextured)");
+  EXPECT_EQ(m1.albedo, glm::vec3(0.25f, 0.5f, 0.75f));
+  ASSERT_EQ(s.notices.size(), 1u);
+  EXPECT_NE(s.notices[0].find("uvless.glb: mesh 0 'quad' primitive 1 has no TEXCOORD_0"), std::string::npos) << s.notices[0];
+  EXPECT_NE(s.notices[0].find("baseColorTexture"), std::string::npos) << s.notices[0];
+  // What a renderer sees: factor x texture (red) on the first primitive, the factor alone on the second.
+  const auto posed = softgi::scene::evaluate(s, 0.0);
+  ASSERT_EQ(posed.objects.size(), 2u);
+  for (const auto& o : posed.objects) {
+    const glm::vec3 albedo = softgi::scene::surface_albedo(s, o, 0, 0.3f, 0.3f);
+    if (o.mesh == 0) {
+      EXPECT_EQ(albedo, glm::vec3(0.25f, 0.0f, 0.0f));
+    } else {
+      EXPECT_EQ(albedo, glm::vec3(0.25f, 0.5f, 0.75f));
+    }
+  }
+  EXPECT_NO_THROW(softgi::scene::validate(s));
+}
+
+// ---- JSON nesting depth ----
+
+// The quad (its buffer in NAME.bin) with `arrays` nested arrays as the asset's extras: with the
+// document's own object and "asset" that is arrays + 2 levels. Written as NAME.gltf and, the same
+// JSON in a GLB's JSON chunk, as NAME.glb.
+void write_nested_quad(const ScratchDir& dir, const std::string& name, int arrays) {
+  GltfBuilder b;
+  add_quad_mesh(b, true, false);
+  b.write_gltf(dir.file(name + ".gltf"), name + ".bin");
+  b.doc["asset"]["extras"] = "NESTING";
+  std::string json = b.doc.dump();
+  json.replace(json.find("\"NESTING\""), 9, std::string(std::size_t(arrays), '[') + std::string(std::size_t(arrays), ']'));
+  softgi::test::write_text(dir.file(name + ".gltf"), json);
+  while (json.size() % 4 != 0) json.push_back(' ');
+  std::vector<unsigned char> glb;
+  auto u32 = [&glb](std::uint32_t x) {
+    for (int i = 0; i < 4; ++i) glb.push_back(static_cast<unsigned char>(x >> (8 * i)));
+  };
+  u32(0x46546C67);  // "glTF", version 2, total length, then the JSON chunk
+  u32(2);
+  u32(std::uint32_t(20 + json.size()));
+  u32(std::uint32_t(json.size()));
+  u32(0x4E4F534A);
+  glb.insert(glb.end(), json.begin(), json.end());
+  softgi::test::write_bytes(dir.file(name + ".glb"), glb);
+}
+
+TEST(io_gltf, JsonNestedTooDeepIsAnErrorInGltfAndGlb) {
+  ScratchDir dir;
+  // 20000 levels used to overflow the stack inside tinygltf; 63 arrays make 65 levels, one past the
+  // limit of 64.
+  for (const int arrays : {20000, 63}) {
+    write_nested_quad(dir, "deep", arrays);
+    for (const auto& [file, part] : {std::pair<std::string, std::string>{"deep.gltf", "the glTF JSON"},
+                                     std::pair<std::string, std::string>{"deep.glb", "the GLB JSON chunk"}}) {
+      Scene s;
+      const std::string e = error_of([&] { load_gltf(dir.file(file), s); });
+      EXPECT_NE(e.find(file + ": " + part + " is nested deeper than 64 levels"), std::string::npos) << arrays << " arrays: " << e;
+    }
+  }
+  // 62 arrays: exactly 64 levels, which load.
+  write_nested_quad(dir, "ok", 62);
+  for (const char* file : {"ok.gltf", "ok.glb"}) {
+    Scene s;
+    EXPECT_NO_THROW(load_gltf(dir.file(file), s)) << file;
+    EXPECT_EQ(s.meshes.size(), 1u) << file;
+  }
+}
+
 // ---- Draco ----
 
 // UV sphere as a triangle soup, encoded by draco::Encoder with quantised positions and normals.
@@ -556,6 +807,136 @@ TEST(io_gltf, UnsupportedRequiredExtensionIsAnError) {
   Scene s;
   const std::string e = error_of([&] { load_gltf(dir.file("ext.glb"), s); });
   EXPECT_NE(e.find("ext.glb: requires extension KHR_texture_transform"), std::string::npos) << e;
+}
+
+// ---- node transforms out of range ----
+
+// A finite float scale of 1e30 once overflowed the bounds of the bare-glTF scene and was reported
+// as "camera: position/target/up must be finite"; it is now refused at the node, naming it.
+TEST(io_gltf, NodeScaleOf1e30IsAnErrorNamingTheNode) {
+  ScratchDir dir;
+  GltfBuilder b;
+  add_quad_mesh(b, true);
+  b.doc["nodes"][0]["scale"] = {1e30, 1e30, 1e30};
+  b.write_glb(dir.file("huge.glb"));
+  const std::string expect = "huge.glb: node 0 'quad_node': scale[0] = 1e+30 is outside |scale| in [1e-06, 1e+06]";
+  Scene s;
+  std::string e = error_of([&] { load_gltf(dir.file("huge.glb"), s); });
+  EXPECT_NE(e.find(expect), std::string::npos) << e;
+  // The bare-glTF scene (softgi render FILE.glb, fit-proxies) reports the same, not the camera.
+  e = error_of([&] { softgi::io::load_scene(dir.file("huge.glb")); });
+  EXPECT_NE(e.find(expect), std::string::npos) << e;
+  EXPECT_EQ(e.find("camera"), std::string::npos) << e;
+  // The same scale as a matrix.
+  b.doc["nodes"][0].erase("scale");
+  b.doc["nodes"][0]["matrix"] = {1e30, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  b.write_glb(dir.file("huge_matrix.glb"));
+  e = error_of([&] { load_gltf(dir.file("huge_matrix.glb"), s); });
+  EXPECT_NE(e.find("huge_matrix.glb: node 0 'quad_node': matrix scale[0] = 1e+30"), std::string::npos) << e;
+}
+
+TEST(io_gltf, SceneFileObjectScaleOf1e30IsAnErrorNamingTheObject) {
+  ScratchDir dir;
+  softgi::test::write_text(dir.file("huge.json"),
+                           R"({"objects": [{"name": "ball", "mesh": "builtin:sphere", "transform": {"scale": 1e30}}]})");
+  const std::string e = error_of([&] { softgi::io::load_scene_file(dir.file("huge.json")); });
+  EXPECT_NE(e.find("huge.json: objects[0].transform.scale"), std::string::npos) << e;
+  EXPECT_NE(e.find("1e+30"), std::string::npos) << e;
+}
+
+// Scales in range one by one can multiply out of range: the object's 1e5 times the file's node
+// 1e5 is a world scale of 1e10, beyond 1e9 (scene::validate); the error names the node where the
+// chain leaves the range and its parent.
+TEST(io_gltf, ComposedNodeScaleOutOfRangeNamesTheNode) {
+  ScratchDir dir;
+  GltfBuilder b;
+  add_quad_mesh(b, true);
+  b.doc["nodes"][0]["scale"] = {1e5, 1e5, 1e5};
+  b.doc["nodes"][0].erase("translation");
+  b.write_glb(dir.file("big.glb"));
+  softgi::test::write_text(dir.file("big.json"),
+                           R"({"objects": [{"name": "holder", "mesh": "big.glb", "transform": {"scale": 1e5}}]})");
+  const std::string e = error_of([&] { softgi::io::load_scene_file(dir.file("big.json")); });
+  EXPECT_NE(e.find("big.json: node 'quad_node' (index 1): world axis scale 1e+10 is outside [1e-09, 1e+09]"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("under parent 'holder' (index 0)"), std::string::npos) << e;
+  // 1e4 x 1e5 = 1e9 is in range.
+  softgi::test::write_text(dir.file("ok.json"),
+                           R"({"objects": [{"name": "holder", "mesh": "big.glb", "transform": {"scale": 1e4}}]})");
+  EXPECT_NO_THROW(softgi::io::load_scene_file(dir.file("ok.json")));
+}
+
+TEST(io_gltf, ValidateNamesTheNodeWhoseWorldTransformLeavesTheRange) {
+  Scene s;
+  s.nodes.resize(1);  // an unrelated node first, so the index in the message is not 0
+  const int base = int(s.nodes.size());
+  for (int k = 0; k < 3; ++k) {
+    softgi::scene::Node n;
+    n.name = "level" + std::to_string(k);
+    n.parent = k == 0 ? -1 : base + k - 1;
+    n.scale = glm::vec3(1e4f);
+    s.nodes.push_back(n);
+  }
+  // 1e4, 1e8, then 1e12 at level2.
+  std::string e = error_of([&] { softgi::scene::validate(s); });
+  EXPECT_NE(e.find("node 'level2' (index " + std::to_string(base + 2) + "): world axis scale 1e+12"), std::string::npos) << e;
+  EXPECT_NE(e.find("under parent 'level1'"), std::string::npos) << e;
+  s.nodes[std::size_t(base + 2)].scale = glm::vec3(1.0f);
+  s.nodes[std::size_t(base + 2)].translation = glm::vec3(1e6f, 0.0f, 0.0f);  // 1e8 x 1e6 m
+  e = error_of([&] { softgi::scene::validate(s); });
+  EXPECT_NE(e.find("node 'level2' (index " + std::to_string(base + 2) + "): world translation (1e+14, 0, 0) is beyond 1e+12 m"),
+            std::string::npos)
+      << e;
+  s.nodes[std::size_t(base + 2)].translation = glm::vec3(0.0f);
+  EXPECT_NO_THROW(softgi::scene::validate(s));
+  s.nodes[std::size_t(base)].scale = glm::vec3(1e30f);
+  e = error_of([&] { softgi::scene::validate(s); });
+  EXPECT_NE(e.find("node 'level0' (index " + std::to_string(base) + "): scale (1e+30, 1e+30, 1e+30): each |component| must be in [1e-06, 1e+06]"),
+            std::string::npos)
+      << e;
+}
+
+// ---- the proxy file's node index ----
+
+// Nodes listed out of depth-first order: the file's nodes[0] 'second' is load_gltf's node 2, and
+// the file's nodes[2] 'first' is load_gltf's node 1; both hold a mesh, so a proxy file read in the
+// wrong numbering lands on the wrong object.
+void add_out_of_order_nodes(GltfBuilder& b) {
+  add_quad_mesh(b, true);
+  b.doc["nodes"] = {{{"name", "second"}, {"mesh", 0}, {"translation", {3.0, 0.0, 0.0}}},
+                    {{"name", "root"}, {"children", {2, 0}}},
+                    {{"name", "first"}, {"mesh", 0}}};
+  b.doc["scenes"] = {{{"nodes", {1}}}};
+}
+
+TEST(io_gltf, ProxyFileNodeIsLoadGltfsNumbering) {
+  ScratchDir dir;
+  GltfBuilder b;
+  add_out_of_order_nodes(b);
+  b.write_glb(dir.file("pair.glb"));
+  Scene alone;
+  load_gltf(dir.file("pair.glb"), alone);
+  ASSERT_EQ(alone.nodes.size(), 3u);
+  EXPECT_EQ(alone.nodes[0].name, "root");
+  EXPECT_EQ(alone.nodes[1].name, "first");
+  EXPECT_EQ(alone.nodes[2].name, "second");
+  for (const auto& [k, name] : {std::pair<int, std::string>{1, "first"}, std::pair<int, std::string>{2, "second"}}) {
+    softgi::scene::ProxySet ps;
+    ps.name = name;
+    ps.node = k;  // what `softgi fit-proxies` records for this node: its index in `alone`
+    ps.spheres = {{glm::vec3(0.0f), 1.5f}};
+    softgi::io::write_proxies_json(dir.file("pair_proxies.json"), ps);
+    // A built-in object first (node 0) and the glTF object's own node (1): the file's nodes start at 2.
+    softgi::test::write_text(dir.file("pair.json"), R"({"objects": [{"name": "ground", "mesh": "builtin:plane"},
+        {"name": "pair", "mesh": "pair.glb", "proxies": "pair_proxies.json"}]})");
+    const Scene s = softgi::io::load_scene_file(dir.file("pair.json"));
+    ASSERT_EQ(s.proxies.size(), 1u);
+    const int node = s.proxies[0].node;
+    ASSERT_GE(node, 0);
+    EXPECT_EQ(s.nodes[std::size_t(node)].name, name) << "proxy node " << k;
+    EXPECT_GE(s.nodes[std::size_t(node)].mesh, 0);
+  }
 }
 
 // The real asset: Stanford bunny from @pmndrs/assets (KHR_draco_mesh_compression).

@@ -48,11 +48,16 @@ constexpr std::size_t kMaxStride = 4096;
 // A node matrix whose rotation part deviates from orthonormal by more than this (after dividing
 // out the column lengths) has shear, which Node's TRS cannot represent.
 constexpr double kShearTolerance = 1e-3;
-// Smallest column length accepted as a scale (smaller: a degenerate, non-invertible matrix).
-constexpr double kMinScale = 1e-12;
 // Triangles with |cross| <= this * (longest edge)^2 are dropped: the same zero-area test as
 // scene::validate (core/src/scene/scene.cpp), which would otherwise reject the whole mesh.
 constexpr float kZeroAreaRelative = 1e-7f;
+// Node scale limits per axis, the ones scene::validate applies (core/src/scene/scene.cpp), checked
+// here so that the error names the node as the file numbers it: beyond them the input is broken.
+constexpr double kMinScale = 1e-6, kMaxScaleAbs = 1e6;
+// tinygltf 2.7 turns the parsed JSON into tinygltf::Value by recursion, so a document nested some
+// ten thousand levels deep overflows the stack inside it. Real glTF needs well under 10 levels
+// (extras included); scene and proxy files refuse the same depth (core/src/io/scene_file.cpp).
+constexpr int kMaxJsonDepth = 64;
 
 constexpr std::uint32_t kGlbMagic = 0x46546C67;      // "glTF"
 constexpr std::uint32_t kGlbChunkJson = 0x4E4F534A;  // "JSON"
@@ -76,6 +81,7 @@ struct Loader {
 
   std::map<int, std::vector<int>> mesh_map;  // glTF mesh -> scene meshes (one per primitive)
   std::map<int, int> material_map;           // glTF material -> scene material
+  std::map<int, int> untextured_map;         // scene material -> its copy without albedo texture
   std::map<int, int> texture_map;            // glTF texture -> scene texture
   std::map<int, int> skin_map;               // glTF skin -> scene skin
   std::vector<int> node_map;                 // glTF node -> scene node (-1: not in the imported scene)
@@ -118,6 +124,35 @@ struct Loader {
   }
   static void put_u32(std::vector<unsigned char>& out, std::uint32_t v) {
     for (int i = 0; i < 4; ++i) out.push_back(static_cast<unsigned char>(v >> (8 * i)));
+  }
+
+  // Refuses JSON nested deeper than kMaxJsonDepth before any JSON parser sees it: a lexical scan
+  // that counts brackets outside strings (an unbalanced or otherwise broken document is left for
+  // tinygltf to report).
+  void check_json_depth(const char* text, std::size_t size, const char* what) const {
+    int depth = 0;
+    bool in_string = false, escaped = false;
+    for (std::size_t i = 0; i < size; ++i) {
+      const char c = text[i];
+      if (in_string) {
+        if (escaped) {
+          escaped = false;
+        } else if (c == '\\') {
+          escaped = true;
+        } else if (c == '"') {
+          in_string = false;
+        }
+      } else if (c == '"') {
+        in_string = true;
+      } else if (c == '[' || c == '{') {
+        if (++depth > kMaxJsonDepth) {
+          fail(std::string(what) + " is nested deeper than " + std::to_string(kMaxJsonDepth) + " levels (at byte " +
+               std::to_string(i) + ")");
+        }
+      } else if ((c == ']' || c == '}') && depth > 0) {
+        --depth;
+      }
+    }
   }
 
   // Moves `indices` of Draco-compressed primitives into draco_indices (see the file comment).
@@ -176,6 +211,7 @@ struct Loader {
         fail("truncated GLB: the JSON chunk declares " + std::to_string(json_len) + " bytes, beyond the file's " +
              std::to_string(length));
       }
+      check_json_depth(reinterpret_cast<const char*>(bytes.data() + 20), json_len, "the GLB JSON chunk");
       const std::string json(reinterpret_cast<const char*>(bytes.data() + 20), json_len);
       std::string rewritten = rewrite_draco_json(json);
       if (rewritten != json) {
@@ -198,6 +234,7 @@ struct Loader {
       ok = gltf.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), static_cast<unsigned int>(bytes.size()),
                                      base_dir);
     } else {
+      check_json_depth(reinterpret_cast<const char*>(bytes.data()), bytes.size(), "the glTF JSON");
       const std::string json = rewrite_draco_json(std::string(bytes.begin(), bytes.end()));
       ok = gltf.LoadASCIIFromString(&model, &err, &warn, json.data(), static_cast<unsigned int>(json.size()),
                                     base_dir);
@@ -498,11 +535,10 @@ struct Loader {
     auto pos_it = attrs.find("POSITION");
     if (pos_it == attrs.end()) fail(label + ": no POSITION attribute");
     auto nrm_it = attrs.find("NORMAL");
-    if (nrm_it == attrs.end()) fail(label + ": no NORMAL attribute (normals are required; flat normals are not invented)");
+    // glTF 2.0 section 3.7.2.1: without NORMAL, "client implementations MUST calculate flat normals".
+    const bool flat = nrm_it == attrs.end();
     const Values& pos = pos_it->second;
-    const Values& nrm = nrm_it->second;
     if (pos.ncomp != 3) fail(label + ": POSITION must be VEC3");
-    if (nrm.ncomp != 3) fail(label + ": NORMAL must be VEC3");
     const std::size_t n = pos.count;
     if (n == 0) fail(label + ": no vertices");
     auto check_count = [&](const char* name, const Values& v) {
@@ -510,20 +546,24 @@ struct Loader {
         fail(label + ": " + name + " has " + std::to_string(v.count) + " elements, POSITION has " + std::to_string(n));
       }
     };
-    check_count("NORMAL", nrm);
 
     scene::Mesh mesh;
     mesh.name = gmesh.name.empty() ? "mesh" + std::to_string(mesh_index) : gmesh.name;
     if (gmesh.primitives.size() > 1) mesh.name += "/primitive" + std::to_string(prim_index);
     mesh.positions.resize(n);
-    mesh.normals.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      mesh.positions[i] = glm::vec3(pos.at(i, 0), pos.at(i, 1), pos.at(i, 2));
-      const glm::dvec3 nd(nrm.at(i, 0), nrm.at(i, 1), nrm.at(i, 2));
-      const double len = glm::length(nd);
-      // Quantised normals (KHR_mesh_quantization, Draco) are only approximately unit length.
-      if (!(len > 1e-6)) fail(label + ": NORMAL of vertex " + std::to_string(i) + " has zero length");
-      mesh.normals[i] = glm::vec3(nd / len);
+    for (std::size_t i = 0; i < n; ++i) mesh.positions[i] = glm::vec3(pos.at(i, 0), pos.at(i, 1), pos.at(i, 2));
+    if (!flat) {
+      const Values& nrm = nrm_it->second;
+      if (nrm.ncomp != 3) fail(label + ": NORMAL must be VEC3");
+      check_count("NORMAL", nrm);
+      mesh.normals.resize(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const glm::dvec3 nd(nrm.at(i, 0), nrm.at(i, 1), nrm.at(i, 2));
+        const double len = glm::length(nd);
+        // Quantised normals (KHR_mesh_quantization, Draco) are only approximately unit length.
+        if (!(len > 1e-6)) fail(label + ": NORMAL of vertex " + std::to_string(i) + " has zero length");
+        mesh.normals[i] = glm::vec3(nd / len);
+      }
     }
     if (auto it = attrs.find("TEXCOORD_0"); it != attrs.end()) {
       if (it->second.ncomp != 2) fail(label + ": TEXCOORD_0 must be VEC2");
@@ -585,6 +625,7 @@ struct Loader {
       const glm::vec3 pa = mesh.positions[a], pb = mesh.positions[b], pc = mesh.positions[c];
       const float longest2 = std::max({glm::dot(pb - pa, pb - pa), glm::dot(pc - pb, pc - pb), glm::dot(pa - pc, pa - pc)});
       if (!(glm::length(glm::cross(pb - pa, pc - pa)) > kZeroAreaRelative * longest2)) return;
+      if (flat && !(glm::length(face_normal(pa, pb, pc)) > 0.0)) return;
       mesh.triangles.emplace_back(a, b, c);
     };
     if (mode == TINYGLTF_MODE_TRIANGLES) {
@@ -602,8 +643,80 @@ struct Loader {
       for (std::size_t t = 1; t + 1 < idx.size(); ++t) add(idx[0], idx[t], idx[t + 1]);
     }
     if (mesh.triangles.empty()) fail(label + ": no non-degenerate triangles");
+    if (flat) {
+      const std::size_t welded = mesh.positions.size();
+      unweld_flat(mesh);
+      notice(label + " has no NORMAL: flat normals computed from each triangle's winding, its " +
+             std::to_string(welded) + " vertices split into " + std::to_string(mesh.positions.size()) +
+             " (3 per triangle)");
+    }
     mesh.material = material(prim.material, label);
+    const scene::Material& mat = scene.materials[std::size_t(mesh.material)];
+    if (mat.albedo_texture >= 0 && mesh.uvs.empty()) {
+      std::ostringstream f;
+      f << "(" << mat.albedo.x << ", " << mat.albedo.y << ", " << mat.albedo.z << ")";
+      notice(label + " has no TEXCOORD_0 but its material " + quoted(mat.name) +
+             " has a baseColorTexture: the primitive ignores the texture and shows the base colour factor " + f.str() +
+             " (material " + quoted(mat.name + " (untextured)") + ")");
+      mesh.material = untextured(mesh.material);
+    }
     return mesh;
+  }
+
+  void notice(const std::string& what) { scene.notices.push_back(path + ": " + what); }
+
+  // Unnormalised face normal of the counter-clockwise triangle (a, b, c) (glTF: CCW is the front
+  // face), in double so that no float overflow or underflow of the cross product can reach it.
+  static glm::dvec3 face_normal(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+    const glm::dvec3 da(a);
+    return glm::cross(glm::dvec3(b) - da, glm::dvec3(c) - da);
+  }
+
+  // Flat shading: every triangle gets its own three vertices carrying the face normal; the other
+  // attributes (uv, colour, joints, weights) are copied from the shared vertex. Zero-area triangles
+  // never get here (they are dropped, as scene::validate rejects them), so every normal divides by
+  // a positive length.
+  static void unweld_flat(scene::Mesh& mesh) {
+    scene::Mesh out;
+    const std::size_t nt = mesh.triangles.size();
+    out.positions.reserve(3 * nt);
+    out.normals.reserve(3 * nt);
+    for (std::size_t t = 0; t < nt; ++t) {
+      const glm::uvec3 tri = mesh.triangles[t];
+      const glm::dvec3 fn = face_normal(mesh.positions[tri.x], mesh.positions[tri.y], mesh.positions[tri.z]);
+      const glm::vec3 unit(fn / glm::length(fn));
+      for (int k = 0; k < 3; ++k) {
+        const std::uint32_t v = tri[k];
+        out.positions.push_back(mesh.positions[v]);
+        out.normals.push_back(unit);
+        if (!mesh.uvs.empty()) out.uvs.push_back(mesh.uvs[v]);
+        if (!mesh.colors.empty()) out.colors.push_back(mesh.colors[v]);
+        if (!mesh.joints.empty()) {
+          out.joints.push_back(mesh.joints[v]);
+          out.weights.push_back(mesh.weights[v]);
+        }
+      }
+      const auto base = static_cast<std::uint32_t>(3 * t);
+      out.triangles.emplace_back(base, base + 1, base + 2);
+    }
+    mesh.positions.swap(out.positions);
+    mesh.normals.swap(out.normals);
+    mesh.uvs.swap(out.uvs);
+    mesh.colors.swap(out.colors);
+    mesh.joints.swap(out.joints);
+    mesh.weights.swap(out.weights);
+    mesh.triangles.swap(out.triangles);
+  }
+
+  // The scene material `index` without its albedo texture, for primitives that have no TEXCOORD_0
+  // to sample it with (one copy per material, named "NAME (untextured)").
+  int untextured(int index) {
+    if (auto it = untextured_map.find(index); it != untextured_map.end()) return it->second;
+    scene::Material m = scene.materials[std::size_t(index)];
+    m.name += " (untextured)";
+    m.albedo_texture = -1;
+    scene.materials.push_back(m);
+    return untextured_map[index] = int(scene.materials.size()) - 1;
   }
 
   // ---- materials and textures ----
@@ -709,6 +822,24 @@ struct Loader {
 
   // ---- nodes ----
 
+  static std::string number(double v) {
+    std::ostringstream s;
+    s << v;
+    return s.str();
+  }
+
+  // Each |scale| in [kMinScale, kMaxScaleAbs]: a node scale of 1e30 is finite as a float yet
+  // overflows the world bounds (and the camera framed on them), so it is refused here, at the node.
+  // (Translations beyond 1e6 m are finite and reported, with the node, by scene::validate.)
+  void check_scale(const std::string& label, const glm::dvec3& s, const char* what) const {
+    for (int k = 0; k < 3; ++k) {
+      if (!(std::fabs(s[k]) >= kMinScale && std::fabs(s[k]) <= kMaxScaleAbs)) {
+        fail(label + ": " + what + "scale[" + std::to_string(k) + "] = " + number(s[k]) + " is outside |scale| in [" +
+             number(kMinScale) + ", " + number(kMaxScaleAbs) + "]");
+      }
+    }
+  }
+
   void set_transform(scene::Node& node, const tinygltf::Node& gn, int index) const {
     const std::string label = node_label(index);
     auto finite = [&](const std::vector<double>& v, const char* what) {
@@ -726,7 +857,7 @@ struct Loader {
       }
       glm::dvec3 c[3] = {glm::dvec3(m[0]), glm::dvec3(m[1]), glm::dvec3(m[2])};
       glm::dvec3 s(glm::length(c[0]), glm::length(c[1]), glm::length(c[2]));
-      if (s.x < kMinScale || s.y < kMinScale || s.z < kMinScale) fail(label + ": matrix is singular (zero scale)");
+      check_scale(label, s, "matrix ");
       if (glm::determinant(glm::dmat3(c[0], c[1], c[2])) < 0.0) s.x = -s.x;  // a mirror: fold into x
       const glm::dmat3 r(c[0] / s.x, c[1] / s.y, c[2] / s.z);
       const glm::dmat3 rtr = glm::transpose(r) * r;
@@ -742,10 +873,11 @@ struct Loader {
       node.scale = glm::vec3(s);
       return;
     }
+    glm::dvec3 t(0.0), sc(1.0);
     if (!gn.translation.empty()) {
       if (gn.translation.size() != 3) fail(label + ": translation must have 3 elements");
       finite(gn.translation, "translation");
-      node.translation = glm::vec3(gn.translation[0], gn.translation[1], gn.translation[2]);
+      t = glm::dvec3(gn.translation[0], gn.translation[1], gn.translation[2]);
     }
     if (!gn.rotation.empty()) {
       if (gn.rotation.size() != 4) fail(label + ": rotation must have 4 elements");
@@ -758,8 +890,11 @@ struct Loader {
     if (!gn.scale.empty()) {
       if (gn.scale.size() != 3) fail(label + ": scale must have 3 elements");
       finite(gn.scale, "scale");
-      node.scale = glm::vec3(gn.scale[0], gn.scale[1], gn.scale[2]);
+      sc = glm::dvec3(gn.scale[0], gn.scale[1], gn.scale[2]);
     }
+    check_scale(label, sc, "");
+    node.translation = glm::vec3(t);
+    node.scale = glm::vec3(sc);
   }
 
   // ---- skins ----
@@ -975,7 +1110,8 @@ struct Loader {
 GltfImport load_gltf(const std::string& path, scene::Scene& scene) {
   // The loader only appends (and edits what it appended), so a failure is undone by truncating.
   const std::size_t meshes = scene.meshes.size(), materials = scene.materials.size(), textures = scene.textures.size(),
-                    nodes = scene.nodes.size(), skins = scene.skins.size(), clips = scene.clips.size();
+                    nodes = scene.nodes.size(), skins = scene.skins.size(), clips = scene.clips.size(),
+                    notices = scene.notices.size();
   try {
     Loader loader(path, scene);
     return loader.run();
@@ -986,6 +1122,7 @@ GltfImport load_gltf(const std::string& path, scene::Scene& scene) {
     scene.nodes.resize(nodes);
     scene.skins.resize(skins);
     scene.clips.resize(clips);
+    scene.notices.resize(notices);
     throw;
   }
 }

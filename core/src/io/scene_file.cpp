@@ -766,8 +766,9 @@ class SceneParser {
         r_.fail(p, "expected a proxy file name, an array of {\"center\", \"radius\"} or {\"fit\": N}", pv);
       }
       ps.name = obj.name;
-      // A proxy file's node index counts the nodes of the glTF file loaded alone (what
-      // `softgi fit-proxies` sees); it selects among the object's nodes when it names a mesh node.
+      // A proxy file's node index is in io::load_gltf's numbering of the file loaded alone (see
+      // gltf.hpp; what `softgi fit-proxies` records); it selects among the object's nodes when it
+      // names a mesh node.
       const int file_node = ps.node;
       ps.node = obj.mesh_node;
       if (pv.is_string() && file_node >= 0 && file_node < obj.file_nodes &&

@@ -525,6 +525,16 @@ constexpr float kWeightSumTolerance = 1e-2f;
 constexpr std::size_t kMaxTriangles = 50'000'000;
 constexpr std::size_t kMaxVertices = 50'000'000;
 constexpr float kMaxCoordinate = 1e6f;  // metres
+// Node scales (and scale keys): each |component| in [1e-6, 1e6], the range scene files accept. A
+// finite float scale such as 1e30 would otherwise overflow the world bounds and every length
+// computed from them.
+constexpr float kMinScale = 1e-6f, kMaxScale = 1e6f;
+// Composed rest-pose (world) transforms: a chain of in-range nodes can still multiply past float
+// range (ten nested scales of 1e6 give 1e60). World axis scales stay in [1e-9, 1e9] and world
+// translations within 1e12 m, so a vertex (within kMaxCoordinate of its node) lands within ~1e15 m,
+// whose square (1e30) and sums of a few such products (bounds, camera framing, ray setup) stay far
+// below float's 3.4e38; the inverse scale enters normals (normal_matrix), hence the lower limit.
+constexpr double kMinWorldScale = 1e-9, kMaxWorldScale = 1e9, kMaxWorldTranslation = 1e12;
 constexpr int kMaxTextureSize = 16384;
 // A triangle has zero area when |e1 x e2| <= kZeroAreaRelative * (longest edge)^2: exact zero and
 // float-collinear slivers alike, independent of the mesh's scale.
@@ -558,6 +568,56 @@ bool nonneg(const glm::vec3& v) { return v.x >= 0.0f && v.y >= 0.0f && v.z >= 0.
 
 void check_colour(const std::string& part, const std::string& field, const glm::vec3& c) {
   if (!finite(c) || !nonneg(c)) bad(part, field + " " + str(c) + " must be finite and non-negative");
+}
+
+bool in_scale_range(const glm::vec3& s) {
+  for (int k = 0; k < 3; ++k)
+    if (!(std::abs(s[k]) >= kMinScale && std::abs(s[k]) <= kMaxScale)) return false;
+  return true;
+}
+
+// The rest-pose world transform of every node, composed in double (parents are acyclic and in
+// range: validate checked both first). A node whose world transform leaves the limits is named
+// together with the topmost ancestor that already does, since that is where the chain overflows.
+void check_world_transforms(const Scene& scene) {
+  const int n = static_cast<int>(scene.nodes.size());
+  std::vector<glm::dmat4> world(static_cast<std::size_t>(n));
+  std::vector<char> done(static_cast<std::size_t>(n), 0), out(static_cast<std::size_t>(n), 0);
+  std::vector<std::string> why(static_cast<std::size_t>(n));
+  std::vector<int> chain;
+  for (int i = 0; i < n; ++i) {
+    chain.clear();
+    for (int k = i; k >= 0 && !done[k]; k = scene.nodes[k].parent) chain.push_back(k);
+    for (auto it = chain.rbegin(); it != chain.rend(); ++it) {
+      const Node& node = scene.nodes[*it];
+      // Node::local() in double: T * R * S.
+      const glm::dquat r(node.rotation.w, node.rotation.x, node.rotation.y, node.rotation.z);
+      glm::dmat4 local = glm::mat4_cast(glm::normalize(r));
+      for (int c = 0; c < 3; ++c) local[c] *= double(node.scale[c]);
+      local[3] = glm::dvec4(glm::dvec3(node.translation), 1.0);
+      world[*it] = (node.parent >= 0 ? world[node.parent] : glm::dmat4(1.0)) * local;
+      done[*it] = 1;
+      const glm::dmat4& w = world[*it];
+      for (int c = 0; c < 3 && why[*it].empty(); ++c) {
+        const double len = glm::length(glm::dvec3(w[c]));
+        if (!(len >= kMinWorldScale && len <= kMaxWorldScale))
+          why[*it] = "world axis scale " + str(len) + " is outside [" + str(kMinWorldScale) + ", " + str(kMaxWorldScale) + "]";
+      }
+      const glm::dvec3 t(w[3]);
+      if (why[*it].empty() && !(std::abs(t.x) <= kMaxWorldTranslation && std::abs(t.y) <= kMaxWorldTranslation &&
+                                std::abs(t.z) <= kMaxWorldTranslation))
+        why[*it] = "world translation (" + str(t.x) + ", " + str(t.y) + ", " + str(t.z) + ") is beyond " +
+                   str(kMaxWorldTranslation) + " m";
+      out[*it] = !why[*it].empty();
+    }
+    if (!out[i]) continue;
+    int top = i;
+    while (scene.nodes[top].parent >= 0 && out[scene.nodes[top].parent]) top = scene.nodes[top].parent;
+    const Node& t = scene.nodes[top];
+    std::string msg = why[top] + " (its translation " + str(t.translation) + ", scale " + str(t.scale);
+    if (t.parent >= 0) msg += ", under parent " + q(scene.nodes[t.parent].name) + " (index " + std::to_string(t.parent) + ")";
+    bad("node " + q(t.name) + " (index " + std::to_string(top) + ")", msg + ")");
+  }
 }
 
 }  // namespace
@@ -657,6 +717,8 @@ void validate(const Scene& scene) {
     if (!finite(r) || std::abs(glm::length(r) - 1.0f) > kUnitQuatTolerance) bad(part, "rotation (x, y, z, w) " + str(r) + " is not a unit quaternion");
     if (!finite(n.scale) || n.scale.x == 0.0f || n.scale.y == 0.0f || n.scale.z == 0.0f)
       bad(part, "scale " + str(n.scale) + " must be finite and non-zero");
+    if (!in_scale_range(n.scale))
+      bad(part, "scale " + str(n.scale) + ": each |component| must be in [" + str(kMinScale) + ", " + str(kMaxScale) + "]");
     if (n.skin >= 0 && n.mesh >= 0) {
       const Mesh& m = scene.meshes[n.mesh];
       const std::size_t nj = scene.skins[n.skin].joints.size();
@@ -675,6 +737,8 @@ void validate(const Scene& scene) {
       k = scene.nodes[k].parent;
     }
   }
+
+  check_world_transforms(scene);
 
   for (int i = 0; i < n_skins; ++i) {
     const Skin& s = scene.skins[i];
@@ -709,6 +773,9 @@ void validate(const Scene& scene) {
           bad(cpart, "values[" + std::to_string(j) + "] = " + str(v) + " is not a unit quaternion (x, y, z, w)");
         if (ch.path == AnimationChannel::Path::Scale && (v.x == 0.0f || v.y == 0.0f || v.z == 0.0f))
           bad(cpart, "values[" + std::to_string(j) + "] = " + str(v) + " is a zero scale");
+        if (ch.path == AnimationChannel::Path::Scale && !in_scale_range(glm::vec3(v)))
+          bad(cpart, "values[" + std::to_string(j) + "] = " + str(v) + " is a scale outside |component| in [" + str(kMinScale) +
+                         ", " + str(kMaxScale) + "]");
         if (ch.path == AnimationChannel::Path::Translation && glm::any(glm::greaterThan(glm::abs(glm::vec3(v)), glm::vec3(kMaxCoordinate))))
           bad(cpart, "values[" + std::to_string(j) + "] = " + str(v) + " is beyond " + str(kMaxCoordinate) + " m (absurd size)");
       }
