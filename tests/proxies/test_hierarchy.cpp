@@ -263,17 +263,18 @@ void expect_tree_shape(const SphereHierarchy& h, int n, int max_children, const 
 constexpr int kDefaultMaxChildren = 4 * 4;
 
 TEST(SphereHierarchy, AwkwardSetsStayConservativeAndKeepTheirShape) {
-  // Default options up to 300 spheres; from 1000 on, a small Powell budget and fewer Lloyd
-  // iterations keep the test quick under sanitizers (the huge range drains clusters for all 50
-  // iterations, about 1 s at 1000 spheres in Release). Neither option affects conservativeness
-  // (the radius is recomputed from the final centre and rounded up) or the shape checks.
+  // Default options up to 300 spheres; from 1000 on, no Powell and fewer Lloyd iterations keep
+  // the test quick under sanitizers (the huge range drains clusters for all 50 iterations, about
+  // 1 s at 1000 spheres in Release). Neither option affects conservativeness (the radius is
+  // recomputed from the final centre and rounded up) or the shape checks.
   for (Kind kind : {Kind::Uniform, Kind::Duplicates, Kind::Coincident, Kind::ZeroRadii, Kind::HugeRange, Kind::Mixed}) {
     for (int n : {1, 2, 3, 5, 17, 64, 300, 1000, 5000}) {
+      if (n == 5000 && kind != Kind::HugeRange && kind != Kind::Mixed) continue;  // the two that mix all cases
       const std::string what = std::string(kind_name(kind)) + ", n = " + std::to_string(n);
       const std::vector<scene::Sphere> leaves = awkward_spheres(kind, n, 100 + n);
       HierarchyBuildOptions o;
       if (n >= 1000) {
-        o.fit_evaluations = 100;
+        o.fit_evaluations = 0;
         o.lloyd_iterations = 5;
       }
       const SphereHierarchy h = SphereHierarchy::build(leaves, o);
@@ -284,7 +285,7 @@ TEST(SphereHierarchy, AwkwardSetsStayConservativeAndKeepTheirShape) {
       if (n >= 64) {
         // About n / 4 clusters per level. Emptied clusters and promoted single children move the
         // average up, capped clusters split into groups of about 4 move it down (measured
-        // 3.2-4.9 over these sets; the huge range, whose small spheres all share one closest
+        // 3.5-4.9 over these sets; the huge range, whose small spheres all share one closest
         // cluster, is the low end).
         EXPECT_GE(h.average_branching(), 3.0) << what;
         EXPECT_LE(h.average_branching(), 5.0) << what;
@@ -294,23 +295,24 @@ TEST(SphereHierarchy, AwkwardSetsStayConservativeAndKeepTheirShape) {
 }
 
 TEST(SphereHierarchy, BranchingAndChildCapFollowTheOptions) {
-  const std::vector<scene::Sphere> leaves = random_spheres(2000, 5);
+  const std::vector<scene::Sphere> leaves = random_spheres(1000, 5);
   for (int b : {2, 3, 8}) {
     HierarchyBuildOptions o;
     o.branching = b;
     const SphereHierarchy h = SphereHierarchy::build(leaves, o);
-    expect_tree_shape(h, 2000, 4 * b, "branching " + std::to_string(b));
+    expect_tree_shape(h, 1000, 4 * b, "branching " + std::to_string(b));
     EXPECT_TRUE(h.bounds_are_conservative()) << b;
-    // Within a quarter of the requested ratio (measured: 2.1, 3.2, 8.6).
+    // Near the requested ratio (measured: 2.48, 3.23, 7.94; with two members a cluster empties
+    // more easily, so branching 2 drifts up most).
     EXPECT_GE(h.average_branching(), 0.9 * b) << b;
-    EXPECT_LE(h.average_branching(), 1.25 * b) << b;
+    EXPECT_LE(h.average_branching(), 1.3 * b) << b;
   }
-  // Lloyd alone gives clusters of up to 10 children on this set (measured with the cap off); a cap
+  // Lloyd alone gives clusters of up to 11 children on this set (measured with the cap off); a cap
   // of 8 splits the larger ones.
   HierarchyBuildOptions capped;
   capped.max_children = 8;
   const SphereHierarchy hc = SphereHierarchy::build(leaves, capped);
-  expect_tree_shape(hc, 2000, 8, "max_children 8");
+  expect_tree_shape(hc, 1000, 8, "max_children 8");
   EXPECT_TRUE(hc.bounds_are_conservative());
   // Equal spheres tie for every cluster centre; ties keep the seed groups of 4 they were dealt.
   const std::vector<scene::Sphere> same(2000, scene::Sphere{{1, 2, 3}, 0.5f});
@@ -321,7 +323,7 @@ TEST(SphereHierarchy, BranchingAndChildCapFollowTheOptions) {
 }
 
 TEST(SphereHierarchy, BuildIsDeterministic) {
-  const std::vector<scene::Sphere> leaves = random_spheres(700, 8);
+  const std::vector<scene::Sphere> leaves = random_spheres(300, 8);
   const SphereHierarchy a = SphereHierarchy::build(leaves, 4), b = SphereHierarchy::build(leaves, 4);
   ASSERT_EQ(a.nodes().size(), b.nodes().size());
   for (size_t i = 0; i < a.nodes().size(); ++i) {
@@ -338,7 +340,7 @@ TEST(SphereHierarchy, HundredThousandLeavesBuild) {
   const std::vector<scene::Sphere> leaves = awkward_spheres(Kind::Uniform, n, 42);
   HierarchyBuildOptions o;
   o.lloyd_iterations = 1;
-  o.fit_evaluations = 100;
+  o.fit_evaluations = 0;
   const SphereHierarchy h = SphereHierarchy::build(leaves, o);
   expect_tree_shape(h, n, kDefaultMaxChildren, "100k");
   EXPECT_TRUE(h.bounds_are_conservative());
@@ -367,7 +369,7 @@ struct ProgressCapture {
 };
 
 TEST(SphereHierarchy, BuildReportsProgressPastTheDelayOnly) {
-  const std::vector<scene::Sphere> leaves = random_spheres(3000, 3);
+  const std::vector<scene::Sphere> leaves = random_spheres(1000, 3);
   {
     // Default delay (1 s): a build well under a second says nothing.
     ProgressCapture cap(1.0);
@@ -377,7 +379,7 @@ TEST(SphereHierarchy, BuildReportsProgressPastTheDelayOnly) {
   ProgressCapture cap(0.0);
   SphereHierarchy::build(leaves, 4);
   ASSERT_GE(cap.events.size(), 2u);
-  EXPECT_EQ(cap.labels.front(), "sphere hierarchy over 3000 spheres");
+  EXPECT_EQ(cap.labels.front(), "sphere hierarchy over 1000 spheres");
   for (size_t i = 1; i < cap.events.size(); ++i) EXPECT_GE(cap.events[i].fraction, cap.events[i - 1].fraction) << i;
   for (size_t i = 0; i + 1 < cap.events.size(); ++i) EXPECT_FALSE(cap.events[i].done) << i;
   EXPECT_TRUE(cap.events.back().done);

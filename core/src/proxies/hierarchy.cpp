@@ -47,7 +47,8 @@ scene::Sphere conservative_bound(const dvec3& c, const std::vector<Ball>& balls)
 // pairwise-merge bound), so Powell first runs on smooth log-sum-exp approximations of the maximum
 // of increasing sharpness, then on the maximum itself; the pairwise-merge centre is a second start.
 // `budget` bounds the evaluations over all four stages (a quarter each; a stage may overrun its
-// share by one sweep), so a fit costs O(budget x members) whatever the members' layout.
+// share by one sweep), so a fit costs O(budget x members) whatever the members' layout; 0 keeps
+// the better of the two starts.
 scene::Sphere fit_bound(const std::vector<scene::Sphere>& spheres, const std::vector<int>& members, int budget) {
   if (members.size() == 1) return spheres[members[0]];
   std::vector<Ball> balls(members.size());
@@ -63,6 +64,7 @@ scene::Sphere fit_bound(const std::vector<scene::Sphere>& spheres, const std::ve
   const double r_chain = max_reach(dvec3(chain.center), balls);
   const dvec3 start = r_mean <= r_chain ? mean : dvec3(chain.center);
   const double r_start = std::min(r_mean, r_chain);
+  if (budget == 0) return conservative_bound(start, balls);
   const double r0 = std::max(r_start, 1e-30);
   const int share = std::max(1, budget / 4);
   dvec3 c = start;
@@ -307,7 +309,8 @@ void check_options(const HierarchyBuildOptions& o) {
   if (o.max_children != 0 && (o.max_children < 2 * o.branching || o.max_children > 100000))
     bad("max_children", o.max_children, "0 or in [2 x branching, 100000]");
   if (o.lloyd_iterations < 1 || o.lloyd_iterations > 1000) bad("lloyd_iterations", o.lloyd_iterations, "in [1, 1000]");
-  if (o.fit_evaluations < 100 || o.fit_evaluations > 100000) bad("fit_evaluations", o.fit_evaluations, "in [100, 100000]");
+  if (o.fit_evaluations != 0 && (o.fit_evaluations < 100 || o.fit_evaluations > 100000))
+    bad("fit_evaluations", o.fit_evaluations, "0 or in [100, 100000]");
 }
 
 void check_leaves(const std::vector<scene::Sphere>& leaves, const char* who) {

@@ -26,7 +26,8 @@ struct HierarchyBuildOptions {
   // Lloyd iterations per level; a level stops earlier once no sphere changes cluster. [1, 1000].
   int lloyd_iterations = 50;
   // Evaluations of the radius that Powell's method may spend on one cluster's bounding sphere,
-  // over all its stages. [100, 100000].
+  // over all its stages. [100, 100000], or 0: no Powell, the better of the average centre and
+  // the pairwise-merge centre (a looser but much cheaper tree).
   int fit_evaluations = 1500;
 };
 
