@@ -11,7 +11,10 @@ PACKAGES=(
   libopenimageio-dev openimageio-tools
   libgtest-dev libgmock-dev libbenchmark-dev
   libembree-dev libtbb-dev
-  clang libclang-rt-14-dev
+  # scripts/fuzz.sh: clang 14 does not pull in libFuzzer and the sanitizer runtimes
+  # (libclang_rt.fuzzer-x86_64.a, ...: libclang-rt-14-dev), nor llvm-symbolizer (llvm-14), which
+  # turns sanitizer reports into file:line stacks.
+  clang libclang-rt-14-dev llvm-14
 )
 
 missing=()

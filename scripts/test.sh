@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds and runs every test: the Release build through ctest, then the same suite built with
-# AddressSanitizer and UndefinedBehaviorSanitizer (Debug). Fetches the CC0 asset set first so the
-# tests that need it (bunny, HDR maps) run.
+# AddressSanitizer and UndefinedBehaviorSanitizer (Debug), then each fuzz target (scripts/fuzz.sh)
+# for a short time. Fetches the CC0 asset set first so the tests that need it (bunny, HDR maps) run.
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 softgi_install_deps
 bash "$SOFTGI_ROOT/scripts/fetch-assets.sh"
@@ -17,3 +17,7 @@ softgi_build build-asan Debug -DSOFTGI_SANITIZE=ON -DSOFTGI_BUILD_BENCH=OFF -DSO
 echo "== ctest (Debug, ASan + UBSan) =="
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir "$SOFTGI_ROOT/build-asan" --output-on-failure -j "$JOBS"
+# Every fuzz target (scene files, glTF/GLB, environment images) for SOFTGI_FUZZ_SECONDS each
+# (default 60) after a clang build of the readers; the corpora in the checkout are left as they are.
+echo "== fuzz (${SOFTGI_FUZZ_SECONDS:-60} s per target) =="
+SOFTGI_FUZZ_MERGE=0 bash "$SOFTGI_ROOT/scripts/fuzz.sh" "${SOFTGI_FUZZ_SECONDS:-60}"

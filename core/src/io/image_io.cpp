@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <new>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -156,9 +157,14 @@ Image read_image(const std::string& path) {
   if (spec.nchannels < 1 || spec.nchannels > 64) {
     fail(path, "unsupported channel count " + std::to_string(spec.nchannels));
   }
-  const int nch = spec.nchannels;
-  std::vector<float> data(std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(nch));
-  if (!in->read_image(0, 0, 0, nch, OIIO::TypeDesc::FLOAT, data.data())) {
+  // Only the channels used below are decoded, so a header declaring 64 channels costs no more than
+  // RGB; the buffer is left uninitialised (read_image writes every pixel it reports read), so a
+  // few-byte file declaring the largest size allowed does not touch gigabytes before it fails.
+  const int nch = std::min(spec.nchannels, 3);
+  const std::size_t count = std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(nch);
+  std::unique_ptr<float[]> data(new (std::nothrow) float[count]);
+  if (!data) fail(path, "cannot allocate " + std::to_string(count * sizeof(float)) + " bytes for its pixels");
+  if (!in->read_image(0, 0, 0, nch, OIIO::TypeDesc::FLOAT, data.get())) {
     fail(path, "cannot decode pixels: " + trim(in->geterror()));
   }
   // Decides how stored values map to linear radiance. 8/16-bit files without a colour-space tag are
