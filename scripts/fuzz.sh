@@ -56,7 +56,7 @@ LIBS="-lOpenImageIO -lOpenImageIO_Util -ltinygltf -ldraco -ltbb -lpthread"
   echo "  command = clang++ $CXXFLAGS -fsanitize=fuzzer \$in -o \$out $LIBS"
   echo "  description = LINK \$out"
   objs=()
-  for src in "$ROOT"/core/src/{sh,scene,proxies,io}/*.cpp; do
+  for src in "$ROOT"/core/src/*.cpp "$ROOT"/core/src/{sh,scene,proxies,io}/*.cpp; do
     [ -f "$src" ] || continue
     rel="${src#"$ROOT"/}"
     obj="obj/${rel//\//_}.o"

@@ -24,7 +24,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string text(reinterpret_cast<const char*>(data), size);
   softgi::scene::Scene scene;
   try {
-    scene = softgi::io::parse_scene_json(text, SOFTGI_FUZZ_DATA_DIR, "fuzz.json");
+    // No proxy fits (seconds each, and a disk cache): the parser, not the fitter, is under test.
+    softgi::io::LoadOptions opt;
+    opt.fit_proxies = false;
+    opt.cache_dir = "";
+    scene = softgi::io::parse_scene_json(text, SOFTGI_FUZZ_DATA_DIR, "fuzz.json", opt);
   } catch (const std::exception& e) {
     if (std::string(e.what()).find("fuzz.json") == std::string::npos) {
       std::fprintf(stderr, "error message does not name the file: %s\n", e.what());

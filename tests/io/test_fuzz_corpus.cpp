@@ -24,6 +24,14 @@
 
 namespace {
 
+// The corpus replays the parser; proxy fits (seconds each) are not what it tests.
+softgi::io::LoadOptions no_fits() {
+  softgi::io::LoadOptions o;
+  o.fit_proxies = false;
+  o.cache_dir = "";
+  return o;
+}
+
 namespace fs = std::filesystem;
 
 const fs::path kFuzz = fs::path(SOFTGI_SOURCE_DIR) / "tests" / "fuzz";
@@ -58,7 +66,7 @@ TEST(io_fuzz_corpus, EveryCorpusFileParsesOrThrows) {
   for (const auto& f : files) {
     const std::string name = f.filename().string();
     try {
-      softgi::io::parse_scene_json(slurp(f), kData.string(), name);
+      softgi::io::parse_scene_json(slurp(f), kData.string(), name, no_fits());
       ++accepted;
     } catch (const std::exception& e) {
       ++rejected;
@@ -80,7 +88,7 @@ TEST(io_fuzz_corpus, SeedsAreAcceptedOrRejectedAsNamed) {
     ++seeds;
     std::string error;
     try {
-      softgi::io::parse_scene_json(slurp(f), kData.string(), name);
+      softgi::io::parse_scene_json(slurp(f), kData.string(), name, no_fits());
     } catch (const std::exception& e) {
       error = e.what();
     }
