@@ -30,10 +30,11 @@ namespace {
 // kAccumulateRelTol, kExpRelTol, kFloorFraction and compare_rows: vulkan_test_util.hpp.
 // shade: one SH product (up to ~400 triple-product terms at order 6) and a dot product of n^2 <= 36
 // terms per channel whose partial sums cancel on dim receivers (the clamped cosine's negative
-// lobes against shadowed visibility). Observed: <= 4e-5 with HYB and PS* (crowd, order 6); 1.4e-4
-// with OL (crowd, order 4): a receiver whose blue channel is left at 2.4e-4 of the scene's largest
-// value after that cancellation, off by 3e-8 in absolute terms (float rounding of O(1) terms).
-constexpr double kShadeRelTol = 2e-4;
+// lobes against shadowed visibility). Observed: <= 4e-5 with HYB and PS* (crowd, order 6); 2.3e-4
+// with OL (crowd, order 4): a receiver whose blue channel is left at 2.0e-4 of the scene's largest
+// value after that cancellation, off by 4.6e-8 in absolute terms (float rounding of O(1) terms;
+// which receiver is worst depends on the hierarchy's cuts).
+constexpr double kShadeRelTol = 3e-4;
 using softgi::testing::compare_rows;
 using softgi::testing::Compared;
 using softgi::testing::kAccumulateRelTol;
