@@ -198,6 +198,7 @@ bool read_kb_field(const std::string& path, const std::string& key, std::size_t&
 }
 
 void take_smaller(MemoryLimits& l, std::size_t bytes, const std::string& source) {
+  bytes = std::max<std::size_t>(bytes, 1);  // none left is still a limit (0 would mean none)
   if (l.host == 0 || bytes < l.host) {
     l.host = bytes;
     l.host_source = source;
