@@ -22,15 +22,7 @@ using softgi::test::ScratchDir;
 namespace io = softgi::io;
 namespace fs = std::filesystem;
 
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
+using softgi::test::error_of;
 
 Scene load_map(const ScratchDir& dir, const std::string& map) {
   return io::parse_scene_json(R"({"environment": {"map": ")" + map + R"("}})", dir.path().string(), "m.json");
