@@ -911,6 +911,18 @@ std::string stem_of(const std::string& name) {
 
 }  // namespace
 
+namespace {
+// LoadOptions::fit_spheres: proxies for every closed mesh still without a set.
+scene::Scene with_fits(scene::Scene s, const LoadOptions& opt) {
+  if (opt.fit_spheres > 0) {
+    ProxyFitSpec spec;
+    spec.spheres = opt.fit_spheres;
+    fit_missing_proxies(s, spec, opt.cache_dir);
+  }
+  return s;
+}
+}  // namespace
+
 scene::Scene parse_scene_json(const std::string& text, const std::string& base_dir, const std::string& name_for_errors,
                               const LoadOptions& opt) {
   const Reader r(name_for_errors, base_dir);
@@ -958,12 +970,7 @@ scene::Scene parse_scene_json(const std::string& text, const std::string& base_d
     }
     if (!fitted) r.fail(f.path, "no mesh of object '" + f.object + "' is closed, so there is nothing to fit (" + open + ")");
   }
-  if (opt.fit_spheres > 0) {
-    ProxyFitSpec spec;
-    spec.spheres = opt.fit_spheres;
-    fit_missing_proxies(s, spec, opt.cache_dir);
-  }
-  return s;
+  return with_fits(std::move(s), opt);
 }
 
 scene::Scene load_scene_file(const std::string& path, const LoadOptions& opt) {
@@ -971,17 +978,6 @@ scene::Scene load_scene_file(const std::string& path, const LoadOptions& opt) {
   const fs::path parent = fs::path(path).parent_path();
   return parse_scene_json(text, (parent.empty() ? fs::path(".") : parent).string(), path, opt);
 }
-
-namespace {
-scene::Scene with_fits(scene::Scene s, const LoadOptions& opt) {
-  if (opt.fit_spheres > 0) {
-    ProxyFitSpec spec;
-    spec.spheres = opt.fit_spheres;
-    fit_missing_proxies(s, spec, opt.cache_dir);
-  }
-  return s;
-}
-}  // namespace
 
 scene::Scene load_scene(const std::string& spec, const LoadOptions& opt) {
   if (spec.empty()) throw std::runtime_error("empty scene name: expected a built-in scene or a scene file");
