@@ -38,6 +38,10 @@ ParamDesc analytic_lights(bool def) {
   return ParamDesc::boolean("analytic_lights", def, "shade the scene's spherical lights (paper 004 section 7, Analytic Lights)");
 }
 
+ParamDesc receiver_clusters() {
+  return ParamDesc::integer("receiver_clusters", 0, 0, 1 << 20, "Lloyd receiver clusters (0 = one per ~300 vertices, paper 004 section 6.3)");
+}
+
 ParamDesc kernel(const std::string& def) {
   return ParamDesc::choice("kernel", def, {"auto", "avx512", "avx2", "scalar"}, "accumulation kernel instruction set");
 }

@@ -28,6 +28,9 @@ render::ParamDesc self_shadow_rules(bool def = true);
 render::ParamDesc replacement_rule(const std::string& def = "continuous");
 // "analytic_lights": shade the scene's spherical lights (paper 004 section 7, Analytic Lights).
 render::ParamDesc analytic_lights(bool def = true);
+// "receiver_clusters": Lloyd clusters of per-vertex receivers (0 = one per ~300 vertices, paper 004
+// section 6.3; receivers.hpp).
+render::ParamDesc receiver_clusters();
 // "kernel": the accumulation kernels' instruction set (auto = the best this CPU runs).
 render::ParamDesc kernel(const std::string& def = "auto");
 

@@ -25,6 +25,7 @@
 #include "shexp_passes.hpp"
 #include "../common/device_kernels.hpp"
 #include "../common/pass_support.hpp"
+#include "../common/receivers.hpp"
 #include "../common/shared_params.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/gbuffer.hpp"
@@ -87,11 +88,6 @@ using render::FrameContext;
 using render::ParamDesc;
 using render::PassDesc;
 
-// Receivers per cluster when receiver_clusters = 0 ("several hundred vertices per receiver
-// cluster", section 6.3).
-constexpr int kAutoReceiversPerCluster = 300;
-constexpr int kLloydIterations = 30;
-constexpr int kLloydIterationsMoving = 3;  // warm-started per frame when geometry moves
 
 // --- State kept across frames ----------------------------------------------------------------
 
@@ -103,23 +99,12 @@ struct State {
   std::string hierarchy_key;
   std::vector<std::unique_ptr<proxies::SphereHierarchy>> trees;
   double hierarchy_build_seconds = 0.0;
-  // Receiver cluster assignment (per object, per vertex), reused while the receivers stay the same.
-  std::string receivers_key;
-  std::vector<std::vector<int>> assignment;  // [object][vertex] -> global cluster
-  std::vector<glm::vec3> cluster_centres;
-  std::vector<int> cluster_object;
-  std::vector<std::vector<glm::vec3>> last_positions;  // per object, when last clustered
+  common::ReceiverClustering receivers;
   // Environment SH.
   std::string env_key;
   std::vector<glm::vec3> env_sh;
 };
 
-std::string receivers_signature(const scene::Scene& scene, const scene::PosedScene& posed, int clusters) {
-  std::ostringstream os;
-  os << &scene << '|' << scene.source << '|' << scene.name << '|' << clusters;
-  for (const auto& o : posed.objects) os << '|' << o.node << ':' << o.positions.size();
-  return os.str();
-}
 
 // The hierarchy options SHEXP builds with (paper 004 section 6.3: branching 4).
 proxies::HierarchyBuildOptions hierarchy_options() { return proxies::HierarchyBuildOptions{}; }
@@ -282,117 +267,9 @@ void pass_proxy_update(State& st, FrameContext& ctx) {
 }
 
 void pass_receivers(State& st, const Settings& s, FrameContext& ctx) {
-  const scene::PosedScene& posed = ctx.posed;
-  std::size_t total = 0;
-  for (const auto& o : posed.objects) total += o.positions.size();
-  if (total == 0) throw std::invalid_argument("shexp: scene '" + ctx.scene.name + "' has no vertices to shade");
-  if (total > (std::size_t{1} << 31)) throw std::invalid_argument("shexp: scene '" + ctx.scene.name + "' has too many vertices");
-  for (const auto& o : posed.objects)
-    if (o.normals.size() != o.positions.size())
-      throw std::invalid_argument("shexp: object " + std::to_string(o.node) + " in scene '" + ctx.scene.name + "' has " +
-                                  std::to_string(o.normals.size()) + " normals for " + std::to_string(o.positions.size()) + " vertices");
-  const int want = s.clusters > 0 ? s.clusters : std::max<int>(1, static_cast<int>((total + kAutoReceiversPerCluster / 2) / kAutoReceiversPerCluster));
-  const std::string key = receivers_signature(ctx.scene, posed, want);
   common::warn_coarse_receivers("shexp", ctx);
-
-  std::lock_guard<std::mutex> lock(st.m);
-  int iterations = 0, objects_reclustered = 0;
-  const bool recluster = st.receivers_key != key;
-  if (recluster) st.last_positions.assign(posed.objects.size(), {});
-  // Lloyd clustering per object (a cluster never spans two objects), the count split by vertex
-  // count. An object whose vertices did not move keeps its clusters; one that moved is re-clustered
-  // warm-started from its last centres (section 6.3: recompute when geometry moves).
-  std::vector<glm::vec3> centres;
-  std::vector<int> cobj;
-  std::vector<std::vector<int>> assign(posed.objects.size());
-  for (std::size_t o = 0; o < posed.objects.size(); ++o) {
-    const auto& pts = posed.objects[o].positions;
-    if (pts.empty()) continue;
-    std::vector<glm::vec3> old;
-    for (std::size_t c = 0; c < st.cluster_centres.size(); ++c)
-      if (!recluster && st.cluster_object[c] == static_cast<int>(o)) old.push_back(st.cluster_centres[c]);
-    const int base = static_cast<int>(centres.size());
-    assign[o].resize(pts.size());
-    if (!recluster && st.last_positions[o] == pts) {
-      const int old_base = st.assignment[o].empty() ? 0 : *std::min_element(st.assignment[o].begin(), st.assignment[o].end());
-      for (std::size_t v = 0; v < pts.size(); ++v) assign[o][v] = base + st.assignment[o][v] - old_base;
-      for (const auto& c : old) {
-        centres.push_back(c);
-        cobj.push_back(static_cast<int>(o));
-      }
-      continue;
-    }
-    const int k = std::max(1, static_cast<int>(std::lround(static_cast<double>(want) * pts.size() / total)));
-    const bool warm = !recluster && static_cast<int>(old.size()) == k;
-    LloydResult lr = lloyd_cluster(pts, k, warm ? kLloydIterationsMoving : kLloydIterations, 7u + static_cast<unsigned>(o),
-                                   warm ? &old : nullptr);
-    iterations += lr.iterations;
-    ++objects_reclustered;
-    for (std::size_t v = 0; v < pts.size(); ++v) assign[o][v] = base + lr.assignment[v];
-    for (const auto& c : lr.centres) {
-      centres.push_back(c);
-      cobj.push_back(static_cast<int>(o));
-    }
-    st.last_positions[o] = pts;
-  }
-  st.assignment = std::move(assign);
-  st.cluster_centres = std::move(centres);
-  st.cluster_object = std::move(cobj);
-  st.receivers_key = key;
-
-  // Receivers in cluster order; cluster bounds (p_R, r_R) and the central point p* from this pose.
-  auto r = std::make_shared<Receivers>();
-  const int nc = static_cast<int>(st.cluster_centres.size());
-  std::vector<std::size_t> count(nc + 1, 0);
-  for (const auto& a : st.assignment)
-    for (int c : a) ++count[c + 1];
-  for (int c = 0; c < nc; ++c) count[c + 1] += count[c];
-  r->soa.resize(total);
-  r->object.resize(total);
-  r->vertex.resize(total);
-  r->index.resize(posed.objects.size());
-  std::vector<std::size_t> fill(count.begin(), count.end() - 1);
-  for (std::size_t o = 0; o < posed.objects.size(); ++o) {
-    const auto& obj = posed.objects[o];
-    r->index[o].resize(obj.positions.size());
-    for (std::size_t v = 0; v < obj.positions.size(); ++v) {
-      const std::size_t i = fill[st.assignment[o][v]]++;
-      r->soa.set(i, obj.positions[v], obj.normals[v]);
-      r->object[i] = static_cast<int>(o);
-      r->vertex[i] = static_cast<int>(v);
-      r->index[o][v] = static_cast<std::uint32_t>(i);
-    }
-  }
-  r->clusters.resize(nc);
-  tbb::parallel_for(0, nc, [&](int c) {
-    ReceiverCluster& rc = r->clusters[c];
-    rc.begin = count[c];
-    rc.end = count[c + 1];
-    glm::dvec3 sum(0.0);
-    for (std::size_t i = rc.begin; i < rc.end; ++i) sum += glm::dvec3(r->soa.px[i], r->soa.py[i], r->soa.pz[i]);
-    rc.centre = glm::vec3(sum / static_cast<double>(std::max<std::size_t>(1, rc.end - rc.begin)));
-    float rad = 0.0f, best = std::numeric_limits<float>::max();
-    for (std::size_t i = rc.begin; i < rc.end; ++i) {
-      const float d = glm::length(glm::vec3(r->soa.px[i], r->soa.py[i], r->soa.pz[i]) - rc.centre);
-      rad = std::max(rad, d);
-      if (d < best) {
-        best = d;
-        rc.star = glm::vec3(r->soa.px[i], r->soa.py[i], r->soa.pz[i]);
-      }
-    }
-    rc.radius = rad;
-  });
-  std::size_t maxc = 0;
-  for (const auto& c : r->clusters) maxc = std::max(maxc, c.end - c.begin);
-  auto& rec = ctx.record();
-  rec.counters["receivers"] = static_cast<double>(total);
-  rec.counters["clusters"] = nc;
-  rec.counters["receivers_per_cluster_mean"] = static_cast<double>(total) / std::max(1, nc);
-  rec.counters["receivers_per_cluster_max"] = static_cast<double>(maxc);
-  rec.counters["lloyd_iterations"] = iterations;
-  rec.counters["reclustered"] = recluster;
-  rec.counters["objects_reclustered"] = objects_reclustered;
-  rec.bytes = r->bytes();
+  auto r = st.receivers.update("shexp", ctx, s.clusters);
+  ctx.record().bytes = r->bytes();
   ctx.put<std::shared_ptr<const Receivers>>(kReceivers, r);
 }
 
@@ -758,8 +635,7 @@ class Shexp final : public render::Technique {
     d.push_back(ParamDesc::real("theta_min_deg", 0.0, 0.0, 30.0,
                                 "detail pruning: f_d stops at nodes subtending less than this at p* (0 = every leaf)"));
     d.push_back(ParamDesc::boolean("ratio_vectors", true, "eq. 37 ratio vectors on cut nodes (off: Figure 6b)"));
-    d.push_back(ParamDesc::integer("receiver_clusters", 0, 0, 1 << 20,
-                                   "Lloyd receiver clusters (0 = one per ~300 vertices, section 6.3)"));
+    d.push_back(common::params::receiver_clusters());
     d.push_back(common::params::window_h());
     d.push_back(ParamDesc::boolean("window_visibility", true, "window the visibility vector too (section 7), not only the light"));
     d.push_back(common::params::self_shadow_rules());

@@ -65,15 +65,7 @@ struct Tables {
   }
 };
 
-struct Receivers {
-  ReceiverSoA soa;                              // cluster order
-  std::vector<int> object, vertex;              // source of each receiver
-  std::vector<ReceiverCluster> clusters;
-  std::vector<std::vector<std::uint32_t>> index;  // [object][vertex] -> receiver
-  std::size_t bytes() const {
-    return soa.size() * (6 * sizeof(float) + 3 * sizeof(int)) + clusters.size() * sizeof(ReceiverCluster);
-  }
-};
+using Receivers = common::VertexReceivers;
 
 struct HierarchyRes {
   std::vector<const proxies::SphereHierarchy*> trees;  // one per proxy set (null where empty)
