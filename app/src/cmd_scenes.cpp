@@ -50,7 +50,7 @@ void run_scenes(const ScenesArgs& args) {
   nlohmann::json rows = nlohmann::json::array();
   int failures = 0;
   if (!args.json)
-    std::cout << std::left << std::setw(10) << "scene" << std::right << std::setw(8) << "assets" << std::setw(11) << "triangles"
+    std::cout << std::left << std::setw(13) << "scene" << std::right << std::setw(8) << "assets" << std::setw(11) << "triangles"
               << std::setw(9) << "vertices" << std::setw(9) << "objects" << std::setw(8) << "proxies" << std::setw(7) << "bones"
               << std::setw(7) << "lights" << std::setw(8) << "clip s" << std::setw(10) << "build ms" << "  description\n";
   for (const auto& info : scene::builtin_scenes()) {
@@ -90,7 +90,7 @@ void run_scenes(const ScenesArgs& args) {
     if (!present) row["missing"] = asset + " (run scripts/fetch-assets.sh)";
     rows.push_back(row);
     if (args.json) continue;
-    std::cout << std::left << std::setw(10) << info.name << std::right << std::setw(8) << status;
+    std::cout << std::left << std::setw(13) << info.name << std::right << std::setw(8) << status;
     if (built) {
       std::cout << std::setw(11) << c.triangles << std::setw(9) << c.vertices << std::setw(9) << c.objects << std::setw(8) << c.proxy_spheres
                 << std::setw(7) << c.bones << std::setw(7) << c.lights << std::setw(8) << std::fixed << std::setprecision(1) << c.clip_seconds
@@ -99,8 +99,8 @@ void run_scenes(const ScenesArgs& args) {
       std::cout << std::setw(77) << (args.no_build ? "" : "(not built)");
     }
     std::cout << "  " << info.description << "\n";
-    if (!present) std::cout << "          missing " << asset << ": run scripts/fetch-assets.sh\n";
-    if (!error.empty()) std::cout << "          error: " << error << "\n";
+    if (!present) std::cout << "             missing " << asset << ": run scripts/fetch-assets.sh\n";
+    if (!error.empty()) std::cout << "             error: " << error << "\n";
     std::cout << std::flush;  // one line per scene as it is built: the progress of a slow build
   }
   if (args.json) std::cout << nlohmann::json{{"assets_dir", scene::assets_dir()}, {"scenes", rows}}.dump(1) << "\n";

@@ -1,4 +1,4 @@
-# `softgi scenes`: lists the five built-ins, builds those it can, reports counts; a missing asset set
+# `softgi scenes`: lists the ten built-ins, builds those it can, reports counts; a missing asset set
 # is reported (bunny "missing"), not an error.
 file(MAKE_DIRECTORY ${WORK_DIR}/no_assets)
 execute_process(COMMAND ${CMAKE_COMMAND} -E env SOFTGI_ASSETS=${WORK_DIR}/no_assets ${SOFTGI} scenes --json
@@ -7,8 +7,8 @@ if(NOT rc EQUAL 0)
   message(FATAL_ERROR "softgi scenes --json failed (${rc}):\n${out}${err}")
 endif()
 string(JSON n LENGTH "${out}" scenes)
-if(NOT n EQUAL 5)
-  message(FATAL_ERROR "expected 5 scenes, got ${n}:\n${out}")
+if(NOT n EQUAL 10)
+  message(FATAL_ERROR "expected 10 scenes, got ${n}:\n${out}")
 endif()
 math(EXPR last "${n} - 1")
 foreach(i RANGE ${last})
@@ -35,6 +35,6 @@ foreach(i RANGE ${last})
 endforeach()
 
 execute_process(COMMAND ${SOFTGI} scenes --no-build OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
-if(NOT rc EQUAL 0 OR NOT out MATCHES "spheres.*cornell.*character.*crowd.*bunny")
+if(NOT rc EQUAL 0 OR NOT out MATCHES "spheres.*cornell.*character.*crowd.*sphere_plane.*box1.*box8.*bend.*assembly.*bunny")
   message(FATAL_ERROR "softgi scenes --no-build (${rc}):\n${out}${err}")
 endif()

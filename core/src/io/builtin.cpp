@@ -737,6 +737,323 @@ Scene make_crowd() {
   return s;
 }
 
+// --- validation scenes of paper 001 (spherical lights, section 8.2, figures 8-10; section 8.5) --------
+
+// A ground plane of the usual kind (8 m, 128 x 128 vertices, albedo 0.7) under the default sky.
+void add_ground(Scene& s, float width = 8.0f) {
+  const int ground_mat = add_material(s, "ground", glm::vec3(0.7f));
+  add_node(s, "ground", -1, glm::vec3(0.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f), add_mesh(s, ground_plane(128, width, ground_mat)));
+}
+
+void set_view(Scene& s, glm::vec3 position, glm::vec3 target) {
+  s.camera.position = position;
+  s.camera.target = target;
+  s.camera.fov_y_deg = 45.0f;
+  s.environment = default_sky();
+}
+
+// A rigid object: material, mesh and node; its proxy set (node space spheres) gets the material's albedo.
+int add_rigid(Scene& s, const std::string& name, glm::vec3 albedo, Mesh mesh, glm::vec3 t, glm::quat r, std::vector<Sphere> spheres,
+              double outside_volume_ratio = -1.0) {
+  mesh.material = add_material(s, name, albedo);
+  const int node = add_node(s, name, -1, t, r, add_mesh(s, std::move(mesh)));
+  ProxySet ps;
+  ps.name = name;
+  ps.node = node;
+  ps.spheres = std::move(spheres);
+  ps.albedo = albedo;
+  ps.outside_volume_ratio = outside_volume_ratio;
+  s.proxies.push_back(std::move(ps));
+  return node;
+}
+
+double sphere_volume(float r) { return 4.0 / 3.0 * 3.14159265358979323846 * std::pow(static_cast<double>(r), 3); }
+
+// Figure 8, first row: one diffuse sphere on the plane, its proxy the sphere itself (the method's
+// optimal case). Static.
+Scene make_sphere_plane() {
+  Scene s;
+  s.name = "sphere_plane";
+  s.source = "builtin:sphere_plane";
+  add_ground(s);
+  constexpr float kRadius = 0.5f;
+  Mesh m = uv_sphere("sphere", kRadius, 64, 32, 0);
+  const double e = sphere_volume(kRadius) / closed_volume(m) - 1.0;
+  add_rigid(s, "sphere", {0.9f, 0.12f, 0.08f}, std::move(m), {0.0f, kRadius, 0.0f}, glm::quat(1.0f, 0.0f, 0.0f, 0.0f),
+            {{glm::vec3(0.0f), kRadius}}, e);
+  set_view(s, {0.0f, 1.5f, 3.4f}, {0.0f, 0.35f, 0.0f});
+  return s;
+}
+
+// Figure 10: a 0.8 m cube on the plane turned 30 degrees about +y (two faces towards the camera and the
+// sun), bounded by one sphere (its circumsphere, `box1`) or by its 8 octants' circumspheres (`box8`).
+// Static.
+constexpr float kBoxHalf = 0.4f;
+constexpr float kBoxYaw = 30.0f * kDeg;
+Scene make_box(bool octants) {
+  Scene s;
+  s.name = octants ? "box8" : "box1";
+  s.source = "builtin:" + s.name;
+  add_ground(s);
+  const glm::vec3 half(kBoxHalf);
+  std::vector<Sphere> spheres = octants ? box_cell_spheres(half) : std::vector<Sphere>{{glm::vec3(0.0f), glm::length(half)}};
+  const double e = octants ? -1.0 : sphere_volume(glm::length(half)) / (8.0 * std::pow(static_cast<double>(kBoxHalf), 3)) - 1.0;
+  add_rigid(s, "box", {0.15f, 0.35f, 0.85f}, box_mesh("box", half, 9, 0), {0.0f, kBoxHalf, 0.0f}, yaw(kBoxYaw), std::move(spheres), e);
+  set_view(s, {0.0f, 1.6f, 3.6f}, {0.0f, 0.4f, 0.0f});
+  return s;
+}
+Scene make_box1() { return make_box(false); }
+Scene make_box8() { return make_box(true); }
+
+// A capped cylinder standing on its base, skinned to a chain of bones along its axis (+y at rest):
+// bone 0 spans [0, base], bones 1..bend_bones each `bone` long above it, so length = base +
+// bend_bones * bone. Bones 1..n each turn by angle / n about their joint, bending the cylinder in its
+// local x-y plane towards +x; at angle pi the last bone points straight down, its end at height
+// base - bone (the joint heights are symmetric about the middle of the bend), the two legs
+// bone * sum_i sin(i pi / n) apart.
+//
+// Weights: within bone / 2 of a joint a point blends the two bones meeting there, half and half at the
+// joint, fading (smoothstep) to its own bone at the midpoints between joints; below the first joint's
+// blend zone it is rigid on bone 0, above the last's rigid on the last bone. So every blended point
+// mixes two bones that both keep that joint fixed, and its posed position stays within its rest
+// distance of the posed joint (a convex combination of two points at that distance). Hence the
+// proxies: one sphere centred on each joint bounding the slab of half-width bone / 2 around it, plus
+// one sphere over each rigid end slab on its bone, bound the mesh in every bent state, not only at
+// rest (n + 2 spheres).
+//
+// Six bend bones turn 30 degrees each at the full bend. Linear blending pulls the inside of each joint
+// towards it (the inner surface reaches r cos(a / 2) from a joint turning by a, where the straight
+// bones would meet at r / cos(a / 2)), so the inside of the 180 degree arch is scalloped: its
+// distance from the bend's centre varies by 1.8 cm on the 0.15 m cylinder, 4.1 cm with four bones
+// of 45 degrees.
+struct BendSpec {
+  float radius = 0.15f;
+  float base = 0.4f;
+  float bone = 0.2f;
+  int bend_bones = 6;
+  float length() const { return base + bend_bones * bone; }
+  float joint(int i) const { return base + (i - 1) * bone; }  // height of joint i = 1..bend_bones (origin of bone i)
+  // Distance between the legs' axes at the full bend (pi).
+  float span() const {
+    float x = 0.0f;
+    for (int i = 1; i < bend_bones; ++i) x += bone * std::sin(kPi * i / bend_bones);
+    return x;
+  }
+};
+
+struct BoneWeights {
+  glm::u16vec4 joints{0};
+  glm::vec4 weights{0.0f};
+};
+BoneWeights bend_weights(const BendSpec& b, float y) {
+  const float h = 0.5f * b.bone;
+  BoneWeights out;
+  out.weights = {1.0f, 0.0f, 0.0f, 0.0f};
+  // Own bone: the one containing y.
+  const int own = std::clamp(static_cast<int>(std::floor((y - b.base) / b.bone)) + 1, 0, b.bend_bones);
+  out.joints[0] = static_cast<std::uint16_t>(own);
+  for (int i = 1; i <= b.bend_bones; ++i) {
+    const float s = y - b.joint(i);
+    if (std::abs(s) >= h) continue;
+    const float x = std::abs(s) / h, smooth = x * x * (3.0f - 2.0f * x);
+    const float w_other = 0.5f * (1.0f - smooth);
+    const int a = s >= 0.0f ? i : i - 1, other = s >= 0.0f ? i - 1 : i;  // the two bones meeting at joint i
+    out.joints = {static_cast<std::uint16_t>(a), static_cast<std::uint16_t>(other), 0, 0};
+    out.weights = {1.0f - w_other, w_other, 0.0f, 0.0f};
+  }
+  return out;
+}
+
+Mesh bend_cylinder_mesh(const std::string& name, const BendSpec& b, int material) {
+  constexpr int kSegments = 32;
+  constexpr float kRingSpacing = 0.025f;  // smooth bending between joints
+  const float len = b.length();
+  const int rings = 1 + static_cast<int>(std::ceil(len / kRingSpacing));
+  Mesh m;
+  m.name = name;
+  m.material = material;
+  auto push = [&](glm::vec3 p, glm::vec3 n) {
+    m.positions.push_back(p);
+    m.normals.push_back(n);
+    const BoneWeights w = bend_weights(b, p.y);
+    m.joints.push_back(w.joints);
+    m.weights.push_back(w.weights);
+    return static_cast<unsigned>(m.positions.size()) - 1;
+  };
+  auto radial = [](int j) {
+    const float ph = 2.0f * kPi * j / kSegments;
+    return glm::vec3(std::cos(ph), 0.0f, -std::sin(ph));
+  };
+  // Side: rings at heights 0..len with radial normals.
+  std::vector<unsigned> first(rings);
+  for (int i = 0; i < rings; ++i) {
+    const float y = len * i / (rings - 1);
+    first[i] = static_cast<unsigned>(m.positions.size());
+    for (int j = 0; j < kSegments; ++j) push(b.radius * radial(j) + glm::vec3(0.0f, y, 0.0f), radial(j));
+  }
+  for (int i = 0; i + 1 < rings; ++i)
+    for (int j = 0; j < kSegments; ++j) {
+      const unsigned j1 = (j + 1) % kSegments;
+      add_tri(m, first[i] + j, first[i] + j1, first[i + 1] + j1);
+      add_tri(m, first[i] + j, first[i + 1] + j1, first[i + 1] + j);
+    }
+  // Flat caps: a centre and a rim of their own with the cap's normal.
+  for (int cap = 0; cap < 2; ++cap) {
+    const float y = cap == 0 ? 0.0f : len;
+    const glm::vec3 n(0.0f, cap == 0 ? -1.0f : 1.0f, 0.0f);
+    const unsigned centre = push({0.0f, y, 0.0f}, n);
+    const unsigned rim = static_cast<unsigned>(m.positions.size());
+    for (int j = 0; j < kSegments; ++j) push(b.radius * radial(j) + glm::vec3(0.0f, y, 0.0f), n);
+    for (int j = 0; j < kSegments; ++j) add_tri(m, centre, rim + j, rim + (j + 1) % kSegments);
+  }
+  return m;
+}
+
+// The proxy spheres of the comment above BendSpec, with the weights of their centres.
+void bend_proxies(const BendSpec& b, ProxySet& ps) {
+  const float h = 0.5f * b.bone, r2 = b.radius * b.radius;
+  auto add = [&](float y, float half_slab) {
+    ps.spheres.push_back({{0.0f, y, 0.0f}, std::sqrt(half_slab * half_slab + r2) * (1.0f + 1e-5f)});
+    const BoneWeights w = bend_weights(b, y);
+    ps.joints.push_back(w.joints);
+    ps.weights.push_back(w.weights);
+  };
+  const float low = b.joint(1) - h, high = b.joint(b.bend_bones) + h, len = b.length();
+  add(0.5f * low, 0.5f * low);
+  for (int i = 1; i <= b.bend_bones; ++i) add(b.joint(i), h);
+  add(0.5f * (high + len), 0.5f * (len - high));
+}
+
+// Adds a bending cylinder at `base_pos` (its local frame turned by `heading` about +y): root node,
+// bone chain, skin, skinned mesh and proxy set; `angle(t)` (radians, total bend) keyed on the bend
+// bones' rotations into `clip` with `keys` + 1 uniform keys.
+void add_bend(Scene& s, AnimationClip& clip, const std::string& name, const BendSpec& b, glm::vec3 base_pos, float heading,
+              glm::vec3 albedo, int keys, const std::function<float(float)>& angle) {
+  const int material = add_material(s, name, albedo);
+  const int root = add_node(s, name, -1, base_pos, yaw(heading));
+  Skin skin;
+  skin.name = name;
+  int parent = root;
+  float parent_len = 0.0f, start = 0.0f;
+  for (int i = 0; i <= b.bend_bones; ++i) {
+    const int node = add_node(s, name + "/bone" + std::to_string(i), parent, {0.0f, parent_len, 0.0f});
+    skin.joints.push_back(node);
+    glm::mat4 ib(1.0f);
+    ib[3] = glm::vec4(0.0f, -start, 0.0f, 1.0f);
+    skin.inverse_bind.push_back(ib);
+    parent = node;
+    parent_len = i == 0 ? b.base : b.bone;
+    start += parent_len;
+  }
+  s.skins.push_back(skin);
+  const int mesh_node = add_node(s, name + "/mesh", root, glm::vec3(0.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f),
+                                 add_mesh(s, bend_cylinder_mesh(name, b, material)));
+  s.nodes[mesh_node].skin = static_cast<int>(s.skins.size()) - 1;
+  ProxySet ps;
+  ps.name = name;
+  ps.node = mesh_node;
+  ps.albedo = albedo;
+  bend_proxies(b, ps);
+  s.proxies.push_back(std::move(ps));
+  for (int i = 1; i <= b.bend_bones; ++i)
+    clip.channels.push_back(sampled_channel(skin.joints[i], AnimationChannel::Path::Rotation, clip.duration, keys, [&](float t) {
+      return qv(axis_angle({0.0f, 0.0f, -1.0f}, angle(t) / static_cast<float>(b.bend_bones)));
+    }));
+}
+
+// Figure 9: a cylinder (radius 0.15 m, 1.6 m long, 7 bones) standing on the plane bends into an arch:
+// straight at t = 0, 90 degrees at t = 1 s, 180 degrees at t = 2 s (the free end 0.2 m above the
+// ground, the legs' axes 0.75 m apart), held to the end of the 3 s clip (no loop).
+Scene make_bend() {
+  Scene s;
+  s.name = "bend";
+  s.source = "builtin:bend";
+  add_ground(s);
+  AnimationClip clip;
+  clip.name = "bend";
+  clip.duration = 3.0f;
+  clip.loop = false;
+  const BendSpec b;
+  // Base placed so that the 180 degree arch is centred on x = 0.
+  add_bend(s, clip, "cylinder", b, {-0.5f * b.span(), 0.0f, 0.0f}, 0.0f, {0.2f, 0.7f, 0.25f}, 12,
+           [](float t) { return 0.5f * kPi * std::clamp(t, 0.0f, 2.0f); });
+  s.clips.push_back(clip);
+  s.active_clip = 0;
+  set_view(s, {0.6f, 1.5f, 3.9f}, {0.0f, 0.75f, 0.0f});
+  return s;
+}
+
+// Section 8.5's benchmarking scene, in spirit: several moving and deforming objects of different
+// shapes and colours on the plane, which never intersect each other (8 s loop).
+Scene make_assembly() {
+  Scene s;
+  s.name = "assembly";
+  s.source = "builtin:assembly";
+  add_ground(s);
+  constexpr float kT = 8.0f;
+  constexpr int kKeys = 64;  // every 0.125 s
+  AnimationClip clip;
+  clip.name = "assembly";
+  clip.duration = kT;
+  clip.loop = true;
+  using P = AnimationChannel::Path;
+  const glm::quat id(1.0f, 0.0f, 0.0f, 0.0f);
+  auto w = [](float t) { return 2.0f * kPi * t / kT; };
+
+  // A red ball rolling back and forth along x in front (turning about -z by its travel / radius).
+  {
+    constexpr float r = 0.35f;
+    auto x = [&](float t) { return 1.7f * std::sin(w(t)); };
+    const int n = add_rigid(s, "ball_red", {0.85f, 0.15f, 0.1f}, uv_sphere("ball_red", r, 48, 24, 0), {x(0.0f), r, 0.9f}, id, {{glm::vec3(0.0f), r}});
+    clip.channels.push_back(sampled_channel(n, P::Translation, kT, kKeys, [&](float t) { return glm::vec4(x(t), r, 0.9f, 0.0f); }));
+    clip.channels.push_back(sampled_channel(n, P::Rotation, kT, kKeys, [&](float t) { return qv(axis_angle({0.0f, 0.0f, -1.0f}, x(t) / r)); }));
+  }
+  // A blue ball sliding on a 0.6 m circle at the back left.
+  {
+    constexpr float r = 0.25f;
+    auto p = [&](float t) { return glm::vec4(-2.0f + 0.6f * std::cos(w(t)), r, -1.0f - 0.6f * std::sin(w(t)), 0.0f); };
+    const int n = add_rigid(s, "ball_blue", {0.15f, 0.3f, 0.85f}, uv_sphere("ball_blue", r, 48, 24, 0), glm::vec3(p(0.0f)), id, {{glm::vec3(0.0f), r}});
+    clip.channels.push_back(sampled_channel(n, P::Translation, kT, kKeys, p));
+  }
+  // A small green ball hopping in place, four hops per loop.
+  {
+    constexpr float r = 0.2f;
+    auto p = [&](float t) { return glm::vec4(1.2f, r + 0.45f * std::abs(std::sin(2.0f * w(t))), -0.3f, 0.0f); };
+    const int n = add_rigid(s, "ball_green", {0.25f, 0.75f, 0.25f}, uv_sphere("ball_green", r, 48, 24, 0), glm::vec3(p(0.0f)), id, {{glm::vec3(0.0f), r}});
+    clip.channels.push_back(sampled_channel(n, P::Translation, kT, kKeys, p));
+  }
+  // A yellow 0.6 m crate sliding along z on the right, swinging +-20 degrees about +y (octant proxies).
+  {
+    const glm::vec3 half(0.3f);
+    auto p = [&](float t) { return glm::vec4(2.2f, half.y, -1.3f + 0.7f * std::sin(w(t) + 1.0f), 0.0f); };
+    const int n = add_rigid(s, "crate", {0.85f, 0.7f, 0.15f}, box_mesh("crate", half, 9, 0), glm::vec3(p(0.0f)), id, box_cell_spheres(half));
+    clip.channels.push_back(sampled_channel(n, P::Translation, kT, kKeys, p));
+    clip.channels.push_back(sampled_channel(n, P::Rotation, kT, kKeys, [&](float t) { return qv(yaw(20.0f * kDeg * std::sin(2.0f * w(t)))); }));
+  }
+  // A purple 0.4 x 0.8 x 0.4 m pillar turning once per loop at the left; proxies: the circumspheres of
+  // its four 0.4 x 0.2 x 0.4 m layers (box_cell_spheres would take 16).
+  {
+    const glm::vec3 half(0.2f, 0.4f, 0.2f);
+    std::vector<Sphere> layers;
+    for (int i = 0; i < 4; ++i) layers.push_back({{0.0f, -half.y + 0.5f * half.y * (i + 0.5f), 0.0f}, glm::length(glm::vec3(half.x, 0.25f * half.y, half.z))});
+    const int n = add_rigid(s, "pillar", {0.55f, 0.25f, 0.65f}, box_mesh("pillar", half, 9, 0), {-1.1f, half.y, 0.0f}, id, std::move(layers));
+    clip.channels.push_back(sampled_channel(n, P::Rotation, kT, 32, [&](float t) { return qv(yaw(w(t))); }));
+  }
+  // An orange cylinder at the back bending into an arch and back (0 -> 180 -> 0 degrees).
+  {
+    BendSpec b;
+    b.radius = 0.12f;
+    b.base = 0.3f;
+    b.bone = 0.15f;
+    add_bend(s, clip, "arm", b, {-0.3f, 0.0f, -1.2f}, 0.0f, {0.9f, 0.45f, 0.1f}, kKeys,
+             [&](float t) { return 0.5f * kPi * (1.0f - std::cos(w(t))); });
+  }
+  s.clips.push_back(clip);
+  s.active_clip = 0;
+  set_view(s, {0.0f, 2.5f, 5.8f}, {0.0f, 0.2f, -0.5f});
+  return s;
+}
+
 // --- bunny ---------------------------------------------------------------------------------------------
 
 // The 32-sphere fit takes seconds; it is deterministic, so one fit per process and model file
@@ -806,6 +1123,11 @@ const std::vector<Entry>& registry() {
       {{"cornell", "Cornell box open to the sky, two blocks (box proxies: cell spheres), spherical light circling under the ceiling", false}, make_cornell},
       {{"character", "procedural skinned humanoid (15 bones) walking a circle on a ground plane; bone-bound proxy spheres", false}, make_character},
       {{"crowd", "nine walking characters on circular paths with different cadences and phases", false}, make_crowd},
+      {{"sphere_plane", "one diffuse red sphere resting on a ground plane, static; its proxy is the sphere", false}, make_sphere_plane},
+      {{"box1", "a 0.8 m cube on a ground plane, static; one proxy sphere (its circumsphere)", false}, make_box1},
+      {{"box8", "the box1 cube bounded by its 8 octant spheres, static", false}, make_box8},
+      {{"bend", "skinned cylinder (7 bones) bending from straight (t = 0) to 90 (t = 1 s) and 180 degrees (t = 2 s); 8 bone-bound proxy spheres", false}, make_bend},
+      {{"assembly", "six moving objects (rolling, sliding, hopping balls, a crate, a turning pillar, a bending cylinder) that never touch", false}, make_assembly},
       {{"bunny", "Stanford bunny (asset set, Draco GLB) turning on a ground plane; 32-sphere proxy fit", true}, make_bunny},
   };
   return entries;

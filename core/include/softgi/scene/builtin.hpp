@@ -12,7 +12,7 @@ struct BuiltinInfo {
   std::string name, description;
   bool needs_assets = false;
 };
-std::vector<BuiltinInfo> builtin_scenes();  // spheres, cornell, character, crowd, bunny
+std::vector<BuiltinInfo> builtin_scenes();  // spheres, cornell, character, crowd, sphere_plane, box1, box8, bend, assembly, bunny
 
 // Throws std::invalid_argument naming the unknown scene and listing the known ones; throws
 // std::runtime_error naming the missing file when assets are needed and absent.
