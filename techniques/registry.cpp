@@ -5,6 +5,7 @@
 #include "softgi/render/technique.hpp"
 #include "softgi/techniques/image_splat.hpp"
 #include "softgi/techniques/shexp.hpp"
+#include "softgi/techniques/spherical_lights.hpp"
 
 namespace softgi::techniques {
 
@@ -13,6 +14,7 @@ void register_all() {
   std::call_once(once, [] {
     render::register_technique("shexp", [] { return shexp::create(); });
     render::register_technique("image_splat", [] { return image_splat::create(); });
+    render::register_technique("spherical_lights", [] { return spherical_lights::create(); });
   });
 }
 

@@ -1,0 +1,707 @@
+// Spherical lights (paper 001, Guerrero, Jeschke and Wimmer 2008) as a render::Technique: each
+// proxy sphere of an object is a blocker and a low-frequency secondary light. Per frame, the SLs'
+// sample points are lit by the environment under the SLs' shadows (section 5.1), each SL's
+// intensity is projected to SH (section 5.2), and per-vertex receivers sum the SLs' average
+// radiance times their average visibility (section 6) beside SHEXP-style direct soft shadows.
+// docs/techniques/spherical_lights.md describes the graph and the measurements.
+#include "softgi/techniques/spherical_lights.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+
+#include "sl_passes.hpp"
+#include "../common/device_kernels.hpp"
+#include "../common/pass_support.hpp"
+#include "../common/shared_params.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/render/gbuffer.hpp"
+#include "softgi/render/vertex_image.hpp"
+#include "softgi/sh/product.hpp"
+
+namespace softgi::techniques::spherical_lights {
+
+std::vector<render::ExperimentDef> experiments();  // sl_experiments.cpp
+
+Settings read_settings(const render::ParamSet& p) {
+  Settings s;
+  s.order = p.get_int("order");
+  s.exp = p.get_enum("exp") == "ol" ? sh::ExpMethod::OL : sh::ExpMethod::HYB;
+  s.window_h = common::params::read_window_h(p, s.order);
+  s.rule = common::params::read_replacement_rule(p);
+  s.table_resolution = p.get_int("table_resolution");
+  s.log_threshold = p.get_float("log_threshold");
+  s.lights = p.get_bool("analytic_lights");
+  s.isa = common::params::read_kernel(p);
+  s.blocking = p.get_enum("blocking") == "per_object" ? Blocking::PerObject : Blocking::PerSphere;
+  s.indirect = p.get_bool("indirect");
+  s.clusters = p.get_int("receiver_clusters");
+  s.pre.order = s.order;
+  s.pre.geodesic_frequency = p.get_int("geodesic_frequency");
+  s.pre.cubemap_resolution = p.get_int("cubemap_resolution");
+  s.pre.projection_strata = p.get_int("projection_strata");
+  return s;
+}
+
+std::size_t SlData::bytes() const {
+  std::size_t b = 0;
+  for (const auto& o : objects) b += o.data ? o.data->bytes() : 0;
+  return b;
+}
+
+std::size_t SlPose::bytes() const {
+  std::size_t b = size() * (sizeof(glm::vec3) + sizeof(float) + sizeof(glm::mat3) + sizeof(int));
+  for (const auto& x : intersecting) b += x.size() * sizeof(int);
+  b += samples.size() * (6 * sizeof(float) + sizeof(const float*)) + blockers.bytes();
+  return b;
+}
+
+std::shared_ptr<const Tables> make_tables(int order, int resolution, double log_threshold) {
+  auto tab = std::make_shared<Tables>();
+  tab->order = order;
+  tab->sh = common::accumulation_tables(order, resolution, log_threshold);
+  tab->log = make_zh_table(tab->sh->cap_log(), order, true);
+  tab->weight = make_weight_table(order, resolution);
+  return tab;
+}
+
+namespace {
+
+using render::FrameContext;
+using render::ParamDesc;
+
+// 64-bit FNV-1a over the words of what an object's precomputation depends on.
+class Fnv {
+ public:
+  void word(std::uint32_t w) { h_ = (h_ ^ w) * 1099511628211ull; }
+  void f(float x) { word(std::bit_cast<std::uint32_t>(x)); }
+  void v3(const glm::vec3& v) {
+    f(v.x);
+    f(v.y);
+    f(v.z);
+  }
+  std::uint64_t value() const { return h_; }
+
+ private:
+  std::uint64_t h_ = 14695981039346656037ull;
+};
+
+// Everything precompute_object reads: the rest mesh, its material and texture, the sphere set and
+// the options. Hashed every frame (linear in the mesh, far below the frame's own work) so that a
+// scene edited in place is never served a stale precomputation.
+std::string object_key(const scene::Scene& scene, int set, const PrecomputeOptions& opt) {
+  const scene::ProxySet& ps = scene.proxies[set];
+  Fnv h;
+  h.word(static_cast<std::uint32_t>(ps.node));
+  for (const auto& sp : ps.spheres) {
+    h.v3(sp.center);
+    h.f(sp.radius);
+  }
+  const scene::Node& node = scene.nodes[ps.node];
+  const scene::Mesh& m = scene.meshes[node.mesh];
+  for (const auto& p : m.positions) h.v3(p);
+  for (const auto& n : m.normals) h.v3(n);
+  for (const auto& t : m.triangles) {
+    h.word(t.x);
+    h.word(t.y);
+    h.word(t.z);
+  }
+  for (const auto& uv : m.uvs) {
+    h.f(uv.x);
+    h.f(uv.y);
+  }
+  for (const auto& c : m.colors) h.v3(c);
+  if (m.material >= 0 && m.material < static_cast<int>(scene.materials.size())) {
+    const scene::Material& mat = scene.materials[m.material];
+    h.v3(mat.albedo);
+    if (mat.albedo_texture >= 0 && mat.albedo_texture < static_cast<int>(scene.textures.size())) {
+      const scene::Texture& tex = scene.textures[mat.albedo_texture];
+      h.word(static_cast<std::uint32_t>(tex.width));
+      h.word(static_cast<std::uint32_t>(tex.height));
+      for (const auto& t : tex.texels) h.v3(t);
+    }
+  }
+  std::ostringstream os;
+  os << opt.order << '|' << opt.geodesic_frequency << '|' << opt.cubemap_resolution << '|' << opt.projection_strata << '|'
+     << opt.seed << '|' << std::hex << h.value();
+  return os.str();
+}
+
+struct State {
+  std::mutex m;
+  common::SharedCache<std::tuple<int, int, double>, Tables> tables;
+  common::LightTableCache light_tables;
+  std::map<std::string, std::shared_ptr<const ObjectSls>> objects;  // by object_key
+  std::string env_key;
+  std::vector<glm::vec3> env_sh;
+  common::ReceiverClustering receivers;
+};
+
+// The rotation of M's upper 3x3 (polar decomposition by Higham's iteration X <- (X + X^-T)/2, which
+// converges quadratically for a non-singular X); identity when M is singular or a reflection.
+glm::mat3 polar_rotation(glm::mat3 x) {
+  const float d0 = glm::determinant(x);
+  if (!(std::abs(d0) > 1e-12f) || !std::isfinite(d0)) return glm::mat3(1.0f);
+  for (int it = 0; it < 30; ++it) {
+    const glm::mat3 next = 0.5f * (x + glm::transpose(glm::inverse(x)));
+    float diff = 0.0f;
+    for (int c = 0; c < 3; ++c) diff = std::max(diff, glm::length(next[c] - x[c]));
+    x = next;
+    if (diff < 1e-7f) break;
+  }
+  return glm::determinant(x) > 0.0f ? x : glm::mat3(1.0f);
+}
+
+// Section 7.1, soft deformations: the SL moves with the average rotation and translation of its
+// associated vertices, the similarity (s, R, t) that best maps their rest positions onto the posed
+// ones in the least-squares sense (the cross-covariance's polar rotation, Umeyama's scale). For a
+// rigidly moved object it is the node's own motion.
+struct Similarity {
+  glm::mat3 R{1.0f};
+  float s = 1.0f;
+  glm::vec3 t{0.0f};
+};
+bool fit_similarity(const std::vector<glm::vec3>& rest, const std::vector<glm::vec3>& posed, const std::vector<std::uint32_t>& vertices,
+                    Similarity& out) {
+  if (vertices.size() < 3) return false;
+  glm::dvec3 pr(0.0), pp(0.0);
+  for (std::uint32_t v : vertices) {
+    pr += glm::dvec3(rest[v]);
+    pp += glm::dvec3(posed[v]);
+  }
+  pr /= static_cast<double>(vertices.size());
+  pp /= static_cast<double>(vertices.size());
+  glm::dmat3 H(0.0);
+  double var = 0.0;
+  for (std::uint32_t v : vertices) {
+    const glm::dvec3 a = glm::dvec3(rest[v]) - pr, b = glm::dvec3(posed[v]) - pp;
+    H += glm::outerProduct(b, a);
+    var += glm::dot(a, a);
+  }
+  if (!(var > 0.0)) return false;
+  // Collinear or coplanar-degenerate vertex sets leave the rotation about their line undetermined.
+  const double scale = std::cbrt(std::abs(glm::determinant(H)));
+  if (!(scale > 1e-9 * var)) return false;
+  const glm::mat3 R = polar_rotation(glm::mat3(H));
+  double tr = 0.0;
+  const glm::dmat3 Rd(R);
+  for (int c = 0; c < 3; ++c) tr += glm::dot(Rd[c], H[c]);
+  out.R = R;
+  out.s = static_cast<float>(tr / var);
+  out.t = glm::vec3(pp - static_cast<double>(out.s) * (Rd * pr));
+  return out.s > 0.0f && std::isfinite(out.s);
+}
+
+void pass_tables(State& st, const Settings& s, FrameContext& ctx) {
+  bool cached = false;
+  const std::shared_ptr<const Tables> t = st.tables.get(
+      std::make_tuple(s.order, s.table_resolution, s.log_threshold),
+      [&s] { return make_tables(s.order, s.table_resolution, s.log_threshold); },
+      cached);
+  auto& rec = ctx.record();
+  rec.counters["order"] = s.order;
+  rec.counters["rows"] = s.table_resolution;
+  rec.counters["cached"] = cached;
+  rec.counters["weight_table_bytes"] = static_cast<double>(t->weight.bytes());
+  rec.bytes = t->bytes();
+  ctx.put<std::shared_ptr<const Tables>>(kTables, t);
+}
+
+// Section 4: the SLs' sample points, albedo and projection sums per object, computed once per
+// object and reused while its rest mesh, material and spheres stay the same.
+void pass_setup(State& st, const Settings& s, FrameContext& ctx) {
+  common::check_proxy_spheres("spherical_lights", ctx, false);
+  auto data = std::make_shared<SlData>();
+  std::map<int, int> object_of_node;
+  for (std::size_t o = 0; o < ctx.posed.objects.size(); ++o) object_of_node[ctx.posed.objects[o].node] = static_cast<int>(o);
+  int computed = 0, cached = 0;
+  double samples = 0.0, kept = 0.0;
+  for (std::size_t set = 0; set < ctx.scene.proxies.size(); ++set) {
+    const scene::ProxySet& ps = ctx.scene.proxies[set];
+    if (ps.spheres.empty()) continue;
+    auto it = object_of_node.find(ps.node);
+    if (it == object_of_node.end()) {
+      ctx.warn("spherical_lights: proxy set '" + ps.name + "' bounds no object with a mesh: its spheres block but emit nothing");
+      continue;
+    }
+    const std::string key = object_key(ctx.scene, static_cast<int>(set), s.pre);
+    std::shared_ptr<const ObjectSls> obj;
+    {
+      std::lock_guard<std::mutex> lock(st.m);
+      auto f = st.objects.find(key);
+      if (f != st.objects.end()) obj = f->second;
+    }
+    if (obj) {
+      ++cached;
+    } else {
+      obj = std::make_shared<const ObjectSls>(precompute_object(ctx.scene, ps.node, ps, s.pre));
+      ++computed;
+      std::lock_guard<std::mutex> lock(st.m);
+      st.objects[key] = obj;
+    }
+    for (const auto& sl : obj->sls) {
+      samples += static_cast<double>(obj->directions.size());
+      kept += static_cast<double>(sl.sample_count());
+    }
+    data->objects.push_back({static_cast<int>(set), it->second, obj});
+  }
+  auto& rec = ctx.record();
+  rec.counters["objects"] = static_cast<double>(data->objects.size());
+  rec.counters["computed"] = computed;
+  rec.counters["cached"] = cached;
+  rec.counters["sample_points"] = kept;
+  rec.counters["sample_directions"] = samples;
+  rec.bytes = data->bytes();
+  ctx.put<std::shared_ptr<const SlData>>(kSlData, data);
+}
+
+// Section 7.1: this frame's SLs (the posed proxy spheres) with their rotation, and their sample
+// points moved with them.
+void pass_pose(const Settings& s, FrameContext& ctx) {
+  const auto& data = *ctx.get<std::shared_ptr<const SlData>>(kSlData);
+  auto pose = std::make_shared<SlPose>();
+  pose->order = s.order;
+  pose->blockers.order = s.order;  // before the pushes: BlockerList::push fills `order` band weights
+  std::size_t total_samples = 0, total_sls = 0;
+  for (const auto& so : data.objects) {
+    total_sls += so.data->sls.size();
+    for (const auto& sl : so.data->sls) total_samples += sl.sample_count();
+  }
+  pose->samples.resize(total_samples);
+  pose->sample_begin.reserve(total_sls + 1);
+  pose->basis.reserve(total_samples);
+  int fallback = 0;
+  std::size_t next = 0;
+  for (std::size_t oi = 0; oi < data.objects.size(); ++oi) {
+    const SlObject& so = data.objects[oi];
+    const scene::PosedObject& obj = ctx.posed.objects[so.object];
+    const std::vector<scene::Sphere>& spheres = ctx.posed.proxies[so.set];
+    const scene::Mesh& mesh = *obj.source;
+    const glm::mat4 M = ctx.posed.node_world[obj.node];
+    const glm::mat3 M3(M), Nm = glm::transpose(glm::inverse(glm::mat3(M)));
+    const bool deforming = mesh.skinned() || obj.positions.size() != mesh.positions.size();
+    const std::size_t base = pose->size();
+    glm::vec3 centre_sum(0.0f);
+    for (std::size_t i = 0; i < so.data->sls.size(); ++i) {
+      const SphericalLightData& sl = so.data->sls[i];
+      pose->centre.push_back(spheres[i].center);
+      pose->radius.push_back(spheres[i].radius);
+      pose->object.push_back(static_cast<int>(oi));
+      centre_sum += spheres[i].center;
+      std::vector<int> inter;
+      for (int j : sl.intersecting) inter.push_back(static_cast<int>(base) + j);
+      pose->intersecting.push_back(std::move(inter));
+      pose->albedo.push_back(sl.albedo_sh.data());
+      pose->sample_begin.push_back(next);
+      Similarity sim;
+      bool fitted = false;
+      if (deforming && obj.positions.size() == mesh.positions.size()) fitted = fit_similarity(mesh.positions, obj.positions, sl.vertices, sim);
+      if (deforming && !fitted) ++fallback;
+      const glm::mat3 R = fitted ? sim.R : polar_rotation(M3);
+      pose->rotation.push_back(R);
+      for (std::size_t k = 0; k < sl.sample_count(); ++k, ++next) {
+        glm::vec3 p, n;
+        if (fitted) {
+          p = sim.s * (sim.R * sl.sample_positions[k]) + sim.t;
+          n = sim.R * sl.sample_normals[k];
+        } else {
+          p = glm::vec3(M * glm::vec4(sl.sample_positions[k], 1.0f));
+          n = glm::normalize(Nm * sl.sample_normals[k]);
+        }
+        pose->samples.set(next, p, n);
+        pose->basis.push_back(sl.basis_sums.data() + k * static_cast<std::size_t>(s.order) * s.order);
+      }
+      pose->blockers.push(spheres[i].center, spheres[i].radius, nullptr);
+    }
+    pose->object_centre.push_back(so.data->sls.empty() ? glm::vec3(0.0f) : centre_sum / static_cast<float>(so.data->sls.size()));
+  }
+  pose->sample_begin.push_back(next);
+  if (fallback > 0)
+    ctx.warn("spherical_lights: " + std::to_string(fallback) +
+             " deforming SLs have fewer than 3 non-collinear associated vertices and move with their node instead");
+  auto& rec = ctx.record();
+  rec.counters["sls"] = static_cast<double>(pose->size());
+  rec.counters["sample_points"] = static_cast<double>(total_samples);
+  rec.counters["node_motion_fallbacks"] = fallback;
+  rec.bytes = pose->bytes();
+  ctx.put<std::shared_ptr<const SlPose>>(kSlPose, pose);
+}
+
+// The receivers of a stage: the SLs' sample points (section 5.1) or the scene's vertices (section 6).
+const ReceiverSoA& stage_receivers(FrameContext& ctx, Stage stage) {
+  if (stage == Stage::Samples) return ctx.get<std::shared_ptr<const SlPose>>(kSlPose)->samples;
+  return ctx.get<std::shared_ptr<const Receivers>>(kReceivers)->soa;
+}
+
+// Log-space accumulation of every SL as a blocker (paper 004 eqs. 8, 34 with the replacement rules
+// of section 6.2; paper 001 eqs. 6-7).
+void pass_accumulate(const Settings& s, FrameContext& ctx, Stage stage) {
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
+  const ReceiverSoA& rec = stage_receivers(ctx, stage);
+  const std::size_t n2 = static_cast<std::size_t>(s.order) * s.order, nr = rec.size();
+  auto f = std::make_shared<Field>();
+  f->order = s.order;
+  f->v.assign(nr * n2, 0.0f);
+  const auto t0 = std::chrono::steady_clock::now();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nr, 256), [&](const tbb::blocked_range<std::size_t>& br) {
+    accumulate_log(s.isa, t.log, s.rule, rec, br.begin(), br.end(), pose.blockers, f->v.data());
+  });
+  const double secs = common::seconds_since(t0);
+  const double pairs = static_cast<double>(nr) * static_cast<double>(pose.blockers.size());
+  auto& r = ctx.record();
+  r.counters["receivers"] = static_cast<double>(nr);
+  r.counters["blockers"] = static_cast<double>(pose.blockers.size());
+  r.counters["pairs"] = pairs;
+  r.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
+  r.bytes = f->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(log_resource(stage), f);
+}
+
+// The SH exponential of the summed logs (paper 004 section 4).
+void pass_exponentiate(const Settings& s, FrameContext& ctx, Stage stage) {
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& f = *ctx.get<std::shared_ptr<const Field>>(log_resource(stage));
+  const std::size_t n2 = static_cast<std::size_t>(s.order) * s.order, nr = f.v.size() / n2;
+  auto g = std::make_shared<Field>();
+  g->order = s.order;
+  g->v.assign(nr * n2, 0.0f);
+  BatchExp be;
+  be.order = s.order;
+  be.method = s.exp;
+  be.tables = t.sh.get();
+  be.plan = &ProductPlan::get(s.order);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nr, 256), [&](const tbb::blocked_range<std::size_t>& br) {
+    sh::ExpStats es;
+    try {
+      exp_batch(s.isa, be, f.v.data() + br.begin() * n2, g->v.data() + br.begin() * n2, br.size(), br.begin(), es);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(std::string("spherical_lights exponentiate (") + (stage == Stage::Samples ? "sample points" : "receivers") +
+                               "): " + e.what());
+    }
+  });
+  ctx.record().counters["receivers"] = static_cast<double>(nr);
+  ctx.record().bytes = g->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Field>>(visibility_resource(stage), g);
+}
+
+// (H(N) * g) . L for the environment plus the analytic lights' L_H . g (paper 004 eq. 9, section
+// 7), clamped at 0: the diffuse reflection of a white surface, E/pi. Unshadowed without visibility.
+void pass_shade(State& st, const Settings& s, FrameContext& ctx, Stage stage, const common::ShadeKernel* kernel) {
+  const ReceiverSoA& rec = stage_receivers(ctx, stage);
+  const int n = s.order, n2 = n * n;
+  const char* vres = visibility_resource(stage);
+  const bool shadowed = ctx.has(vres);
+  const bool vis_on_device = kernel && shadowed && ctx.is_deferred(vres);
+  std::shared_ptr<const Field> vis;
+  if (shadowed && !vis_on_device) vis = ctx.get<std::shared_ptr<const Field>>(vres);
+  std::vector<glm::vec3> env;
+  {
+    const std::string key = common::environment_signature(ctx.scene.environment) + std::to_string(n) + '|' + std::to_string(s.window_h);
+    std::lock_guard<std::mutex> lock(st.m);
+    if (st.env_key != key) {
+      st.env_sh = common::windowed_environment_sh("spherical_lights", ctx.scene, n, s.window_h);
+      st.env_key = key;
+    }
+    env = st.env_sh;
+  }
+  std::vector<float> Lflat(3 * n2), hcoef(n2), gwin(n2, 1.0f);
+  const std::vector<double> cc = sh::clamped_cosine_zh(n);
+  for (int l = 0; l < n; ++l)
+    for (int m = -l; m <= l; ++m) hcoef[sh::index(l, m)] = static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < n2; ++i) Lflat[c * n2 + i] = env[i][c];
+  std::shared_ptr<const LightLobeTable> lt;
+  if (ctx.has(kLightTables)) lt = ctx.get<std::shared_ptr<const LightLobeTable>>(kLightTables);
+  const BatchShade bs = BatchShade::make(n, Lflat.data(), hcoef.data(), gwin.data(), vis ? vis->v.data() : nullptr);
+  auto out = std::make_shared<Shading>();
+  out->value.resize(rec.size());
+  long long clamped = 0;
+  if (kernel) {
+    GpuShade in{&bs, lt.get(), &ctx.posed.lights, false, nullptr};
+    if (vis_on_device) in.visibility_resource = vres;
+    clamped = (*kernel)(ctx, in, rec, out->value.data());
+  } else {
+    std::atomic<long long> cl{0};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rec.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
+      shade_batch(s.isa, bs, rec, br.begin(), br.end(), out->value.data() + br.begin());
+      cl += add_lights_and_clamp(lt.get(), ctx.posed.lights, n, gwin.data(), rec, br.begin(), br.end(), bs.g, false,
+                                 out->value.data() + br.begin());
+    });
+    clamped = cl.load();
+  }
+  auto& r = ctx.record();
+  r.counters["receivers"] = static_cast<double>(rec.size());
+  r.counters["shadowed"] = shadowed ? 1.0 : 0.0;
+  r.counters["lights"] = lt ? static_cast<double>(ctx.posed.lights.size()) : 0.0;
+  r.counters["clamped"] = static_cast<double>(clamped);
+  r.bytes = out->value.size() * sizeof(glm::vec3);
+  ctx.put<std::shared_ptr<const Shading>>(stage == Stage::Samples ? kSampleRadiance : kDirectShading, out);
+}
+
+// Section 5.2: L_S = sum_j L_pj Y_j (eq. 10, the 4 pi/N factor folded into Y_j), then
+// L^c_S = L_S * c_S with the SH product (eq. 11), per colour channel.
+void pass_intensity(const Settings& s, FrameContext& ctx) {
+  const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
+  const auto& lp = *ctx.get<std::shared_ptr<const Shading>>(kSampleRadiance);
+  const int n = s.order, n2 = n * n;
+  auto out = std::make_shared<Intensity>();
+  out->order = n;
+  out->v.assign(pose.size() * 3 * n2, 0.0f);
+  tbb::parallel_for(std::size_t{0}, pose.size(), [&](std::size_t i) {
+    std::vector<float> ls(3 * n2, 0.0f);
+    for (std::size_t k = pose.sample_begin[i]; k < pose.sample_begin[i + 1]; ++k) {
+      const float* y = pose.basis[k];
+      for (int c = 0; c < 3; ++c)
+        for (int q = 0; q < n2; ++q) ls[c * n2 + q] += lp.value[k][c] * y[q];
+    }
+    for (int c = 0; c < 3; ++c) {
+      const std::vector<float> prod = sh::product<float>(n, std::span<const float>(ls.data() + c * n2, n2),
+                                                         std::span<const float>(pose.albedo[i] + c * n2, n2));
+      std::copy(prod.begin(), prod.end(), out->v.begin() + (i * 3 + c) * n2);
+    }
+  });
+  auto& rec = ctx.record();
+  rec.counters["sls"] = static_cast<double>(pose.size());
+  rec.bytes = out->v.size() * sizeof(float);
+  ctx.put<std::shared_ptr<const Intensity>>(kIntensity, out);
+}
+
+void pass_receivers(State& st, const Settings& s, FrameContext& ctx) {
+  common::warn_coarse_receivers("spherical_lights", ctx);
+  auto r = st.receivers.update("spherical_lights", ctx, s.clusters);
+  ctx.record().bytes = r->bytes();
+  ctx.put<std::shared_ptr<const Receivers>>(kReceivers, r);
+}
+
+void pass_indirect(const Settings& s, FrameContext& ctx) {
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
+  const auto& lc = *ctx.get<std::shared_ptr<const Intensity>>(kIntensity);
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  auto out = std::make_shared<Shading>();
+  out->value.resize(r.soa.size());
+  tbb::combinable<IndirectStats> stats;
+  const auto t0 = std::chrono::steady_clock::now();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 64), [&](const tbb::blocked_range<std::size_t>& br) {
+    accumulate_indirect(s, t, pose, lc, r.soa, br.begin(), br.end(), out->value.data() + br.begin(), stats.local());
+  });
+  const double secs = common::seconds_since(t0);
+  IndirectStats total;
+  stats.combine_each([&](const IndirectStats& x) {
+    total.lights += x.lights;
+    total.eliminated += x.eliminated;
+    total.clamped += x.clamped;
+    total.exps += x.exps;
+  });
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(r.soa.size());
+  rec.counters["sls"] = static_cast<double>(pose.size());
+  rec.counters["pairs"] = static_cast<double>(total.lights);
+  rec.counters["eliminated_pairs"] = static_cast<double>(total.eliminated);
+  rec.counters["visibility_clamped"] = static_cast<double>(total.clamped);
+  rec.counters["exponentials"] = static_cast<double>(total.exps);
+  rec.counters["pairs_per_second"] = secs > 0.0 ? static_cast<double>(total.lights) / secs : 0.0;
+  rec.counters["per_object_blocking"] = s.blocking == Blocking::PerObject;
+  rec.bytes = out->value.size() * sizeof(glm::vec3);
+  ctx.put<std::shared_ptr<const Shading>>(kIndirectShading, out);
+}
+
+// Per-vertex E/pi through the G-buffer, times the per-pixel albedo (textures keep their detail).
+Image vertex_image(FrameContext& ctx, const Shading& sh, const Receivers& r, bool background) {
+  const auto& gb = ctx.get<render::GBuffer>(render::kGBuffer);
+  std::vector<std::vector<glm::vec3>> per_vertex(ctx.posed.objects.size());
+  for (std::size_t o = 0; o < per_vertex.size(); ++o) {
+    per_vertex[o].resize(r.index[o].size());
+    for (std::size_t v = 0; v < r.index[o].size(); ++v) per_vertex[o][v] = sh.value[r.index[o][v]];
+  }
+  const render::BackgroundFn bg = background ? render::environment_background(ctx.scene.environment) : render::BackgroundFn{};
+  Image img = render::interpolate_vertex_values(gb, ctx.posed, per_vertex, bg);
+  for (std::size_t i = 0; i < img.rgb.size(); ++i)
+    if (gb.object[i] >= 0) img.rgb[i] *= gb.albedo[i];
+  ctx.record().counters["pixels"] = static_cast<double>(img.rgb.size());
+  ctx.record().bytes = img.rgb.size() * sizeof(glm::vec3);
+  return img;
+}
+
+void pass_to_image(FrameContext& ctx, bool indirect) {
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const auto& sh = *ctx.get<std::shared_ptr<const Shading>>(indirect ? kIndirectShading : kDirectShading);
+  Image img = vertex_image(ctx, sh, r, !indirect);
+  if (indirect) {
+    ctx.result.indirect = img;
+    ctx.put<Image>(render::kIndirect, std::move(img));
+  } else {
+    ctx.result.direct = img;
+    ctx.put<Image>(render::kDirect, std::move(img));
+  }
+}
+
+std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const render::ParamSet& params, int w, int h) {
+  using render::MemoryPlace;
+  const Settings s = read_settings(params);
+  const std::size_t v = render::scene_vertex_count(scene), f = sizeof(float);
+  const std::size_t n2 = static_cast<std::size_t>(s.order) * s.order;
+  std::vector<render::MemoryItem> m;
+  auto host = [&](std::string name, std::size_t bytes, const char* pass, bool transient = false) {
+    m.push_back({std::move(name), bytes, MemoryPlace::Host, pass, transient, false, false});
+  };
+  host(kReceivers, v * (6 * f + sizeof(std::uint32_t)), "receiver_setup");
+  host(kLogVisibility, v * n2 * f, "accumulate_log");
+  host(kVisibility, v * n2 * f, "exponentiate");
+  host(kDirectShading, v * sizeof(glm::vec3), "shade");
+  if (s.indirect) host(kIndirectShading, v * sizeof(glm::vec3), "accumulate_indirect");
+  host(render::kDirect, 2 * render::image_bytes(w, h), "to_image");
+  if (s.indirect) host(render::kIndirect, 2 * render::image_bytes(w, h), "indirect_image");
+  return m;
+}
+
+common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
+  static common::DeviceKernelRegistry<DeviceKernels> r;
+  return r;
+}
+
+class SphericalLights final : public render::Technique {
+ public:
+  std::string name() const override { return "spherical_lights"; }
+  std::string description() const override {
+    return "spherical lights (paper 001, Guerrero, Jeschke and Wimmer 2008): proxy spheres as blockers and as SH "
+           "secondary lights; shadowed one-bounce diffuse indirect light plus SHEXP-style soft shadows; per-vertex receivers";
+  }
+  std::vector<ParamDesc> params() const override {
+    std::vector<ParamDesc> d;
+    d.push_back(common::params::order(4, "lighting, visibility, SL intensities and shading (section 7.4: 4)"));
+    d.push_back(common::params::exp({"hyb", "ol"}, "SH exponential of the visibilities (paper 004 section 4.3)"));
+    d.push_back(ParamDesc::choice("blocking", "per_sphere", {"per_sphere", "per_object"},
+                                  "order in which SLs block SLs (section 7.2): every SL by distance, or objects by centre distance"));
+    d.push_back(ParamDesc::boolean("indirect", true, "one-bounce indirect light from the SLs (off: soft shadows only)"));
+    d.push_back(ParamDesc::integer("geodesic_frequency", 3, 1, 16,
+                                   "sample directions per SL: geodesic sphere of frequency f, 10 f^2 + 2 vertices (section 4.2: 92, f = 3)"));
+    d.push_back(ParamDesc::integer("cubemap_resolution", 16, 2, 256, "texels per cube-map face edge of the SL albedo (section 4.2)"));
+    d.push_back(ParamDesc::integer("projection_strata", 64, 2, 1024,
+                                   "jittered stratified directions of the intensity projection, strata^2 in all (section 5.2, eqs. 9-10)"));
+    d.push_back(common::params::receiver_clusters());
+    d.push_back(common::params::window_h());
+    d.push_back(common::params::self_shadow_rules());
+    d.push_back(common::params::replacement_rule());
+    d.push_back(common::params::table_resolution());
+    d.push_back(common::params::log_threshold());
+    d.push_back(common::params::analytic_lights());
+    d.push_back(common::params::kernel());
+    return d;
+  }
+
+  std::vector<render::ExperimentDef> experiments() const override { return spherical_lights::experiments(); }
+
+  std::vector<render::MemoryItem> estimate_memory(const scene::Scene& scene, const render::ParamSet& params, int width,
+                                                  int height) const override {
+    return memory_items(scene, params, width, height);
+  }
+
+  render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
+    const Settings s = read_settings(params);
+    render::add_scene_facts(scene, empty);
+    if (scene.lights.empty() || !s.lights) empty.insert(kSphericalLights);
+    auto st = state_;
+    const auto cpu = render::host_impl;
+    const auto kernels = device_kernels().all();
+    render::PassGraph g;
+    g.add_input(render::kScene);
+    g.add_input(render::kMovingObjects);
+    common::blocker_spheres_input("spherical_lights", s.indirect ? "shadows and indirect light" : "shadows", scene, kBlockerSpheres, g,
+                                  empty);
+    g.add_input(kSphericalLights);
+    if (!s.indirect) {
+      g.add_input(render::kIndirect);
+      empty.insert(render::kIndirect);
+    }
+    render::add_gbuffer_pass(g);
+    g.add({"tables", {render::kScene, kBlockerSpheres}, {}, {kTables},
+           "cap log ZH and OL tables (paper 004 section 6.1), w_theta ZH table (section 6.1, eqs. 16-17)",
+           cpu([st, s](FrameContext& c) { pass_tables(*st, s, c); })});
+    g.add({"light_tables", {kSphericalLights}, {}, {kLightTables}, "L_H(theta, f) single-lobe ZH table (paper 004 section 7)",
+           cpu([st, s](FrameContext& c) { st->light_tables.run_pass(s.order, s.window_h, c, kLightTables); })});
+    g.add({"sl_setup", {render::kScene, kBlockerSpheres}, {}, {kSlData},
+           "per object, once: segments, sample points, albedo SH and projection sums of its SLs (sections 4.2, 5.2)",
+           cpu([st, s](FrameContext& c) { pass_setup(*st, s, c); })});
+    g.add({"sl_pose", {kSlData}, {}, {kSlPose}, "this frame's SLs and sample points, soft deformations (section 7.1)",
+           cpu([s](FrameContext& c) { pass_pose(s, c); })});
+    g.add({"receiver_setup", {render::kScene}, {}, {kReceivers}, "per-vertex receivers of every posed object, Lloyd receiver clusters (section 7.3)",
+           cpu([st, s](FrameContext& c) { pass_receivers(*st, s, c); })});
+    // Blocker accumulation, exponential and diffuse shading of a stage: the host passes plus each
+    // registered backend's kernels.
+    auto add_stage = [&](Stage stage, const std::string& suffix, const std::string& what) {
+      const char* receivers = stage == Stage::Samples ? kSlPose : kReceivers;
+      g.add({"accumulate_log" + suffix, {receivers, kTables, kSlPose}, {}, {log_resource(stage)},
+             "sum of every SL's log visibility at the " + what + " (eqs. 6-7; paper 004 eq. 34, rules of section 6.2)",
+             common::with_kernels<DeviceKernels>(cpu([s, stage](FrameContext& c) { pass_accumulate(s, c, stage); }), kernels,
+                                                 [s, stage](const DeviceKernels& k) -> render::PassFn {
+                                                   if (!k.accumulate) return {};
+                                                   return [s, stage, f = k.accumulate](FrameContext& c) { f(s, c, stage); };
+                                                 })});
+      g.add({"exponentiate" + suffix, {receivers, kTables, log_resource(stage)}, {}, {visibility_resource(stage)},
+             "SH exponential of the summed logs at the " + what + " (paper 004 section 4)",
+             common::with_kernels<DeviceKernels>(cpu([s, stage](FrameContext& c) { pass_exponentiate(s, c, stage); }), kernels,
+                                                 [s, stage](const DeviceKernels& k) -> render::PassFn {
+                                                   if (!k.exponentiate) return {};
+                                                   return [s, stage, f = k.exponentiate](FrameContext& c) { f(s, c, stage); };
+                                                 })});
+      g.add({stage == Stage::Samples ? "sample_shading" : "shade", {receivers}, {visibility_resource(stage), kLightTables},
+             {stage == Stage::Samples ? kSampleRadiance : kDirectShading},
+             stage == Stage::Samples ? "diffuse reflection at every SL sample point under the SLs' shadows (section 5.1, eqs. 3-8)"
+                                     : "direct light: L_H(N) . g per vertex, environment and analytic lights",
+             common::with_kernels<DeviceKernels>(cpu([st, s, stage](FrameContext& c) { pass_shade(*st, s, c, stage, nullptr); }), kernels,
+                                                 [st, s, stage](const DeviceKernels& k) -> render::PassFn {
+                                                   if (!k.shade) return {};
+                                                   return [st, s, stage, f = k.shade](FrameContext& c) { pass_shade(*st, s, c, stage, &f); };
+                                                 })});
+    };
+    add_stage(Stage::Receivers, "", "vertices");
+    g.add({"to_image", {render::kGBuffer, kReceivers, kDirectShading}, {}, {render::kDirect}, "per-vertex direct radiance through the G-buffer",
+           cpu([](FrameContext& c) { pass_to_image(c, false); })});
+    if (s.indirect) {
+      add_stage(Stage::Samples, "_samples", "SL sample points");
+      g.add({"intensity_update", {kSlPose, kSampleRadiance}, {}, {kIntensity},
+             "SL intensities: Voronoi-cell projection sums (eq. 10) times the albedo SH (eq. 11)",
+             common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_intensity(s, c); }), kernels,
+                                                 [s](const DeviceKernels& k) -> render::PassFn {
+                                                   if (!k.intensity) return {};
+                                                   return [s, f = k.intensity](FrameContext& c) { f(s, c); };
+                                                 })});
+      g.add({"accumulate_indirect", {kReceivers, kTables, kSlPose, kIntensity}, {}, {kIndirectShading},
+             std::string("average radiance x average visibility per SL (eqs. 14-24), ") +
+                 (s.blocking == Blocking::PerObject ? "per-object" : "per-sphere") + " blocking (section 7.2)",
+             common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_indirect(s, c); }), kernels,
+                                                 [s](const DeviceKernels& k) -> render::PassFn {
+                                                   if (!k.indirect) return {};
+                                                   return [s, f = k.indirect](FrameContext& c) { f(s, c); };
+                                                 })});
+      g.add({"indirect_image", {render::kGBuffer, kReceivers, kIndirectShading}, {}, {render::kIndirect},
+             "per-vertex indirect radiance through the G-buffer", cpu([](FrameContext& c) { pass_to_image(c, true); })});
+    }
+    render::add_compose_pass(g);
+    return g;
+  }
+
+ private:
+  std::shared_ptr<State> state_ = std::make_shared<State>();
+};
+
+}  // namespace
+
+std::unique_ptr<render::Technique> create() { return std::make_unique<SphericalLights>(); }
+
+void register_device_kernels(const std::string& backend, DeviceKernels kernels) { device_kernels().add(backend, std::move(kernels)); }
+
+}  // namespace softgi::techniques::spherical_lights
