@@ -452,6 +452,50 @@ TEST(SlPrecompute, CentreOutsideThinObjectUsesOppositeRay) {
   }
 }
 
+TEST(SlPrecompute, FarthestBackHitInsideTheSegment) {
+  // Two boxes side by side (x in [-1.1, -0.1] and [0.1, 1.1]) as one object, one light centred in the
+  // first: rays towards +x leave the first box, enter and leave the second; case 1 takes the farthest
+  // back-side hit, on the second box's far side.
+  scene::Mesh m = box_mesh(glm::vec3(0.5f), 3), b = m;
+  for (auto& p : m.positions) p.x -= 0.6f;
+  for (auto& p : b.positions) p.x += 0.6f;
+  const unsigned base = static_cast<unsigned>(m.positions.size());
+  m.positions.insert(m.positions.end(), b.positions.begin(), b.positions.end());
+  m.normals.insert(m.normals.end(), b.normals.begin(), b.normals.end());
+  m.uvs.insert(m.uvs.end(), b.uvs.begin(), b.uvs.end());
+  for (const auto& t : b.triangles) m.triangles.push_back(t + glm::uvec3(base));
+  TestScene t = make_scene(std::move(m), {{glm::vec3(-0.6f, 0.0f, 0.0f), 2.0f}});
+  const ObjectSls o = precompute_object(t.scene, 0, t.set, {});
+  const SphericalLightData& L = o.sls[0];
+  EXPECT_EQ(L.outcomes.back_hit, 92);
+  int far_side = 0;
+  for (std::size_t k = 0; k < L.sample_count(); ++k) {
+    const glm::vec3 w = o.directions[L.sample_direction[k]], p = L.sample_positions[k];
+    // The direction through the second box's near face (x = 0.1 within |y|, |z| <= 0.5) reaches its far side.
+    const float s = 0.7f / w.x;  // ray parameter at x = 0.1
+    if (w.x > 0.0f && std::abs(s * w.y) < 0.45f && std::abs(s * w.z) < 0.45f) {
+      EXPECT_GT(p.x, 0.1f) << k;
+      far_side += p.x > 0.1f;
+    }
+  }
+  EXPECT_GT(far_side, 0);
+}
+
+TEST(SlPrecompute, AlbedoOfLightOutsideUsesOppositeRays) {
+  // The slab of CentreOutsideThinObjectUsesOppositeRay: direction w is coloured iff -w is (a downward
+  // ray that crosses the slab <-> an upward ray whose opposite enters it), and the cube map's texel
+  // set is symmetric under w -> -w, so the odd bands vanish to float rounding (1e-5); without the
+  // opposite-ray rule the upper half would be black and y_1,-1 (~ y) strongly negative.
+  TestScene t = make_scene(box_mesh({1.0f, 0.05f, 1.0f}, 5), {{glm::vec3(0.0f, 0.3f, 0.0f), 1.5f}}, glm::vec3(0.6f));
+  const ObjectSls o = precompute_object(t.scene, 0, t.set, {});
+  const std::vector<float>& a = o.sls[0].albedo_sh;
+  for (int ch = 0; ch < 3; ++ch) {
+    EXPECT_GT(a[ch * 16], 0.5f);
+    for (int l : {1, 3})
+      for (int m = -l; m <= l; ++m) EXPECT_NEAR(a[ch * 16 + sh::index(l, m)], 0.0f, 1e-5f) << l << " " << m;
+  }
+}
+
 TEST(SlPrecompute, AlbedoShowsColouredFace) {
   // A box whose +x face has vertex colour (1, 0.2, 0.2), white elsewhere, material albedo
   // (0.5, 0.8, 1) times a 1x1 texture of 0.9, one light at its centre. The box faces are the cube map's
@@ -483,12 +527,15 @@ TEST(SlPrecompute, AlbedoShowsColouredFace) {
     }
   const glm::vec3 mat(0.5f, 0.8f, 1.0f), red(1.0f, 0.2f, 0.2f);
   // R = 16 midpoint rule against the 512^2 one: error ~ (h^2/24) |lap y| per unit solid angle, with
-  // h = 1/8 and |lap y_3| = 12 |y_3| <= 12 * 0.75: ~6e-3 over the face's 2 pi/3; tolerance 1e-2.
+  // h = 1/8 and |lap y_3| = 12 |y_3| <= 12 * 0.75: <= 6e-3 over the face's 2 pi/3 (measured 5e-4).
+  double worst = 0.0;
   for (int ch = 0; ch < 3; ++ch)
     for (int k = 0; k < n2; ++k) {
       const double expect = mat[ch] * 0.9 * ((k == 0 ? std::sqrt(4.0 * sh::kPi) : 0.0) + (red[ch] - 1.0) * face[k]);
-      EXPECT_NEAR(a[ch * n2 + k], expect, 1e-2) << "channel " << ch << " coefficient " << k;
+      EXPECT_NEAR(a[ch * n2 + k], expect, 6e-3) << "channel " << ch << " coefficient " << k;
+      worst = std::max(worst, std::abs(a[ch * n2 + k] - expect));
     }
+  std::printf("worst albedo coefficient error %.3g\n", worst);
   // The red face shows: less green and blue towards +x (y_11 ~ x), red unchanged.
   EXPECT_LT(a[1 * n2 + sh::index(1, 1)], -0.1f);
   EXPECT_LT(a[2 * n2 + sh::index(1, 1)], -0.1f);
