@@ -38,7 +38,9 @@ int nearest_direction(const std::vector<glm::vec3>& directions, const glm::dvec3
 
 // Eq. 10 with the 4 pi / N of eq. 9 folded in: per direction j, Y_j = (4 pi / N) sum over the
 // stratified directions of its Voronoi cell of y(w_k) (order^2 values), and the cell counts N_j.
-// L_S = sum_j L_pj Y_j is then eq. 9 for the nearest-neighbour function L_pj.
+// L_S = sum_j L_pj Y_j is then eq. 9 for the nearest-neighbour function L_pj; the cells of discarded
+// directions are left out of that sum (the light emits nothing there), which the per-sample copies in
+// SphericalLightData::basis_sums do by holding kept samples only.
 struct VoronoiBasis {
   int order = 0, total = 0;    // total: N
   std::vector<double> sums;    // directions x order^2
