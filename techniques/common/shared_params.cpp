@@ -42,6 +42,12 @@ ParamDesc receiver_clusters() {
   return ParamDesc::integer("receiver_clusters", 0, 0, 1 << 20, "Lloyd receiver clusters (0 = one per ~300 vertices, paper 004 section 6.3)");
 }
 
+ParamDesc hierarchy(const std::string& help) { return ParamDesc::boolean("hierarchy", true, help); }
+
+ParamDesc theta_max_deg() {
+  return ParamDesc::real("theta_max_deg", 25.0, 1.0, 60.0, "eq. 36 angular threshold of the hierarchy cut (paper 004: 20-30)");
+}
+
 ParamDesc kernel(const std::string& def) {
   return ParamDesc::choice("kernel", def, {"auto", "avx512", "avx2", "scalar"}, "accumulation kernel instruction set");
 }

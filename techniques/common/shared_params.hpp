@@ -31,6 +31,10 @@ render::ParamDesc analytic_lights(bool def = true);
 // "receiver_clusters": Lloyd clusters of per-vertex receivers (0 = one per ~300 vertices, paper 004
 // section 6.3; receivers.hpp).
 render::ParamDesc receiver_clusters();
+// "hierarchy": sphere-hierarchy cuts per receiver cluster (paper 004 section 6.3); `help` says what
+// they cut in this technique. "theta_max_deg": the cut's angular threshold (paper 004 eq. 36).
+render::ParamDesc hierarchy(const std::string& help);
+render::ParamDesc theta_max_deg();
 // "kernel": the accumulation kernels' instruction set (auto = the best this CPU runs).
 render::ParamDesc kernel(const std::string& def = "auto");
 

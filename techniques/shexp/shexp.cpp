@@ -630,8 +630,8 @@ class Shexp final : public render::Technique {
                                     "accumulation of Zhou et al. 2005 (eq. 6, the baseline), or projected = order-n "
                                     "projection of the exact sphere visibility (quadrature, for error analysis)"));
     d.push_back(ParamDesc::integer("ps_degree", 2, 1, 30, "series degree p of ps* and ps (PS*-2, PS-21 in Figure 9)"));
-    d.push_back(ParamDesc::boolean("hierarchy", true, "sphere hierarchy cuts per receiver cluster (section 6.3); product ignores it"));
-    d.push_back(ParamDesc::real("theta_max_deg", 25.0, 1.0, 60.0, "eq. 36 angular threshold of the cut (paper: 20-30)"));
+    d.push_back(common::params::hierarchy("sphere hierarchy cuts per receiver cluster (section 6.3); product ignores it"));
+    d.push_back(common::params::theta_max_deg());
     d.push_back(ParamDesc::real("theta_min_deg", 0.0, 0.0, 30.0,
                                 "detail pruning: f_d stops at nodes subtending less than this at p* (0 = every leaf)"));
     d.push_back(ParamDesc::boolean("ratio_vectors", true, "eq. 37 ratio vectors on cut nodes (off: Figure 6b)"));

@@ -23,11 +23,11 @@ struct Scratch {
 
 // Fills vbar / lbar for every SL at receiver (p, n). Returns nothing for an SL the rules eliminate
 // (vbar 0): it neither blocks nor lights p.
-void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const glm::vec3& p,
-                    const glm::vec3& n, Scratch& sc, std::vector<float>& vbar, std::vector<glm::vec3>& lbar,
+void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list,
+                    const glm::vec3& p, const glm::vec3& n, Scratch& sc, std::vector<float>& vbar, std::vector<glm::vec3>& lbar,
                     IndirectStats& st) {
   const int order = s.order, n2 = order * order;
-  const std::size_t m = pose.size();
+  const std::size_t m = list.sl.size();
   sc.G.resize(m * n2);
   sc.key.resize(m);
   sc.position.assign(m, -1);
@@ -44,8 +44,9 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
     for (int mm = -l; mm <= l; ++mm) hn[sh::index(l, mm)] *= hcoef[l];
 
   for (std::size_t k = 0; k < m; ++k) {
-    const glm::vec3 c = pose.centre[k];
-    const float r = pose.radius[k];
+    const int slk = list.sl[k];
+    const glm::vec3 c = pose.centre[slk];
+    const float r = pose.radius[slk];
     // Section 6.2, receiver points inside SLs: the rules of paper 004 section 6.2, shared with SHEXP.
     const AdjustedSphere adj = apply_replacement_rule(s.rule, p, n, c, r);
     const float dist = glm::length(adj.center - p);
@@ -61,10 +62,10 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
     const glm::vec3 d = p - c;
     const float D = glm::length(d);
     const float theta = D > r ? std::asin(std::min(1.0f, r / D)) : static_cast<float>(sh::kPi / 2);
-    const glm::vec3 dl = D > 0.0f ? glm::transpose(pose.rotation[k]) * (d / D) : glm::vec3(0.0f, 0.0f, 1.0f);
+    const glm::vec3 dl = D > 0.0f ? glm::transpose(pose.rotation[slk]) * (d / D) : glm::vec3(0.0f, 0.0f, 1.0f);
     t.weight.lookup(theta, wrot.data());
     sh::eval_basis(order, sh::Vec3<float>{dl.x, dl.y, dl.z}, y.data());
-    const float* L = lc.v.data() + k * 3 * n2;
+    const float* L = lc.v.data() + static_cast<std::size_t>(slk) * 3 * n2;
     glm::vec3 acc(0.0f);
     for (int l = 0; l < order; ++l) {
       const float wl = wrot[l] * static_cast<float>(sh::zh_rotation_factor(l));
@@ -73,7 +74,8 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
         acc += wl * y[i] * glm::vec3(L[i], L[n2 + i], L[2 * n2 + i]);
       }
     }
-    lbar[k] = acc;
+    // Eq. 26: a parent of the hierarchy scaled by its reflection ratio.
+    lbar[k] = list.ratio.empty() ? acc : acc * list.ratio[k];
     sc.active.push_back(static_cast<int>(k));
   }
   if (sc.active.empty()) return;
@@ -89,9 +91,10 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
     std::vector<float> od(pose.object_centre.size());
     for (std::size_t o = 0; o < od.size(); ++o) od[o] = glm::length(pose.object_centre[o] - p);
     std::stable_sort(sc.order.begin(), sc.order.end(), [&](int a, int b) {
-      const float da = od[pose.object[a]], db = od[pose.object[b]];
+      const int oa = pose.object[list.sl[a]], ob = pose.object[list.sl[b]];
+      const float da = od[oa], db = od[ob];
       if (da != db) return da < db;
-      if (pose.object[a] != pose.object[b]) return pose.object[a] < pose.object[b];
+      if (oa != ob) return oa < ob;
       return sc.key[a] < sc.key[b];
     });
   }
@@ -107,7 +110,7 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
     for (int q = 0; q < n2; ++q) S[q] = sc.prefix[q];
     // Eq. 21: intersecting SLs of S_i's own object are not its blockers (their occlusion is in its
     // emission, section 4.2 rule 2).
-    for (int j : pose.intersecting[i])
+    for (int j : list.intersecting[i])
       if (sc.position[j] >= 0 && sc.position[j] < static_cast<int>(a))
         for (int q = 0; q < n2; ++q) S[q] -= sc.G[j * n2 + q];
     const float* Gi = sc.G.data() + i * n2;
@@ -144,8 +147,28 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
 
 }  // namespace
 
-void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const ReceiverSoA& rec,
-                         std::size_t begin, std::size_t end, glm::vec3* out, IndirectStats& stats) {
+SlList flat_sl_list(const SlPose& pose) {
+  SlList l;
+  l.sl.resize(pose.leaves);
+  l.intersecting.resize(pose.leaves);
+  for (std::size_t i = 0; i < pose.leaves; ++i) {
+    l.sl[i] = static_cast<int>(i);
+    l.intersecting[i] = pose.intersecting[i];  // leaves' flat indices are their entries
+  }
+  return l;
+}
+
+std::size_t SlCuts::bytes() const {
+  std::size_t b = list_of_cluster.size() * sizeof(int);
+  for (const auto& l : lists) {
+    b += l.sl.size() * (sizeof(int) + sizeof(glm::vec3));
+    for (const auto& x : l.intersecting) b += x.size() * sizeof(int);
+  }
+  return b;
+}
+
+void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list,
+                         const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out, IndirectStats& stats) {
   Scratch sc;
   std::vector<float> vbar;
   std::vector<glm::vec3> lbar;
@@ -153,18 +176,88 @@ void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose,
     const glm::vec3 p(rec.px[r], rec.py[r], rec.pz[r]), n(rec.nx[r], rec.ny[r], rec.nz[r]);
     glm::vec3 e(0.0f);
     if (glm::dot(n, n) > 0.0f) {
-      receiver_terms(s, t, pose, lc, p, n, sc, vbar, lbar, stats);
+      receiver_terms(s, t, pose, lc, list, p, n, sc, vbar, lbar, stats);
       for (std::size_t i = 0; i < vbar.size(); ++i) e += lbar[i] * vbar[i];
     }
     out[r - begin] = glm::max(e, glm::vec3(0.0f));
   }
 }
 
-void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const glm::vec3& p,
+void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list, const glm::vec3& p,
                     const glm::vec3& n, std::vector<float>& vbar, std::vector<glm::vec3>& lbar) {
   Scratch sc;
   IndirectStats st;
-  receiver_terms(s, t, pose, lc, p, n, sc, vbar, lbar, st);
+  receiver_terms(s, t, pose, lc, list, p, n, sc, vbar, lbar, st);
+}
+
+void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const glm::vec3& p,
+                    const glm::vec3& n, std::vector<float>& vbar, std::vector<glm::vec3>& lbar) {
+  indirect_terms(s, t, pose, lc, flat_sl_list(pose), p, n, vbar, lbar);
+}
+
+SlList sl_cut(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& flat, const glm::vec3& pR,
+              float rR, const glm::vec3& pstar, const glm::vec3& nstar) {
+  SlList cut;
+  const double sin_max = std::sin(s.theta_max);
+  std::vector<int> stack;
+  for (std::size_t o = 0; o < pose.trees.size(); ++o) {
+    const proxies::SphereHierarchy* tree = pose.trees[o].get();
+    if (!tree) {
+      for (std::size_t i = 0; i < pose.leaves; ++i)
+        if (pose.object[i] == static_cast<int>(o)) cut.sl.push_back(static_cast<int>(i));
+      continue;
+    }
+    stack.assign(1, tree->root());
+    while (!stack.empty()) {
+      const int id = stack.back();
+      stack.pop_back();
+      const proxies::SphereNode& node = tree->nodes()[id];
+      const int sl = pose.node_sl[o][id];
+      // Paper 004 eq. 36: the node subtends less than theta_max over the whole receiver cluster.
+      const bool small = pose.radius[sl] < sin_max * (glm::length(pose.centre[sl] - pR) - rR);
+      if (!node.children.empty() && !small) {
+        for (int ch : node.children) stack.push_back(ch);
+        continue;
+      }
+      cut.sl.push_back(sl);
+    }
+  }
+  // Section 6.2 at run time: within an object, entries whose spheres intersect do not block each
+  // other (for two leaves, the precomputed lists; a parent's own emission excludes what its
+  // segment's neighbours cover).
+  cut.intersecting.resize(cut.sl.size());
+  for (std::size_t a = 0; a < cut.sl.size(); ++a)
+    for (std::size_t b = 0; b < cut.sl.size(); ++b) {
+      const int i = cut.sl[a], j = cut.sl[b];
+      if (a == b || pose.object[i] != pose.object[j]) continue;
+      const bool leaves = static_cast<std::size_t>(i) < pose.leaves && static_cast<std::size_t>(j) < pose.leaves;
+      const bool hit = leaves ? std::find(pose.intersecting[i].begin(), pose.intersecting[i].end(), j) != pose.intersecting[i].end()
+                              : glm::length(pose.centre[i] - pose.centre[j]) < pose.radius[i] + pose.radius[j];
+      if (hit) cut.intersecting[a].push_back(static_cast<int>(b));
+    }
+  // Eq. 25 at the cluster's central receiver.
+  cut.ratio.assign(cut.sl.size(), glm::vec3(1.0f));
+  bool parents = false;
+  for (int sl : cut.sl) parents |= static_cast<std::size_t>(sl) >= pose.leaves;
+  if (!parents || !s.reflection_ratios) return cut;
+  std::vector<float> vf, vc;
+  std::vector<glm::vec3> lf, lcut;
+  indirect_terms(s, t, pose, lc, flat, pstar, nstar, vf, lf);
+  indirect_terms(s, t, pose, lc, cut, pstar, nstar, vc, lcut);
+  for (std::size_t a = 0; a < cut.sl.size(); ++a) {
+    const int sl = cut.sl[a];
+    if (static_cast<std::size_t>(sl) < pose.leaves) continue;
+    glm::vec3 num(0.0f);
+    for (int leaf : pose.leaves_below[sl]) num += lf[leaf] * vf[leaf];
+    const glm::vec3 den = lcut[a] * vc[a];
+    for (int c = 0; c < 3; ++c) {
+      // A parent that contributes nothing at p* keeps ratio 1; the clamp bounds what one central
+      // receiver's ratio can do to the rest of its cluster.
+      const float scale = std::max(std::abs(num[c]), std::abs(den[c]));
+      cut.ratio[a][c] = den[c] > 1e-6f * scale && den[c] > 1e-12f ? std::clamp(num[c] / den[c], 0.0f, kMaxReflectionRatio) : 1.0f;
+    }
+  }
+  return cut;
 }
 
 }  // namespace softgi::techniques::spherical_lights

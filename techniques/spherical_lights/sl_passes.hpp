@@ -14,6 +14,7 @@
 
 #include "../common/accumulation.hpp"
 #include "../common/receivers.hpp"
+#include "softgi/proxies/hierarchy.hpp"
 #include "sl_precompute.hpp"
 #include "sl_tables.hpp"
 #include "softgi/render/frame.hpp"
@@ -36,6 +37,7 @@ inline constexpr const char* kSampleLog = "sl.sample_log_visibility";
 inline constexpr const char* kSampleVisibility = "sl.sample_visibility";
 inline constexpr const char* kSampleRadiance = "sl.sample_radiance";  // L_p per sample point (section 5.1)
 inline constexpr const char* kIntensity = "sl.intensity";      // L^c_S per SL (section 5.2, eq. 11)
+inline constexpr const char* kSlCuts = "sl.cuts";              // per receiver cluster, the SLs it sums (section 7.3)
 inline constexpr const char* kReceivers = "sl.receivers";
 inline constexpr const char* kLogVisibility = "sl.log_visibility";
 inline constexpr const char* kVisibility = "sl.visibility";
@@ -57,6 +59,9 @@ struct Settings {
   Blocking blocking = Blocking::PerSphere;
   bool indirect = true;
   int clusters = 0;  // receiver clusters (0 = automatic)
+  bool hierarchy = true;  // section 7.3
+  bool reflection_ratios = true;  // eq. 25
+  double theta_max = 0.0;
   PrecomputeOptions pre;
 };
 // Throws std::invalid_argument naming the parameter.
@@ -75,7 +80,11 @@ std::shared_ptr<const Tables> make_tables(int order, int resolution, double log_
 struct SlObject {
   int set = -1;     // index into Scene::proxies / PosedScene::proxies
   int object = -1;  // index into PosedScene::objects
-  std::shared_ptr<const ObjectSls> data;
+  std::shared_ptr<const ObjectSls> data;  // leaves, and the parents as groups
+  // Section 7.3: the hierarchy over the rest-pose leaves (null without one) and, per tree node, the
+  // index into data->groups of an inner node (-1 for a leaf, which is node.leaf of data->sls).
+  std::shared_ptr<const proxies::SphereHierarchy> tree;
+  std::vector<int> node_group;
 };
 struct SlData {
   std::vector<SlObject> objects;
@@ -96,10 +105,32 @@ struct SlPose {
   std::vector<std::size_t> sample_begin;     // per SL, its range in `samples` (size SLs + 1)
   std::vector<const float*> basis;           // per sample point: (4 pi/N) Y_j, n^2 floats (eq. 10)
   std::vector<const float*> albedo;          // per SL: c_S, 3 x n^2 channel-major (section 4.2)
-  BlockerList blockers;                      // every SL, as blockers of the sample points (section 5.1)
+  BlockerList blockers;                      // every leaf SL, as blockers (sections 5.1 and 6)
+  // Section 7.3: the first `leaves` SLs are the proxy spheres; the rest are the parents of each
+  // object's SL hierarchy (none without one), with the leaves below each and, per object, its tree
+  // posed (refit to this frame's leaves) and the SL of every tree node.
+  std::size_t leaves = 0;
+  std::vector<std::vector<int>> leaves_below;  // per SL: the leaf SLs it bounds (itself for a leaf)
+  std::vector<std::shared_ptr<const proxies::SphereHierarchy>> trees;  // per SlData object (null: none)
+  std::vector<std::vector<int>> node_sl;       // per SlData object: tree node -> flat SL index
   std::size_t size() const { return radius.size(); }
   std::size_t bytes() const;
 };
+
+// The SLs that a receiver cluster sums (eq. 14): every leaf, or its cut of the SL hierarchies
+// (section 7.3, the criterion of paper 004 eq. 36), with the reflection ratio of each (eq. 25).
+struct SlList {
+  std::vector<int> sl;                         // flat SL indices into SlPose
+  std::vector<std::vector<int>> intersecting;  // per entry: the entries of its own object whose spheres intersect it
+  std::vector<glm::vec3> ratio;                // per entry: t of eq. 25 per colour channel (1 for leaves)
+};
+struct SlCuts {
+  std::vector<SlList> lists;
+  std::vector<int> list_of_cluster;  // per receiver cluster (VertexReceivers::clusters)
+  std::size_t bytes() const;
+};
+// Every leaf SL with its precomputed intersecting lists and ratio 1 (no hierarchy).
+SlList flat_sl_list(const SlPose& pose);
 
 // The two sets of receivers that the blocker accumulation, the exponential and the diffuse shading
 // run over: the SLs' sample points (section 5.1) and the scene's vertices (section 6, direct light).
@@ -148,12 +179,24 @@ struct IndirectStats {
   long long clamped = 0;       // Vbar below 0 set to 0
   long long exps = 0;
 };
-void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const ReceiverSoA& rec,
-                         std::size_t begin, std::size_t end, glm::vec3* out, IndirectStats& stats);
+void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list,
+                         const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out, IndirectStats& stats);
 
-// The same for one receiver with the visibility of each SL returned (tests): vbar[i] for SL i
-// (0 where the rules eliminated it), lbar[i] its average radiance.
+// The same for one receiver with each list entry's terms returned: vbar[e] (0 where the rules
+// eliminated it) and lbar[e], its average radiance times its ratio.
+void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list, const glm::vec3& p,
+                    const glm::vec3& n, std::vector<float>& vbar, std::vector<glm::vec3>& lbar);
+// Over every leaf (flat_sl_list).
 void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const glm::vec3& p,
                     const glm::vec3& n, std::vector<float>& vbar, std::vector<glm::vec3>& lbar);
+
+// Section 7.3: the cut of every object's SL hierarchy for a receiver cluster bounded by (pR, rR)
+// (nodes with r < sin(theta_max)(|c - pR| - rR) taken whole, paper 004 eq. 36), the intersecting
+// entries of each object, and each parent's reflection ratio (eq. 25) at the receiver (pstar, nstar):
+// the summed Lbar Vbar of the leaves below it, computed over every leaf, over its own Lbar Vbar in
+// the cut, per channel (1 where the parent contributes nothing, at most kMaxReflectionRatio).
+inline constexpr float kMaxReflectionRatio = 8.0f;
+SlList sl_cut(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& flat, const glm::vec3& pR,
+              float rR, const glm::vec3& pstar, const glm::vec3& nstar);
 
 }  // namespace softgi::techniques::spherical_lights

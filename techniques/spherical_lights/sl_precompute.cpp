@@ -149,18 +149,19 @@ bool in_segment(const std::vector<scene::Sphere>& spheres, std::size_t i, const 
 
 std::size_t ObjectSls::bytes() const {
   std::size_t b = directions.size() * sizeof(glm::vec3);
-  for (const auto& s : sls) {
+  for (const auto* list : {&sls, &groups})
+    for (const auto& s : *list) {
     b += sizeof(scene::Sphere) + sizeof(SampleOutcomes);
     b += s.sample_positions.size() * sizeof(glm::vec3) + s.sample_normals.size() * sizeof(glm::vec3);
     b += s.sample_direction.size() * sizeof(int) + s.sample_case.size() * sizeof(SampleCase);
     b += s.basis_sums.size() * sizeof(float) + s.albedo_sh.size() * sizeof(float);
     b += s.vertices.size() * sizeof(std::uint32_t) + s.intersecting.size() * sizeof(int);
-  }
+    }
   return b;
 }
 
 ObjectSls precompute_object(const scene::Scene& scene, int object_node, const scene::ProxySet& set,
-                            const PrecomputeOptions& options) {
+                            const PrecomputeOptions& options, const std::vector<SlGroup>* groups) {
   // --- input checks ---
   if (options.order < 1 || options.order > sh::kMaxOrder)
     fail(set, "order " + std::to_string(options.order) + " outside [1, " + std::to_string(sh::kMaxOrder) + "]");
@@ -268,15 +269,9 @@ ObjectSls precompute_object(const scene::Scene& scene, int object_node, const sc
     sh::eval_basis(n, sh::Vec3<double>{d.x, d.y, d.z}, texel_y.data() + k * n2);
   }
 
+  // One light: centre c, segment membership seg(p), triangle set tri_in(t).
   std::vector<RayHit> hits, back_hits;
-  for (std::size_t i = 0; i < spheres.size(); ++i) {
-    SphericalLightData& L = out.sls[i];
-    L.sphere = spheres[i];
-    const glm::vec3 c = spheres[i].center;
-    for (std::size_t j = 0; j < spheres.size(); ++j)
-      if (j != i && glm::length(c - spheres[j].center) < spheres[i].radius + spheres[j].radius)
-        L.intersecting.push_back(static_cast<int>(j));
-
+  auto compute_light = [&](SphericalLightData& L, const glm::vec3& c, const auto& seg, const auto& tri_in) {
     // Sample points (section 4.2, three cases).
     for (std::size_t j = 0; j < out.directions.size(); ++j) {
       const glm::vec3 w = out.directions[j];
@@ -285,7 +280,7 @@ ObjectSls precompute_object(const scene::Scene& scene, int object_node, const sc
       SampleCase kind = SampleCase::BackHit;
       if (!hits.empty()) {
         for (auto it = hits.rbegin(); it != hits.rend(); ++it)  // farthest first
-          if (it->back && in_segment(spheres, i, hit_point(*it))) {
+          if (it->back && seg(hit_point(*it))) {
             chosen = &*it;
             break;
           }
@@ -295,7 +290,7 @@ ObjectSls precompute_object(const scene::Scene& scene, int object_node, const sc
         bvh.all_hits(c, -w, hits);  // case 3: centre outside; the opposite ray's front sides
         kind = SampleCase::OppositeFront;
         for (const RayHit& h : hits)
-          if (!h.back && in_segment(spheres, i, hit_point(h))) {
+          if (!h.back && seg(hit_point(h))) {
             chosen = &h;
             break;
           }
@@ -317,14 +312,14 @@ ObjectSls precompute_object(const scene::Scene& scene, int object_node, const sc
       bvh.all_hits(c, texel_dir[k], hits);
       const RayHit* chosen = nullptr;
       for (auto it = hits.rbegin(); it != hits.rend(); ++it)
-        if (it->back && in_set[i][it->triangle]) {
+        if (it->back && tri_in(it->triangle)) {
           chosen = &*it;
           break;
         }
       if (!chosen) {
         bvh.all_hits(c, -texel_dir[k], back_hits);
         for (const RayHit& h : back_hits)
-          if (!h.back && in_set[i][h.triangle]) {
+          if (!h.back && tri_in(h.triangle)) {
             chosen = &h;
             break;
           }
@@ -335,6 +330,49 @@ ObjectSls precompute_object(const scene::Scene& scene, int object_node, const sc
         for (int q = 0; q < n2; ++q) albedo[ch * n2 + q] += texel_sa[k] * a[ch] * texel_y[k * n2 + q];
     }
     L.albedo_sh.assign(albedo.begin(), albedo.end());
+  };
+
+  for (std::size_t i = 0; i < spheres.size(); ++i) {
+    SphericalLightData& L = out.sls[i];
+    L.sphere = spheres[i];
+    const glm::vec3 c = spheres[i].center;
+    for (std::size_t j = 0; j < spheres.size(); ++j)
+      if (j != i && glm::length(c - spheres[j].center) < spheres[i].radius + spheres[j].radius)
+        L.intersecting.push_back(static_cast<int>(j));
+    compute_light(L, c, [&](const glm::vec3& p) { return in_segment(spheres, i, p); },
+                  [&](std::uint32_t t) { return in_set[i][t] != 0; });
+  }
+
+  // Groups (paper 001 section 7.3, parent SLs of a hierarchy): the same rules with the union of the
+  // leaves' segments and triangle sets.
+  if (groups) {
+    out.groups.resize(groups->size());
+    for (std::size_t g = 0; g < groups->size(); ++g) {
+      const SlGroup& grp = (*groups)[g];
+      if (!finite(grp.sphere.center) || !(grp.sphere.radius > 0.0f) || !std::isfinite(grp.sphere.radius))
+        fail(set, "group " + std::to_string(g) + " has a bad sphere");
+      std::vector<char> member(spheres.size(), 0);
+      for (int leaf : grp.leaves) {
+        if (leaf < 0 || leaf >= static_cast<int>(spheres.size()))
+          fail(set, "group " + std::to_string(g) + " names leaf " + std::to_string(leaf) + " of " + std::to_string(spheres.size()));
+        member[leaf] = 1;
+      }
+      SphericalLightData& L = out.groups[g];
+      L.sphere = grp.sphere;
+      for (int leaf : grp.leaves) L.vertices.insert(L.vertices.end(), out.sls[leaf].vertices.begin(), out.sls[leaf].vertices.end());
+      std::sort(L.vertices.begin(), L.vertices.end());
+      auto seg = [&](const glm::vec3& p) {
+        for (std::size_t i = 0; i < spheres.size(); ++i)
+          if (member[i] && in_segment(spheres, i, p)) return true;
+        return false;
+      };
+      auto tri = [&](std::uint32_t t) {
+        for (std::size_t i = 0; i < spheres.size(); ++i)
+          if (member[i] && in_set[i][t]) return true;
+        return false;
+      };
+      compute_light(L, grp.sphere.center, seg, tri);
+    }
   }
   return out;
 }

@@ -80,12 +80,20 @@ struct SphericalLightData {
   std::size_t sample_count() const { return sample_positions.size(); }
 };
 
+// A light bounding several of the set's lights (a parent of an SL hierarchy, paper 001 section 7.3):
+// its sphere and the leaves (indices into the set's spheres) whose segments it takes together.
+struct SlGroup {
+  scene::Sphere sphere;
+  std::vector<int> leaves;
+};
+
 struct ObjectSls {
   std::string proxy_set;
   int node = -1, mesh = -1, order = 0;
   std::vector<glm::vec3> directions;       // the geodesic directions w_j
   VoronoiBasis basis;                      // per direction, shared by every light of the object
   std::vector<SphericalLightData> sls;     // one per sphere of the proxy set, same order
+  std::vector<SphericalLightData> groups;  // one per SlGroup asked for (no intersecting lists)
   // Bytes of the data the passes read per object (samples, basis sums, albedo, vertex lists,
   // intersecting lists, spheres, directions; not the triangle sets). The paper quotes 32-150 KB.
   std::size_t bytes() const;
@@ -95,7 +103,9 @@ struct ObjectSls {
 // (mesh space = the space of set.spheres). Throws std::invalid_argument naming the proxy set for a bad
 // node, an empty mesh, non-finite positions, no spheres, a sphere with radius <= 0 or non-finite values,
 // or bad options.
+// `groups`: lights made of several leaves each (section 7.3), computed with the same rules over the
+// union of their leaves' segments and triangle sets, into ObjectSls::groups.
 ObjectSls precompute_object(const scene::Scene& scene, int object_node, const scene::ProxySet& set,
-                            const PrecomputeOptions& options = {});
+                            const PrecomputeOptions& options = {}, const std::vector<SlGroup>* groups = nullptr);
 
 }  // namespace softgi::techniques::spherical_lights

@@ -47,6 +47,9 @@ Settings read_settings(const render::ParamSet& p) {
   s.blocking = p.get_enum("blocking") == "per_object" ? Blocking::PerObject : Blocking::PerSphere;
   s.indirect = p.get_bool("indirect");
   s.clusters = p.get_int("receiver_clusters");
+  s.hierarchy = p.get_bool("hierarchy");
+  s.reflection_ratios = p.get_bool("reflection_ratios");
+  s.theta_max = p.get_float("theta_max_deg") * sh::kPi / 180.0;
   s.pre.order = s.order;
   s.pre.geodesic_frequency = p.get_int("geodesic_frequency");
   s.pre.cubemap_resolution = p.get_int("cubemap_resolution");
@@ -142,7 +145,7 @@ struct State {
   std::mutex m;
   common::SharedCache<std::tuple<int, int, double>, Tables> tables;
   common::LightTableCache light_tables;
-  std::map<std::string, std::shared_ptr<const ObjectSls>> objects;  // by object_key
+  std::map<std::string, SlObject> objects;  // precomputations by object_key (set and object filled per frame)
   std::string env_key;
   std::vector<glm::vec3> env_sh;
   common::ReceiverClustering receivers;
@@ -226,7 +229,7 @@ void pass_setup(State& st, const Settings& s, FrameContext& ctx) {
   std::map<int, int> object_of_node;
   for (std::size_t o = 0; o < ctx.posed.objects.size(); ++o) object_of_node[ctx.posed.objects[o].node] = static_cast<int>(o);
   int computed = 0, cached = 0;
-  double samples = 0.0, kept = 0.0;
+  double samples = 0.0, kept = 0.0, parents = 0.0;
   for (std::size_t set = 0; set < ctx.scene.proxies.size(); ++set) {
     const scene::ProxySet& ps = ctx.scene.proxies[set];
     if (ps.spheres.empty()) continue;
@@ -235,29 +238,58 @@ void pass_setup(State& st, const Settings& s, FrameContext& ctx) {
       ctx.warn("spherical_lights: proxy set '" + ps.name + "' bounds no object with a mesh: its spheres block but emit nothing");
       continue;
     }
-    const std::string key = object_key(ctx.scene, static_cast<int>(set), s.pre);
-    std::shared_ptr<const ObjectSls> obj;
+    const bool tree = s.hierarchy && ps.spheres.size() > 1;
+    const std::string key = object_key(ctx.scene, static_cast<int>(set), s.pre) + (tree ? "|tree" : "");
+    SlObject so;
     {
       std::lock_guard<std::mutex> lock(st.m);
       auto f = st.objects.find(key);
-      if (f != st.objects.end()) obj = f->second;
+      if (f != st.objects.end()) so = f->second;
     }
-    if (obj) {
+    if (so.data) {
       ++cached;
     } else {
-      obj = std::make_shared<const ObjectSls>(precompute_object(ctx.scene, ps.node, ps, s.pre));
+      // Section 7.3: parents bound about four children each (paper 004 section 6.3), built over the
+      // rest-pose leaves; each parent is an SL of its own over the union of its leaves' segments.
+      std::vector<SlGroup> groups;
+      if (tree) {
+        so.tree = std::make_shared<const proxies::SphereHierarchy>(proxies::SphereHierarchy::build(ps.spheres, proxies::HierarchyBuildOptions{}));
+        const auto& nodes = so.tree->nodes();
+        so.node_group.assign(nodes.size(), -1);
+        for (std::size_t nd = 0; nd < nodes.size(); ++nd) {
+          if (nodes[nd].children.empty()) continue;
+          SlGroup g;
+          g.sphere = nodes[nd].bound;
+          std::vector<int> stack(1, static_cast<int>(nd));
+          while (!stack.empty()) {
+            const int id = stack.back();
+            stack.pop_back();
+            if (nodes[id].children.empty()) g.leaves.push_back(nodes[id].leaf);
+            for (int ch : nodes[id].children) stack.push_back(ch);
+          }
+          std::sort(g.leaves.begin(), g.leaves.end());
+          so.node_group[nd] = static_cast<int>(groups.size());
+          groups.push_back(std::move(g));
+        }
+      }
+      so.data = std::make_shared<const ObjectSls>(precompute_object(ctx.scene, ps.node, ps, s.pre, tree ? &groups : nullptr));
       ++computed;
       std::lock_guard<std::mutex> lock(st.m);
-      st.objects[key] = obj;
+      st.objects[key] = so;
     }
-    for (const auto& sl : obj->sls) {
-      samples += static_cast<double>(obj->directions.size());
-      kept += static_cast<double>(sl.sample_count());
-    }
-    data->objects.push_back({static_cast<int>(set), it->second, obj});
+    so.set = static_cast<int>(set);
+    so.object = it->second;
+    for (const auto* list : {&so.data->sls, &so.data->groups})
+      for (const auto& sl : *list) {
+        samples += static_cast<double>(so.data->directions.size());
+        kept += static_cast<double>(sl.sample_count());
+      }
+    parents += static_cast<double>(so.data->groups.size());
+    data->objects.push_back(std::move(so));
   }
   auto& rec = ctx.record();
   rec.counters["objects"] = static_cast<double>(data->objects.size());
+  rec.counters["parent_sls"] = parents;
   rec.counters["computed"] = computed;
   rec.counters["cached"] = cached;
   rec.counters["sample_points"] = kept;
@@ -266,72 +298,132 @@ void pass_setup(State& st, const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const SlData>>(kSlData, data);
 }
 
-// Section 7.1: this frame's SLs (the posed proxy spheres) with their rotation, and their sample
-// points moved with them.
+// Section 7.1: this frame's SLs with their rotation, and their sample points moved with them. Leaves
+// are the posed proxy spheres; a parent moves with the similarity of its associated vertices (or
+// its node).
 void pass_pose(const Settings& s, FrameContext& ctx) {
   const auto& data = *ctx.get<std::shared_ptr<const SlData>>(kSlData);
   auto pose = std::make_shared<SlPose>();
   pose->order = s.order;
   pose->blockers.order = s.order;  // before the pushes: BlockerList::push fills `order` band weights
   std::size_t total_samples = 0, total_sls = 0;
-  for (const auto& so : data.objects) {
-    total_sls += so.data->sls.size();
-    for (const auto& sl : so.data->sls) total_samples += sl.sample_count();
-  }
+  for (const auto& so : data.objects)
+    for (const auto* list : {&so.data->sls, &so.data->groups}) {
+      total_sls += list->size();
+      for (const auto& sl : *list) total_samples += sl.sample_count();
+    }
   pose->samples.resize(total_samples);
   pose->sample_begin.reserve(total_sls + 1);
   pose->basis.reserve(total_samples);
   int fallback = 0;
   std::size_t next = 0;
+  const std::size_t n2 = static_cast<std::size_t>(s.order) * s.order;
+  // Appends one SL with its sample points moved by the similarity (or the node matrix M).
+  auto add_sl = [&](const SphericalLightData& sl, int oi, const glm::vec3& centre, float radius, bool fitted, const Similarity& sim,
+                    const glm::mat4& M) {
+    const glm::mat3 Nm = glm::transpose(glm::inverse(glm::mat3(M)));
+    pose->centre.push_back(centre);
+    pose->radius.push_back(radius);
+    pose->object.push_back(oi);
+    pose->albedo.push_back(sl.albedo_sh.data());
+    pose->sample_begin.push_back(next);
+    pose->rotation.push_back(fitted ? sim.R : polar_rotation(glm::mat3(M)));
+    for (std::size_t k = 0; k < sl.sample_count(); ++k, ++next) {
+      glm::vec3 p, n;
+      if (fitted) {
+        p = sim.s * (sim.R * sl.sample_positions[k]) + sim.t;
+        n = sim.R * sl.sample_normals[k];
+      } else {
+        p = glm::vec3(M * glm::vec4(sl.sample_positions[k], 1.0f));
+        n = glm::normalize(Nm * sl.sample_normals[k]);
+      }
+      pose->samples.set(next, p, n);
+      pose->basis.push_back(sl.basis_sums.data() + k * n2);
+    }
+  };
+  auto motion = [&](const SlObject& so, const SphericalLightData& sl, Similarity& sim) {
+    const scene::PosedObject& obj = ctx.posed.objects[so.object];
+    const scene::Mesh& mesh = *obj.source;
+    const bool deforming = mesh.skinned() || obj.positions.size() != mesh.positions.size();
+    if (!deforming) return false;
+    if (obj.positions.size() != mesh.positions.size()) {
+      ++fallback;
+      return false;
+    }
+    if (fit_similarity(mesh.positions, obj.positions, sl.vertices, sim)) return true;
+    // Too few associated vertices (a sphere nearest to almost none): the vertices inside it at rest.
+    std::vector<std::uint32_t> inside;
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v)
+      if (glm::length(mesh.positions[v] - sl.sphere.center) <= sl.sphere.radius) inside.push_back(static_cast<std::uint32_t>(v));
+    if (fit_similarity(mesh.positions, obj.positions, inside, sim)) return true;
+    ++fallback;
+    return false;
+  };
+  std::vector<std::size_t> base(data.objects.size());
   for (std::size_t oi = 0; oi < data.objects.size(); ++oi) {
     const SlObject& so = data.objects[oi];
-    const scene::PosedObject& obj = ctx.posed.objects[so.object];
     const std::vector<scene::Sphere>& spheres = ctx.posed.proxies[so.set];
-    const scene::Mesh& mesh = *obj.source;
-    const glm::mat4 M = ctx.posed.node_world[obj.node];
-    const glm::mat3 M3(M), Nm = glm::transpose(glm::inverse(glm::mat3(M)));
-    const bool deforming = mesh.skinned() || obj.positions.size() != mesh.positions.size();
-    const std::size_t base = pose->size();
+    const glm::mat4 M = ctx.posed.node_world[ctx.posed.objects[so.object].node];
+    base[oi] = pose->size();
     glm::vec3 centre_sum(0.0f);
     for (std::size_t i = 0; i < so.data->sls.size(); ++i) {
       const SphericalLightData& sl = so.data->sls[i];
-      pose->centre.push_back(spheres[i].center);
-      pose->radius.push_back(spheres[i].radius);
-      pose->object.push_back(static_cast<int>(oi));
+      Similarity sim;
+      const bool fitted = motion(so, sl, sim);
+      add_sl(sl, static_cast<int>(oi), spheres[i].center, spheres[i].radius, fitted, sim, M);
       centre_sum += spheres[i].center;
       std::vector<int> inter;
-      for (int j : sl.intersecting) inter.push_back(static_cast<int>(base) + j);
+      for (int j : sl.intersecting) inter.push_back(static_cast<int>(base[oi]) + j);
       pose->intersecting.push_back(std::move(inter));
-      pose->albedo.push_back(sl.albedo_sh.data());
-      pose->sample_begin.push_back(next);
-      Similarity sim;
-      bool fitted = false;
-      if (deforming && obj.positions.size() == mesh.positions.size()) fitted = fit_similarity(mesh.positions, obj.positions, sl.vertices, sim);
-      if (deforming && !fitted) ++fallback;
-      const glm::mat3 R = fitted ? sim.R : polar_rotation(M3);
-      pose->rotation.push_back(R);
-      for (std::size_t k = 0; k < sl.sample_count(); ++k, ++next) {
-        glm::vec3 p, n;
-        if (fitted) {
-          p = sim.s * (sim.R * sl.sample_positions[k]) + sim.t;
-          n = sim.R * sl.sample_normals[k];
-        } else {
-          p = glm::vec3(M * glm::vec4(sl.sample_positions[k], 1.0f));
-          n = glm::normalize(Nm * sl.sample_normals[k]);
-        }
-        pose->samples.set(next, p, n);
-        pose->basis.push_back(sl.basis_sums.data() + k * static_cast<std::size_t>(s.order) * s.order);
-      }
+      pose->leaves_below.push_back({static_cast<int>(pose->size() - 1)});
       pose->blockers.push(spheres[i].center, spheres[i].radius, nullptr);
     }
     pose->object_centre.push_back(so.data->sls.empty() ? glm::vec3(0.0f) : centre_sum / static_cast<float>(so.data->sls.size()));
   }
+  pose->leaves = pose->size();
+  // Section 7.3: the parents, after every leaf.
+  pose->trees.resize(data.objects.size());
+  pose->node_sl.resize(data.objects.size());
+  for (std::size_t oi = 0; oi < data.objects.size(); ++oi) {
+    const SlObject& so = data.objects[oi];
+    if (!so.tree) continue;
+    const glm::mat4 M = ctx.posed.node_world[ctx.posed.objects[so.object].node];
+    const glm::mat3 M3(M);
+    const float node_scale = std::max({glm::length(M3[0]), glm::length(M3[1]), glm::length(M3[2])});
+    pose->trees[oi] = so.tree;
+    const auto& nodes = so.tree->nodes();
+    pose->node_sl[oi].assign(nodes.size(), -1);
+    for (std::size_t nd = 0; nd < nodes.size(); ++nd) {
+      if (nodes[nd].children.empty()) {
+        pose->node_sl[oi][nd] = static_cast<int>(base[oi]) + nodes[nd].leaf;
+        continue;
+      }
+      const SphericalLightData& sl = so.data->groups[so.node_group[nd]];
+      Similarity sim;
+      const bool fitted = motion(so, sl, sim);
+      const glm::vec3 c = fitted ? sim.s * (sim.R * sl.sphere.center) + sim.t : glm::vec3(M * glm::vec4(sl.sphere.center, 1.0f));
+      const float r = sl.sphere.radius * (fitted ? sim.s : node_scale);
+      pose->node_sl[oi][nd] = static_cast<int>(pose->size());
+      add_sl(sl, static_cast<int>(oi), c, r, fitted, sim, M);
+      pose->intersecting.emplace_back();
+      std::vector<int> below;
+      std::vector<int> stack(1, static_cast<int>(nd));
+      while (!stack.empty()) {
+        const int id = stack.back();
+        stack.pop_back();
+        if (nodes[id].children.empty()) below.push_back(static_cast<int>(base[oi]) + nodes[id].leaf);
+        for (int ch : nodes[id].children) stack.push_back(ch);
+      }
+      pose->leaves_below.push_back(std::move(below));
+    }
+  }
   pose->sample_begin.push_back(next);
   if (fallback > 0)
     ctx.warn("spherical_lights: " + std::to_string(fallback) +
-             " deforming SLs have fewer than 3 non-collinear associated vertices and move with their node instead");
+             " deforming SLs have fewer than 3 non-collinear vertices in their segment or sphere and move with their node instead");
   auto& rec = ctx.record();
   rec.counters["sls"] = static_cast<double>(pose->size());
+  rec.counters["leaf_sls"] = static_cast<double>(pose->leaves);
   rec.counters["sample_points"] = static_cast<double>(total_samples);
   rec.counters["node_motion_fallbacks"] = fallback;
   rec.bytes = pose->bytes();
@@ -485,17 +577,75 @@ void pass_receivers(State& st, const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const Receivers>>(kReceivers, r);
 }
 
+// Section 7.3: per receiver cluster, the SLs its receivers sum: its cut of the SL hierarchies with
+// the reflection ratios at its central receiver p* (eq. 25), or every leaf.
+void pass_cut(const Settings& s, FrameContext& ctx) {
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
+  const auto& lc = *ctx.get<std::shared_ptr<const Intensity>>(kIntensity);
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  auto cuts = std::make_shared<SlCuts>();
+  const SlList flat = flat_sl_list(pose);
+  const int nc = static_cast<int>(r.clusters.size());
+  bool any_tree = false;
+  for (const auto& tr : pose.trees) any_tree |= tr != nullptr;
+  if (s.hierarchy && any_tree) {
+    cuts->lists.resize(nc);
+    cuts->list_of_cluster.resize(nc);
+    tbb::parallel_for(0, nc, [&](int c) {
+      const ReceiverCluster& rc = r.clusters[c];
+      // p* and its normal: the receiver closest to the centroid (paper 004 section 6.3).
+      glm::vec3 nstar(0.0f, 1.0f, 0.0f);
+      for (std::size_t i = rc.begin; i < rc.end; ++i)
+        if (r.soa.px[i] == rc.star.x && r.soa.py[i] == rc.star.y && r.soa.pz[i] == rc.star.z) {
+          nstar = glm::vec3(r.soa.nx[i], r.soa.ny[i], r.soa.nz[i]);
+          break;
+        }
+      cuts->lists[c] = sl_cut(s, t, pose, lc, flat, rc.centre, rc.radius, rc.star, nstar);
+      cuts->list_of_cluster[c] = c;
+    });
+  } else {
+    cuts->lists.push_back(flat);
+    cuts->list_of_cluster.assign(nc, 0);
+  }
+  double sum = 0.0, parents = 0.0;
+  std::size_t mx = 0;
+  for (int c = 0; c < nc; ++c) {
+    const SlList& l = cuts->lists[cuts->list_of_cluster[c]];
+    sum += static_cast<double>(l.sl.size());
+    mx = std::max(mx, l.sl.size());
+    for (int sl : l.sl) parents += static_cast<std::size_t>(sl) >= pose.leaves;
+  }
+  auto& rec = ctx.record();
+  rec.counters["clusters"] = nc;
+  rec.counters["hierarchy"] = s.hierarchy && any_tree;
+  rec.counters["cut_mean"] = nc ? sum / nc : 0.0;
+  rec.counters["cut_max"] = static_cast<double>(mx);
+  rec.counters["parents_in_cuts"] = parents;
+  rec.counters["leaf_sls"] = static_cast<double>(pose.leaves);
+  rec.bytes = cuts->bytes();
+  ctx.put<std::shared_ptr<const SlCuts>>(kSlCuts, cuts);
+}
+
 void pass_indirect(const Settings& s, FrameContext& ctx) {
   const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
   const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
   const auto& lc = *ctx.get<std::shared_ptr<const Intensity>>(kIntensity);
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const auto& cuts = *ctx.get<std::shared_ptr<const SlCuts>>(kSlCuts);
   auto out = std::make_shared<Shading>();
   out->value.resize(r.soa.size());
   tbb::combinable<IndirectStats> stats;
   const auto t0 = std::chrono::steady_clock::now();
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 64), [&](const tbb::blocked_range<std::size_t>& br) {
-    accumulate_indirect(s, t, pose, lc, r.soa, br.begin(), br.end(), out->value.data() + br.begin(), stats.local());
+  const int nc = static_cast<int>(r.clusters.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, nc, 1), [&](const tbb::blocked_range<int>& cr) {
+    for (int c = cr.begin(); c != cr.end(); ++c) {
+      const ReceiverCluster& rc = r.clusters[c];
+      const SlList& list = cuts.lists[cuts.list_of_cluster[c]];
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(rc.begin, rc.end, 32), [&](const tbb::blocked_range<std::size_t>& br) {
+        accumulate_indirect(s, t, pose, lc, list, r.soa, br.begin(), br.end(), out->value.data() + br.begin(), stats.local());
+      });
+    }
   });
   const double secs = common::seconds_since(t0);
   IndirectStats total;
@@ -591,6 +741,9 @@ class SphericalLights final : public render::Technique {
     d.push_back(ParamDesc::integer("cubemap_resolution", 16, 2, 256, "texels per cube-map face edge of the SL albedo (section 4.2)"));
     d.push_back(ParamDesc::integer("projection_strata", 64, 2, 1024,
                                    "jittered stratified directions of the intensity projection, strata^2 in all (section 5.2, eqs. 9-10)"));
+    d.push_back(common::params::hierarchy("SL hierarchies cut per receiver cluster with reflection ratios (section 7.3, eqs. 25-26)"));
+    d.push_back(common::params::theta_max_deg());
+    d.push_back(ParamDesc::boolean("reflection_ratios", true, "eq. 25 reflection ratios on the parents of a cut (off: t = 1)"));
     d.push_back(common::params::receiver_clusters());
     d.push_back(common::params::window_h());
     d.push_back(common::params::self_shadow_rules());
@@ -679,7 +832,11 @@ class SphericalLights final : public render::Technique {
                                                    if (!k.intensity) return {};
                                                    return [s, f = k.intensity](FrameContext& c) { f(s, c); };
                                                  })});
-      g.add({"accumulate_indirect", {kReceivers, kTables, kSlPose, kIntensity}, {}, {kIndirectShading},
+      g.add({"sl_cut", {kReceivers, kTables, kSlPose, kIntensity}, {}, {kSlCuts},
+             s.hierarchy ? "per receiver cluster: cut of the SL hierarchies (paper 004 eq. 36), reflection ratios (eq. 25)"
+                         : "every leaf SL for every receiver cluster",
+             cpu([s](FrameContext& c) { pass_cut(s, c); })});
+      g.add({"accumulate_indirect", {kReceivers, kTables, kSlPose, kIntensity, kSlCuts}, {}, {kIndirectShading},
              std::string("average radiance x average visibility per SL (eqs. 14-24), ") +
                  (s.blocking == Blocking::PerObject ? "per-object" : "per-sphere") + " blocking (section 7.2)",
              common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_indirect(s, c); }), kernels,
