@@ -11,7 +11,9 @@ namespace softgi::techniques::spherical_lights {
 namespace {
 
 // Spherical lights (per-sphere and per-object blocking, and shadows only) beside SHEXP, errors of
-// `image` against the full and the order-4 SH ground truth.
+// the final image over the surface against the full and the order-4 SH ground truth; or, for the
+// indirect image, over the ground plane (where the paper's figures show the reflected light), with
+// the variants that have indirect light.
 render::ExperimentDef validation(const std::string& name, const std::string& title, const std::string& paper, const std::string& scene,
                                  double time, render::ExperimentImage image) {
   render::ExperimentDef e;
@@ -22,13 +24,21 @@ render::ExperimentDef validation(const std::string& name, const std::string& tit
   e.time = time;
   e.width = e.height = 512;
   e.quick_width = e.quick_height = 48;
+  e.image = image;
+  e.reference_orders = {0, 4};
+  e.baseline = "sl";
+  if (image == render::ExperimentImage::Indirect) {
+    e.variants = {{"sl", "spherical_lights", {}},
+                  {"sl_per_object", "spherical_lights", {"blocking=per_object"}},
+                  {"sl_flat", "spherical_lights", {"hierarchy=false"}}};
+    e.region = render::ExperimentRegion::Ground;
+    e.ratios = {{"sl", "sl_per_object"}, {"sl_flat", "sl"}};
+    return e;
+  }
   e.variants = {{"sl", "spherical_lights", {}},
                 {"sl_per_object", "spherical_lights", {"blocking=per_object"}},
                 {"sl_shadows_only", "spherical_lights", {"indirect=false"}},
                 {"shexp", "shexp", {}}};
-  e.baseline = "sl";
-  e.image = image;
-  e.reference_orders = {0, 4};
   // Section 8.5's table: per-object against per-sphere blocking, shadows only against shadows plus
   // indirect light.
   e.ratios = {{"sl", "sl_per_object"}, {"sl", "sl_shadows_only"}};
@@ -39,26 +49,37 @@ render::ExperimentDef validation(const std::string& name, const std::string& tit
 
 std::vector<render::ExperimentDef> experiments() {
   using render::ExperimentImage;
+  const std::string fig9 = "Figure 9: soft deformations, a bending cylinder; small error at 90 degrees, darker bands under "
+                           "the cylinder at 180 degrees where non-emitting parts of the SLs become visible.";
+  const std::string fig10 = "Figure 10: a box with one SL blurs the high frequencies of its reflected light (too weak near "
+                            "the edges); eight SLs are closer to the reference.";
   const std::string fig8 = "Figure 8: our solution against a path-traced reference (VRay irradiance maps), absolute "
                            "difference x2; error from the SL intensity approximation and SH truncation (one sphere), "
                            "blocker accumulation (several), precomputed occlusion and proxy volume (model).";
   std::vector<render::ExperimentDef> d;
-  d.push_back(validation("sl_fig8_sphere", "One sphere on a plane (paper 001 Figure 8, row 1)", fig8, "sphere_plane", 0.0,
-                         ExperimentImage::Final));
-  d.push_back(validation("sl_fig8_spheres", "Several spheres (paper 001 Figure 8, row 2)", fig8, "spheres", 0.0, ExperimentImage::Final));
-  d.push_back(validation("sl_fig8_model", "A model, the bunny (paper 001 Figure 8, row 3)", fig8, "bunny", 0.0, ExperimentImage::Final));
-  d.push_back(validation("sl_fig8_benchmark", "Several animated objects (paper 001 Figure 8, row 4; section 8.5)", fig8, "assembly", 1.0,
-                         ExperimentImage::Final));
-  const std::string fig9 = "Figure 9: soft deformations, a bending cylinder; small error at 90 degrees, darker bands under "
-                           "the cylinder at 180 degrees where non-emitting parts of the SLs become visible.";
-  d.push_back(validation("sl_fig9_bend90", "Bending cylinder at 90 degrees (paper 001 Figure 9, row 1)", fig9, "bend", 1.0,
-                         ExperimentImage::Indirect));
-  d.push_back(validation("sl_fig9_bend180", "Bending cylinder at 180 degrees (paper 001 Figure 9, row 2)", fig9, "bend", 2.0,
-                         ExperimentImage::Indirect));
-  const std::string fig10 = "Figure 10: a box with one SL blurs the high frequencies of its reflected light (too weak near "
-                            "the edges); eight SLs are closer to the reference.";
-  d.push_back(validation("sl_fig10_box1", "Box with one SL (paper 001 Figure 10b)", fig10, "box1", 0.0, ExperimentImage::Indirect));
-  d.push_back(validation("sl_fig10_box8", "Box with eight SLs (paper 001 Figure 10c)", fig10, "box8", 0.0, ExperimentImage::Indirect));
+  struct Case {
+    const char* name;
+    const char* title;
+    const std::string* paper;
+    const char* scene;
+    double time;
+  };
+  const Case cases[] = {
+      {"sl_fig8_sphere", "One sphere on a plane (paper 001 Figure 8, row 1)", &fig8, "sphere_plane", 0.0},
+      {"sl_fig8_spheres", "Several spheres (paper 001 Figure 8, row 2)", &fig8, "spheres", 0.0},
+      {"sl_fig8_model", "A model, the bunny (paper 001 Figure 8, row 3)", &fig8, "bunny", 0.0},
+      {"sl_fig8_benchmark", "Several animated objects (paper 001 Figure 8, row 4; section 8.5)", &fig8, "assembly", 1.0},
+      {"sl_fig9_bend90", "Bending cylinder at 90 degrees (paper 001 Figure 9, row 1)", &fig9, "bend", 1.0},
+      {"sl_fig9_bend180", "Bending cylinder at 180 degrees (paper 001 Figure 9, row 2)", &fig9, "bend", 2.0},
+      {"sl_fig10_box1", "Box with one SL (paper 001 Figure 10b)", &fig10, "box1", 0.0},
+      {"sl_fig10_box8", "Box with eight SLs (paper 001 Figure 10c)", &fig10, "box8", 0.0},
+  };
+  // Each case twice: the final image over every surface, the indirect image over the ground.
+  for (const Case& c : cases) {
+    d.push_back(validation(c.name, c.title, *c.paper, c.scene, c.time, ExperimentImage::Final));
+    d.push_back(validation(std::string(c.name) + "_indirect", std::string(c.title) + ", indirect light on the ground", *c.paper, c.scene,
+                           c.time, ExperimentImage::Indirect));
+  }
   return d;
 }
 

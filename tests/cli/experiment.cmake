@@ -192,6 +192,28 @@ if(NOT md MATCHES "## Error at silhouettes")
   message(FATAL_ERROR "image_splat_fig7: index.md has no silhouette section:\n${md}")
 endif()
 
+# --- the spherical_lights experiments (paper 001 Figures 8-10) ----------------------------------------
+# Figure 9 at 180 degrees: the final image with SHEXP beside it and the frame-rate ratios; Figure 10
+# with eight SLs: the indirect light over the ground, flat against the hierarchy.
+set(OUT ${WORK_DIR}/sl_fig9)
+run_experiment(sl_fig9_bend180 ${OUT})
+file(READ ${OUT}/results.json j)
+check_variants("${j}" ${OUT} sl)
+string(JSON nr LENGTH "${j}" ratios)
+if(NOT nr EQUAL 2)
+  message(FATAL_ERROR "sl_fig9_bend180: ${nr} ratio rows, expected per-object and shadows-only")
+endif()
+variant_index("${j}" shexp ishexp)
+set(OUT ${WORK_DIR}/sl_fig10)
+run_experiment(sl_fig10_box8_indirect ${OUT})
+file(READ ${OUT}/results.json j)
+check_variants("${j}" ${OUT} sl)
+variant_index("${j}" sl_flat iflat)
+string(JSON region GET "${j}" region description)
+if(NOT region MATCHES "ground")
+  message(FATAL_ERROR "sl_fig10_box8_indirect: errors over '${region}', expected the ground plane")
+endif()
+
 # --- bad input ----------------------------------------------------------------------------------
 expect_failure("unknown experiment 'nosuch'.*image_splat_fig5" experiment nosuch --out ${WORK_DIR}/bad)
 expect_failure("--out" experiment shexp_orders)
