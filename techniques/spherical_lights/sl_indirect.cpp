@@ -13,6 +13,16 @@ namespace softgi::techniques::spherical_lights {
 
 namespace {
 
+// Floating-point operations of one SH square and one SH product as ProductPlan evaluates them (a
+// square term v f_j f_k: 2; an off-diagonal product term v (f_j g_k + f_k g_j): 4; a diagonal one: 2).
+double square_flops(const ProductPlan& p) { return 2.0 * static_cast<double>(p.sq_v.size()); }
+double product_flops(const ProductPlan& p) {
+  double f = 0.0;
+  for (std::size_t i = 0; i + 1 < p.pr_begin.size(); ++i)
+    f += 4.0 * (p.pr_offdiag_end[i] - p.pr_begin[i]) + 2.0 * (p.pr_begin[i + 1] - p.pr_offdiag_end[i]);
+  return f;
+}
+
 struct Scratch {
   std::vector<float> G;           // per SL: log vector of its (rule-adjusted) sphere, n^2
   std::vector<float> key;         // per SL: distance from p to its adjusted sphere
@@ -127,6 +137,7 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
   sh::ExpStats es;
   exp_batch(s.isa, be, sc.f.data(), sc.g.data(), 2 * na, 0, es);
   st.exps += static_cast<long long>(2 * na);
+  st.exp_flops += es.squares * square_flops(*be.plan) + es.products * product_flops(*be.plan);
   // Eq. 23: V = exp(S) - exp(S + G_i), the part of S_i's cap no closer SL covers; eq. 24: dotted
   // with the BRDF vector.
   for (std::size_t a = 0; a < na; ++a) {

@@ -178,6 +178,7 @@ struct IndirectStats {
   long long eliminated = 0;    // SL-receiver pairs the rules removed
   long long clamped = 0;       // Vbar below 0 set to 0
   long long exps = 0;
+  double exp_flops = 0.0;      // floating-point operations of the exponentials' SH squares and products
 };
 void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list,
                          const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out, IndirectStats& stats);

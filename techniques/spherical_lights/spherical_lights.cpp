@@ -654,6 +654,7 @@ void pass_indirect(const Settings& s, FrameContext& ctx) {
     total.eliminated += x.eliminated;
     total.clamped += x.clamped;
     total.exps += x.exps;
+    total.exp_flops += x.exp_flops;
   });
   auto& rec = ctx.record();
   rec.counters["receivers"] = static_cast<double>(r.soa.size());
@@ -663,6 +664,8 @@ void pass_indirect(const Settings& s, FrameContext& ctx) {
   rec.counters["visibility_clamped"] = static_cast<double>(total.clamped);
   rec.counters["exponentials"] = static_cast<double>(total.exps);
   rec.counters["pairs_per_second"] = secs > 0.0 ? static_cast<double>(total.lights) / secs : 0.0;
+  rec.counters["exp_flops"] = total.exp_flops;
+  rec.counters["exp_gflops"] = secs > 0.0 ? total.exp_flops / secs * 1e-9 : 0.0;
   rec.counters["per_object_blocking"] = s.blocking == Blocking::PerObject;
   rec.bytes = out->value.size() * sizeof(glm::vec3);
   ctx.put<std::shared_ptr<const Shading>>(kIndirectShading, out);
