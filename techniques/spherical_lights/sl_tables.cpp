@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "softgi/sh/quadrature.hpp"
+#include "softgi/sh/tables.hpp"
 #include "softgi/sh/sh.hpp"
 
 namespace softgi::techniques::spherical_lights {
@@ -31,43 +31,8 @@ std::vector<double> weight_zh(int order, double theta) {
   if (!std::isfinite(theta) || theta < 0.0 || theta > kHalfPi + 1e-12)
     throw std::invalid_argument("spherical_lights::weight_zh: theta " + std::to_string(theta) +
                                 " outside [0, pi/2]");
-  theta = std::min(theta, kHalfPi);
-  const double s = std::sin(theta), c = std::cos(theta);
-  std::vector<double> out(order, 0.0);
-  std::array<double, sh::kMaxCoeffs> y{};
-  if (s == 0.0) {  // a point light's view: the clamped cosine max(0, cos alpha)/pi
-    const std::vector<double> cc = sh::clamped_cosine_zh(order);
-    for (int l = 0; l < order; ++l) out[l] = cc[l] / sh::kPi;
-    return out;
-  }
-  // With mu = cos alpha the integrand of eq. 16 is f(mu) = (mu - s)/v on mu in [s, 1], v = sqrt(1 - 2 s mu + s^2).
-  // Substituting v: mu = (1 + s^2 - v^2)/(2s), f dmu = (1 - s^2 - v^2)/(2 s^2) dv on v in [1 - s, cos theta],
-  // a polynomial of degree 2 + 2l in v against y_l0(mu(v)): Gauss-Legendre with 16 nodes is exact for
-  // every order <= 8. The 2 pi of the phi integral cancels in the normalisation.
-  const double one_minus_s = c * c / (1.0 + s);     // 1 - sin theta without cancellation
-  const double width = c - one_minus_s;             // length of the v interval
-  if (!(width > 0.0)) {  // theta = pi/2: the weight is a delta at alpha = 0
-    sh::eval_basis(order, sh::Vec3<double>{0.0, 0.0, 1.0}, y.data());
-    for (int l = 0; l < order; ++l) out[l] = y[sh::index(l, 0)];
-    return out;
-  }
-  const sh::GaussLegendre& gl = sh::gauss_legendre(16);
-  double den = 0.0;
-  for (std::size_t k = 0; k < gl.nodes.size(); ++k) {
-    const double t = 0.5 * (gl.nodes[k] + 1.0);
-    const double v = one_minus_s + t * width;
-    const double omv = s - t * width;                  // 1 - v
-    const double one_minus_v2 = omv * (2.0 - omv);     // 1 - v^2
-    // 1 - s^2 - v^2 = (cos theta - v)(cos theta + v): no cancellation near theta = pi/2.
-    const double g = (1.0 - t) * width * (c + v) / (2.0 * s * s);
-    const double mu = std::clamp((one_minus_v2 + s * s) / (2.0 * s), -1.0, 1.0);
-    const double wk = 0.5 * width * gl.weights[k] * g;
-    sh::eval_basis(order, sh::Vec3<double>{std::sqrt(std::max(0.0, 1.0 - mu * mu)), 0.0, mu}, y.data());
-    den += wk;
-    for (int l = 0; l < order; ++l) out[l] += wk * y[sh::index(l, 0)];
-  }
-  for (int l = 0; l < order; ++l) out[l] /= den;  // eq. 16's normalisation
-  return out;
+  // The SH core's one definition (softgi/sh/tables.hpp, derivation in docs/sh_indirect_tables.md).
+  return sh::spherical_light_weight_zh(order, std::sin(std::min(theta, kHalfPi)));
 }
 
 void WeightTable::lookup(float theta, float* out_w) const {
@@ -92,6 +57,18 @@ WeightTable make_weight_table(int order, int rows) {
     const std::vector<double> zh = weight_zh(order, k == rows - 1 ? kHalfPi : k * kHalfPi / (rows - 1));
     for (int l = 0; l < order; ++l) t.w[static_cast<std::size_t>(k) * order + l] = static_cast<float>(zh[l]);
   }
+  return t;
+}
+
+WeightTable weight_table_from(const sh::Table1D& table, int order) {
+  if (table.param != sh::TableParam::Theta || table.width < order || table.rows() < 2)
+    throw std::invalid_argument("spherical_lights::weight_table_from: needs a theta-sampled table of width >= " + std::to_string(order));
+  WeightTable t;
+  t.order = order;
+  t.rows = table.rows();
+  t.w.resize(static_cast<std::size_t>(t.rows) * order);
+  for (int k = 0; k < t.rows; ++k)
+    for (int l = 0; l < order; ++l) t.w[static_cast<std::size_t>(k) * order + l] = static_cast<float>(table.row(k)[l]);
   return t;
 }
 

@@ -8,6 +8,8 @@
 
 #include <glm/glm.hpp>
 
+#include "softgi/sh/tables.hpp"
+
 namespace softgi::techniques::spherical_lights {
 
 // cos gamma of paper 001 eq. 17: the cosine between the surface normal at a point x of the light's
@@ -24,8 +26,9 @@ double cos_gamma(double theta, double alpha);
 // the orthonormal real SH of softgi::sh (y_l0 = sqrt((2l+1)/(4 pi)) P_l(cos alpha)). So w_0 = y_00 =
 // 1/sqrt(4 pi) for every theta, and turned to axis d the weight's SH vector is
 // f_lm = sqrt(4 pi/(2l+1)) w_l y_lm(d) (sh::zh_rotate). Limits: theta = 0 gives the ZH of
-// max(0, cos alpha)/pi, theta = pi/2 a delta at alpha = 0 (w_l = y_l0(+z)). Computed in double,
-// exact up to rounding (see the .cpp). Throws std::invalid_argument for a bad order or theta.
+// max(0, cos alpha)/pi, theta = pi/2 a delta at alpha = 0 (w_l = y_l0(+z)). The SH core's
+// sh::spherical_light_weight_zh(order, sin theta), in double. Throws std::invalid_argument for a bad
+// order or theta.
 std::vector<double> weight_zh(int order, double theta);
 
 // w_theta tabulated at rows angles theta_k = k (pi/2)/(rows - 1), k = 0..rows-1, in float.
@@ -38,6 +41,8 @@ struct WeightTable {
 };
 // Throws std::invalid_argument unless 1 <= order <= sh::kMaxOrder and rows >= 2.
 WeightTable make_weight_table(int order, int rows);
+// The float copy of the core's table (sh::ShTables::sl_weight(), sampled in theta).
+WeightTable weight_table_from(const sh::Table1D& table, int order);
 
 // The average radiance of a light towards a receiver, eq. 18: L_bar = w_theta . L^c with w_theta
 // rotated to dir_local, i.e. sum_l w_l(theta) sqrt(4 pi/(2l+1)) sum_m y_lm(dir_local) L_lm.

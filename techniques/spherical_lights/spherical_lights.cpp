@@ -75,7 +75,7 @@ std::shared_ptr<const Tables> make_tables(int order, int resolution, double log_
   tab->order = order;
   tab->sh = common::accumulation_tables(order, resolution, log_threshold);
   tab->log = make_zh_table(tab->sh->cap_log(), order, true);
-  tab->weight = make_weight_table(order, resolution);
+  tab->weight = weight_table_from(tab->sh->sl_weight(), order);
   return tab;
 }
 
