@@ -151,8 +151,9 @@ struct State {
   common::ReceiverClustering receivers;
 };
 
-// The rotation of M's upper 3x3 (polar decomposition by Higham's iteration X <- (X + X^-T)/2, which
-// converges quadratically for a non-singular X); identity when M is singular or a reflection.
+// The rotation of M's upper 3x3: the polar factor by the Newton iteration X <- (X + X^-T)/2 of
+// Higham 1986, which converges quadratically for a non-singular X; identity when M is singular or
+// a reflection.
 glm::mat3 polar_rotation(glm::mat3 x) {
   const float d0 = glm::determinant(x);
   if (!(std::abs(d0) > 1e-12f) || !std::isfinite(d0)) return glm::mat3(1.0f);
@@ -168,8 +169,8 @@ glm::mat3 polar_rotation(glm::mat3 x) {
 
 // Section 7.1, soft deformations: the SL moves with the average rotation and translation of its
 // associated vertices, the similarity (s, R, t) that best maps their rest positions onto the posed
-// ones in the least-squares sense (the cross-covariance's polar rotation, Umeyama's scale). For a
-// rigidly moved object it is the node's own motion.
+// ones in the least-squares sense (the cross-covariance's polar rotation and the scale of Umeyama
+// 1991). For a rigidly moved object it is the node's own motion.
 struct Similarity {
   glm::mat3 R{1.0f};
   float s = 1.0f;
