@@ -158,6 +158,68 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
 
 }  // namespace
 
+glm::vec3 local_lights_term(const Settings& s, const Tables& t, const SlPose* pose, const std::vector<scene::SphericalLight>& lights,
+                            const glm::vec3& p, const glm::vec3& n) {
+  const int order = s.order, n2 = order * order;
+  if (lights.empty() || !(glm::dot(n, n) > 0.0f)) return glm::vec3(0.0f);
+  std::array<float, sh::kMaxCoeffs> hn{};
+  sh::eval_basis(order, sh::Vec3<float>{n.x, n.y, n.z}, hn.data());
+  const std::vector<double> cc = sh::clamped_cosine_zh(order);
+  for (int l = 0; l < order; ++l)
+    for (int mm = -l; mm <= l; ++mm) hn[sh::index(l, mm)] *= static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+  // Every leaf SL and every light, rule-adjusted, by distance from p: a light is darkened by every
+  // sphere before it (eq. 23; lights belong to no object, so nothing is left out).
+  struct Entry {
+    float key;
+    int light;  // -1: a leaf SL (a blocker only)
+    std::array<float, sh::kMaxCoeffs> G;
+  };
+  std::vector<Entry> e;
+  auto add = [&](const glm::vec3& c, float r, int light) {
+    const AdjustedSphere adj = apply_replacement_rule(s.rule, p, n, c, r);
+    const float dist = glm::length(adj.center - p);
+    if (!(adj.radius > 0.0f) || !(dist > adj.radius)) return;
+    Entry x;
+    x.key = dist - adj.radius;
+    x.light = light;
+    sphere_zh_vector(t.log, p, adj.center, adj.radius, nullptr, x.G.data());
+    e.push_back(x);
+  };
+  if (pose)
+    for (std::size_t i = 0; i < pose->leaves; ++i) add(pose->centre[i], pose->radius[i], -1);
+  for (std::size_t k = 0; k < lights.size(); ++k) add(lights[k].position, lights[k].radius, static_cast<int>(k));
+  std::stable_sort(e.begin(), e.end(), [](const Entry& a, const Entry& b) { return a.key < b.key; });
+  std::vector<float> f, g, prefix(n2, 0.0f);
+  std::vector<int> which;
+  for (const Entry& x : e) {
+    if (x.light >= 0) {
+      which.push_back(x.light);
+      f.insert(f.end(), prefix.begin(), prefix.end());
+      for (int q = 0; q < n2; ++q) f.push_back(prefix[q] + x.G[q]);
+    }
+    for (int q = 0; q < n2; ++q) prefix[q] += x.G[q];
+  }
+  if (which.empty()) return glm::vec3(0.0f);
+  g.resize(f.size());
+  BatchExp be;
+  be.order = order;
+  be.method = s.exp;
+  be.tables = t.sh.get();
+  be.plan = &ProductPlan::get(order);
+  sh::ExpStats es;
+  exp_batch(s.isa, be, f.data(), g.data(), 2 * which.size(), 0, es);
+  glm::vec3 out(0.0f);
+  for (std::size_t a = 0; a < which.size(); ++a) {
+    const float* e0 = g.data() + 2 * a * n2;
+    const float* e1 = e0 + n2;
+    float v = 0.0f;
+    for (int q = 0; q < n2; ++q) v += (e0[q] - e1[q]) * hn[q];
+    // A light's surface emits its radiance uniformly: its average radiance (eq. 16) is that radiance.
+    out += std::max(v, 0.0f) * lights[which[a]].radiance;
+  }
+  return out;
+}
+
 SlList flat_sl_list(const SlPose& pose) {
   SlList l;
   l.sl.resize(pose.leaves);

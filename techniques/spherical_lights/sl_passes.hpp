@@ -61,6 +61,7 @@ struct Settings {
   int clusters = 0;  // receiver clusters (0 = automatic)
   bool hierarchy = true;  // section 7.3
   bool reflection_ratios = true;  // eq. 25
+  bool lights_as_sls = true;      // section 7.3 local lights; false: paper 004's analytic lights
   double theta_max = 0.0;
   PrecomputeOptions pre;
 };
@@ -190,6 +191,13 @@ void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
 // Over every leaf (flat_sl_list).
 void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const glm::vec3& p,
                     const glm::vec3& n, std::vector<float>& vbar, std::vector<glm::vec3>& lbar);
+
+// Section 7.3, local lights "treated like SLs with user-defined intensity distributions": the
+// scene's spherical lights as SLs of constant intensity (their radiance), each darkened by every leaf
+// SL and light closer to p (eqs. 21-24): the sum of radiance x Vbar (E/pi) at receiver (p, n). Without
+// a pose (no proxies), the lights' own caps.
+glm::vec3 local_lights_term(const Settings& s, const Tables& t, const SlPose* pose, const std::vector<scene::SphericalLight>& lights,
+                            const glm::vec3& p, const glm::vec3& n);
 
 // Section 7.3: the cut of every object's SL hierarchy for a receiver cluster bounded by (pR, rR)
 // (nodes with r < sin(theta_max)(|c - pR| - rR) taken whole, paper 004 eq. 36), the intersecting

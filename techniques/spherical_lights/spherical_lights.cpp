@@ -43,6 +43,7 @@ Settings read_settings(const render::ParamSet& p) {
   s.table_resolution = p.get_int("table_resolution");
   s.log_threshold = p.get_float("log_threshold");
   s.lights = p.get_bool("analytic_lights");
+  s.lights_as_sls = p.get_enum("local_lights") == "sl";
   s.isa = common::params::read_kernel(p);
   s.blocking = p.get_enum("blocking") == "per_object" ? Blocking::PerObject : Blocking::PerSphere;
   s.indirect = p.get_bool("indirect");
@@ -534,8 +535,20 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, Stage stage, co
     });
     clamped = cl.load();
   }
+  // Section 7.3: the local lights as SLs, at the sample points (the first pass) and at the vertices.
+  const bool local = s.lights && s.lights_as_sls && !ctx.posed.lights.empty();
+  if (local) {
+    const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+    const SlPose* pose = ctx.has(kSlPose) ? ctx.get<std::shared_ptr<const SlPose>>(kSlPose).get() : nullptr;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rec.size(), 64), [&](const tbb::blocked_range<std::size_t>& br) {
+      for (std::size_t i = br.begin(); i != br.end(); ++i)
+        out->value[i] += local_lights_term(s, t, pose, ctx.posed.lights, glm::vec3(rec.px[i], rec.py[i], rec.pz[i]),
+                                           glm::vec3(rec.nx[i], rec.ny[i], rec.nz[i]));
+    });
+  }
   auto& r = ctx.record();
   r.counters["receivers"] = static_cast<double>(rec.size());
+  r.counters["local_lights_as_sls"] = local ? static_cast<double>(ctx.posed.lights.size()) : 0.0;
   r.counters["shadowed"] = shadowed ? 1.0 : 0.0;
   r.counters["lights"] = lt ? static_cast<double>(ctx.posed.lights.size()) : 0.0;
   r.counters["clamped"] = static_cast<double>(clamped);
@@ -755,6 +768,9 @@ class SphericalLights final : public render::Technique {
     d.push_back(common::params::table_resolution());
     d.push_back(common::params::log_threshold());
     d.push_back(common::params::analytic_lights());
+    d.push_back(ParamDesc::choice("local_lights", "sl", {"sl", "analytic"},
+                                  "how the scene's spherical lights shade (with analytic_lights): as SLs of constant intensity "
+                                  "under the two-exponential visibility (section 7.3), or by paper 004's light-lobe method"));
     d.push_back(common::params::kernel());
     return d;
   }
@@ -769,7 +785,7 @@ class SphericalLights final : public render::Technique {
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);
     render::add_scene_facts(scene, empty);
-    if (scene.lights.empty() || !s.lights) empty.insert(kSphericalLights);
+    if (scene.lights.empty() || !s.lights || s.lights_as_sls) empty.insert(kSphericalLights);
     auto st = state_;
     const auto cpu = render::host_impl;
     const auto kernels = device_kernels().all();
@@ -784,7 +800,7 @@ class SphericalLights final : public render::Technique {
       empty.insert(render::kIndirect);
     }
     render::add_gbuffer_pass(g);
-    g.add({"tables", {render::kScene, kBlockerSpheres}, {}, {kTables},
+    g.add({"tables", {render::kScene}, {}, {kTables},
            "cap log ZH and OL tables (paper 004 section 6.1), w_theta ZH table (section 6.1, eqs. 16-17)",
            cpu([st, s](FrameContext& c) { pass_tables(*st, s, c); })});
     g.add({"light_tables", {kSphericalLights}, {}, {kLightTables}, "L_H(theta, f) single-lobe ZH table (paper 004 section 7)",
@@ -814,7 +830,7 @@ class SphericalLights final : public render::Technique {
                                                    if (!k.exponentiate) return {};
                                                    return [s, stage, f = k.exponentiate](FrameContext& c) { f(s, c, stage); };
                                                  })});
-      g.add({stage == Stage::Samples ? "sample_shading" : "shade", {receivers}, {visibility_resource(stage), kLightTables},
+      g.add({stage == Stage::Samples ? "sample_shading" : "shade", {receivers, kTables}, {visibility_resource(stage), kLightTables, kSlPose},
              {stage == Stage::Samples ? kSampleRadiance : kDirectShading},
              stage == Stage::Samples ? "diffuse reflection at every SL sample point under the SLs' shadows (section 5.1, eqs. 3-8)"
                                      : "direct light: L_H(N) . g per vertex, environment and analytic lights",
