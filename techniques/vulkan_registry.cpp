@@ -2,6 +2,7 @@
 
 #include "image_splat/image_splat_vulkan.hpp"
 #include "shexp/shexp_passes.hpp"
+#include "spherical_lights/sl_passes.hpp"
 #include "softgi/techniques/registry.hpp"
 
 namespace softgi::techniques {
@@ -12,6 +13,7 @@ void register_vulkan_kernels() {
   std::call_once(once, [] {
     shexp::register_vulkan_kernels();
     image_splat::register_vulkan_kernels();
+    spherical_lights::register_vulkan_kernels();
   });
 }
 

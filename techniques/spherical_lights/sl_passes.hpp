@@ -168,6 +168,8 @@ struct DeviceKernels {
 };
 // Registers (or replaces) `backend`'s kernels; plan() adds them to every graph it builds after.
 void register_device_kernels(const std::string& backend, DeviceKernels kernels);
+// The Vulkan backend's kernels (sl_vulkan.cpp; softgi::techniques_vulkan only).
+void register_vulkan_kernels();
 
 // --- The receiver kernel of section 6 -----------------------------------------------------------
 // Per receiver p with normal N: L^I_p / rho = sum_i Lbar_i Vbar_i (eqs. 13-15), Lbar_i = w_theta . L^c

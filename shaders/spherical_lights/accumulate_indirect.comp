@@ -1,0 +1,221 @@
+#version 450
+// Spherical lights' receiver accumulation (paper 001 section 6), one invocation per receiver p with
+// normal N: L^I_p / rho = sum_i Lbar_i Vbar_i (eqs. 13-15). Per SL: the replacement rules of paper
+// 004 section 6.2 (shaders/include/replacement_rule.glsl), its log vector G_i (eq. 34: the cap log
+// ZH table and the SHEXP basis recurrence, as accumulate_log.comp), its average radiance Lbar_i =
+// w_theta . L^c (eqs. 16-18: the w_theta table, turned to the direction of p in the SL's rest
+// frame). The active SLs are sorted by blocking order (section 7.2: per sphere by distance; per
+// object by object-centre distance, object, distance), S_i is the sum of the G of the SLs before S_i
+// less those of its own object that intersect it (eq. 21), and Vbar_i = H(N) . (exp(S_i) -
+// exp(S_i + G_i)) clamped at 0 (eqs. 23-24), the exponentials by the CPU's method (HYB or OL,
+// shaders/include/sh_exp.glsl). The arithmetic follows receiver_terms in techniques/spherical_lights/
+// sl_indirect.cpp step by step; the tables are the CPU's own floats, uploaded. The logs G are
+// recomputed where needed rather than stored: only the SLs' sort keys and order are held per
+// invocation (kSlMaxLights each).
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
+#include "softgi_shared.h"
+#include "sl_shared.h"
+
+layout(constant_id = 0) const uint N = 4;  // SH order
+#define SHEXP_BASIS_BINDING kSlIndBindBasis
+#define SHEXP_BASIS_ORDER N
+#include "sh_basis.glsl"
+#include "accum_math.glsl"
+#include "replacement_rule.glsl"
+#define SH_EXP_N N
+#define SH_EXP_BIND_OL kSlIndBindOl
+#define SH_EXP_BIND_SQ_INDEX kSlIndBindSqIndex
+#define SH_EXP_BIND_SQ_TERMS kSlIndBindSqTerms
+#include "sh_exp.glsl"
+layout(constant_id = 1) const uint RULE = kRuleContinuous;
+layout(constant_id = 2) const uint METHOD = kExpHyb;
+layout(constant_id = 3) const uint BLOCKING = kSlPerSphere;
+layout(local_size_x = kSlIndirectGroup) in;
+
+layout(std430, set = 0, binding = kSlIndBindReceivers) readonly buffer Receivers { float rec[]; };
+layout(std430, set = 0, binding = kSlIndBindSpheres) readonly buffer Spheres { vec4 spheres[]; };
+layout(std430, set = 0, binding = kSlIndBindRotation) readonly buffer Rotation { vec4 rotation[]; };
+layout(std430, set = 0, binding = kSlIndBindObject) readonly buffer Object { uint object[]; };
+layout(std430, set = 0, binding = kSlIndBindObjCentre) readonly buffer ObjCentre { vec4 object_centre[]; };
+layout(std430, set = 0, binding = kSlIndBindInterBegin) readonly buffer InterBegin { uint inter_begin[]; };
+layout(std430, set = 0, binding = kSlIndBindInterList) readonly buffer InterList { uint inter_list[]; };
+layout(std430, set = 0, binding = kSlIndBindIntensity) readonly buffer Intensity { float lc[]; };
+layout(std430, set = 0, binding = kSlIndBindLogTable) readonly buffer LogTable { float log_table[]; };
+layout(std430, set = 0, binding = kSlIndBindWeight) readonly buffer Weight { float weight[]; };
+layout(std430, set = 0, binding = kSlIndBindConsts) readonly buffer Consts { float consts[]; };
+layout(std430, set = 0, binding = kSlIndBindOut) writeonly buffer Out { vec4 outv[]; };
+layout(std430, set = 0, binding = kSlIndBindStatus) buffer Status { uint status[]; };
+layout(push_constant) uniform Push {
+  uint count;         // receivers in all (the planes of rec are this long)
+  uint first;         // first receiver of this dispatch
+  uint end;           // one past the last
+  uint lights;        // SLs
+  uint log_rows;      // rows of the log table
+  uint weight_rows;   // rows of the w_theta table
+  uint ol_count;      // knots of the OL table
+  float log_scale;    // log table: (rows - 1) / (pi/2)
+  float weight_scale; // w_theta table: (rows - 1) / (pi/2)
+} pc;
+
+float hcoef(uint l) { return consts[l]; }
+float zh_rot(uint l) { return consts[N + l]; }
+
+// The SL's sphere after the replacement rules at (P, Nrm); radius 0 where the rules eliminate it or
+// p is not outside it.
+vec4 sl_adjusted(uint k, vec3 P, vec3 Nrm) {
+  const vec4 sph = spheres[k];
+  vec4 adj = apply_replacement_rule(RULE, P, Nrm, sph.xyz, sph.w);
+  const float dist = length(adj.xyz - P);
+  if (!(adj.w > 0.0) || !(dist > adj.w)) adj.w = 0.0;
+  return adj;
+}
+
+// Eq. 34 for a sphere at P (common::sphere_zh_vector): G = F(theta) y(s).
+void sl_log_vector(vec4 adj, vec3 P, out float G[kAccumMaxCoeffs]) {
+  const vec3 d = adj.xyz - P;
+  const float dist = length(d);
+  const float theta = accum_asin01(min(1.0, adj.w / dist));
+  float u = theta * pc.log_scale;
+  if (!(u > 0.0)) u = 0.0;
+  const int kr = min(int(min(u, float(pc.log_rows - 1))), int(pc.log_rows) - 2);
+  const float fr = u - float(kr);
+  const uint row = uint(kr) * 2u * N;
+  float Y[kAccumMaxCoeffs];
+  sh_basis_eval(d / dist, Y);
+  [[unroll]] for (uint l = 0; l < N; ++l) {
+    const float F = log_table[row + 2 * l] + fr * log_table[row + 2 * l + 1];
+    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) G[q] = F * Y[q];
+  }
+}
+
+// Eqs. 16-18: the SL's average radiance towards P (WeightTable::lookup, the rotated ZH dot product).
+vec3 sl_average_radiance(uint k, vec3 P) {
+  const vec4 sph = spheres[k];
+  const vec3 d = P - sph.xyz;
+  const float D = length(d);
+  const float r = sph.w;
+  const float theta = D > r ? accum_asin01(min(1.0, r / D)) : kAccumHalfPi;
+  const vec3 u = D > 0.0 ? d / D : vec3(0.0);
+  // transpose(R) u: into the SL's rest frame.
+  const vec3 dl = D > 0.0 ? vec3(dot(rotation[3 * k].xyz, u), dot(rotation[3 * k + 1].xyz, u), dot(rotation[3 * k + 2].xyz, u))
+                          : vec3(0.0, 0.0, 1.0);
+  const float th = theta > 0.0 ? theta : 0.0;
+  const float x = min(th, kAccumHalfPi) * pc.weight_scale;
+  const int kw = min(int(x), int(pc.weight_rows) - 2);
+  const float f = min(1.0, x - float(kw));
+  float Y[kAccumMaxCoeffs];
+  sh_basis_eval(dl, Y);
+  const uint n2 = N * N, base = k * 3 * n2;
+  vec3 acc = vec3(0.0);
+  [[unroll]] for (uint l = 0; l < N; ++l) {
+    const float a = weight[uint(kw) * N + l], b = weight[uint(kw + 1) * N + l];
+    const float wl = (a + f * (b - a)) * zh_rot(l);
+    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) acc += (wl * Y[q]) * vec3(lc[base + q], lc[base + n2 + q], lc[base + 2 * n2 + q]);
+  }
+  return acc;
+}
+
+float key_[kSlMaxLights];
+uint order_[kSlMaxLights];
+
+// Section 7.2: whether SL a comes before SL b at P.
+bool before(uint a, uint b, vec3 P) {
+  if (BLOCKING == kSlPerObject) {
+    const uint oa = object[a], ob = object[b];
+    const float da = length(object_centre[oa].xyz - P), db = length(object_centre[ob].xyz - P);
+    if (da != db) return da < db;
+    if (oa != ob) return oa < ob;
+  }
+  return key_[a] < key_[b];
+}
+
+void main() {
+  const uint i = pc.first + gl_GlobalInvocationID.x;
+  if (i >= pc.end) return;
+  const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
+  const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
+  if (!(dot(Nrm, Nrm) > 0.0)) {
+    outv[i] = vec4(0.0);
+    return;
+  }
+  const uint n2 = N * N;
+  float hn[kAccumMaxCoeffs];
+  sh_basis_eval(Nrm, hn);
+  [[unroll]] for (uint l = 0; l < N; ++l) {
+    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) hn[q] *= hcoef(l);
+  }
+  // The active SLs (in index order) and their distances from p.
+  uint na = 0, eliminated = 0;
+  for (uint k = 0; k < pc.lights; ++k) {
+    const vec4 adj = sl_adjusted(k, P, Nrm);
+    if (adj.w > 0.0) {
+      key_[k] = length(adj.xyz - P) - adj.w;
+      order_[na++] = k;
+    } else {
+      ++eliminated;
+    }
+  }
+  // Stable insertion sort into blocking order (the CPU's std::stable_sort).
+  for (uint a = 1; a < na; ++a) {
+    const uint x = order_[a];
+    uint b = a;
+    while (b > 0) {
+      const uint y = order_[b - 1];
+      if (!before(x, y, P)) break;
+      order_[b] = y;
+      --b;
+    }
+    order_[b] = x;
+  }
+  float prefix[kAccumMaxCoeffs], S[kAccumMaxCoeffs], G[kAccumMaxCoeffs], e0[kAccumMaxCoeffs];
+  [[unroll]] for (uint q = 0; q < n2; ++q) prefix[q] = 0.0;
+  vec3 acc = vec3(0.0);
+  uint clamped = 0;
+  for (uint a = 0; a < na; ++a) {
+    const uint k = order_[a];
+    [[unroll]] for (uint q = 0; q < n2; ++q) S[q] = prefix[q];
+    // Eq. 21: intersecting SLs of S_k's own object are not its blockers.
+    for (uint t = inter_begin[k]; t < inter_begin[k + 1]; ++t) {
+      const uint j = inter_list[t];
+      const vec4 adj = sl_adjusted(j, P, Nrm);
+      // j darkens k's blockers only if it is active and came before k in the (stable) order.
+      if (adj.w > 0.0 && (before(j, k, P) || (!before(k, j, P) && j < k))) {
+        sl_log_vector(adj, P, G);
+        [[unroll]] for (uint q = 0; q < n2; ++q) S[q] -= G[q];
+      }
+    }
+    sl_log_vector(sl_adjusted(k, P, Nrm), P, G);
+    int s;
+    uint code = sh_exp(S, METHOD, pc.ol_count, 0u, s);
+    [[unroll]] for (uint q = 0; q < n2; ++q) {
+      e0[q] = exp_g[q];
+      S[q] += G[q];
+      prefix[q] += G[q];
+    }
+    if (code == kShExpOk) code = sh_exp(S, METHOD, pc.ol_count, 0u, s);
+    if (code != kShExpOk) {
+      atomicMin(status[code == kShExpBadInput ? kSlStatusBadInput : kSlStatusDcOverflow], i + 1);
+      outv[i] = vec4(0.0);
+      return;
+    }
+    // Eq. 23: V = exp(S) - exp(S + G), the part of the SL's cap no closer SL covers; eq. 24: dotted
+    // with the BRDF vector.
+    float v = 0.0;
+    bool finite = true;
+    [[unroll]] for (uint q = 0; q < n2; ++q) {
+      finite = finite && !isinf(e0[q]) && !isnan(e0[q]) && !isinf(exp_g[q]) && !isnan(exp_g[q]);
+      v += (e0[q] - exp_g[q]) * hn[q];
+    }
+    if (!finite) atomicMin(status[kSlStatusOverflow], i + 1);
+    if (v < 0.0) {
+      v = 0.0;  // SH ringing of the two exponentials; a visibility is never negative
+      ++clamped;
+    }
+    acc += sl_average_radiance(k, P) * v;
+  }
+  outv[i] = vec4(max(acc, vec3(0.0)), 0.0);
+  atomicAdd(status[kSlStatusPairs], na);
+  atomicAdd(status[kSlStatusEliminated], eliminated);
+  atomicAdd(status[kSlStatusClamped], clamped);
+}
