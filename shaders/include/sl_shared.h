@@ -26,7 +26,8 @@ SOFTGI_SL_CONST_UINT(kSlIntBindPrIndex, 4u)   // ProductPlan products: begin, of
 SOFTGI_SL_CONST_UINT(kSlIntBindPrTerms, 5u)   // ProductPlan products: (j | k << 16, v) pairs
 SOFTGI_SL_CONST_UINT(kSlIntBindOut, 6u)       // float[SLs * 3 * n^2]: L^c_S (eq. 11), channel-major per SL
 
-// accumulate_indirect.comp bindings (set 0): section 6.
+// accumulate_indirect.comp bindings (set 0): section 6. The SLs a receiver sums are the entries of
+// its cluster's list (every leaf, or a hierarchy cut); the per-SL arrays below are per list entry.
 SOFTGI_SL_CONST_UINT(kSlIndBindReceivers, 0u)   // float[6 * count]: px, py, pz, nx, ny, nz planes
 SOFTGI_SL_CONST_UINT(kSlIndBindSpheres, 1u)     // vec4 per SL: posed centre, radius
 SOFTGI_SL_CONST_UINT(kSlIndBindRotation, 2u)    // 3 vec4 per SL: the columns of its rotation (rest -> world)
@@ -44,6 +45,10 @@ SOFTGI_SL_CONST_UINT(kSlIndBindSqIndex, 13u)    // ProductPlan squares: begin of
 SOFTGI_SL_CONST_UINT(kSlIndBindSqTerms, 14u)    // ProductPlan squares: (j | k << 16, v) pairs
 SOFTGI_SL_CONST_UINT(kSlIndBindOut, 15u)        // vec4 per receiver: E/pi (rgb), unused
 SOFTGI_SL_CONST_UINT(kSlIndBindStatus, 16u)     // uint[kSlStatusWords]
+SOFTGI_SL_CONST_UINT(kSlIndBindEntrySl, 17u)    // uint per list entry: its SL (row of the intensities)
+SOFTGI_SL_CONST_UINT(kSlIndBindRatio, 18u)      // vec4 per list entry: the reflection ratio t (eq. 25), rgb
+SOFTGI_SL_CONST_UINT(kSlIndBindRList, 19u)      // uint per receiver: its cluster's list (section 7.3)
+SOFTGI_SL_CONST_UINT(kSlIndBindLists, 20u)      // uvec2 per list: first entry, entries
 
 // accumulate_indirect.comp's blocking order (section 7.2; spherical_lights::Blocking).
 SOFTGI_SL_CONST_UINT(kSlPerSphere, 0u)

@@ -46,11 +46,15 @@ layout(std430, set = 0, binding = kSlIndBindWeight) readonly buffer Weight { flo
 layout(std430, set = 0, binding = kSlIndBindConsts) readonly buffer Consts { float consts[]; };
 layout(std430, set = 0, binding = kSlIndBindOut) writeonly buffer Out { vec4 outv[]; };
 layout(std430, set = 0, binding = kSlIndBindStatus) buffer Status { uint status[]; };
+layout(std430, set = 0, binding = kSlIndBindEntrySl) readonly buffer EntrySl { uint entry_sl[]; };
+layout(std430, set = 0, binding = kSlIndBindRatio) readonly buffer Ratio { vec4 ratio[]; };
+layout(std430, set = 0, binding = kSlIndBindRList) readonly buffer RList { uint rlist[]; };
+layout(std430, set = 0, binding = kSlIndBindLists) readonly buffer Lists { uvec2 lists[]; };
 layout(push_constant) uniform Push {
   uint count;         // receivers in all (the planes of rec are this long)
   uint first;         // first receiver of this dispatch
   uint end;           // one past the last
-  uint lights;        // SLs
+  uint lights;        // list entries in all
   uint log_rows;      // rows of the log table
   uint weight_rows;   // rows of the w_theta table
   uint ol_count;      // knots of the OL table
@@ -106,17 +110,19 @@ vec3 sl_average_radiance(uint k, vec3 P) {
   const float f = min(1.0, x - float(kw));
   float Y[kAccumMaxCoeffs];
   sh_basis_eval(dl, Y);
-  const uint n2 = N * N, base = k * 3 * n2;
+  const uint n2 = N * N, base = entry_sl[k] * 3 * n2;
   vec3 acc = vec3(0.0);
   [[unroll]] for (uint l = 0; l < N; ++l) {
     const float a = weight[uint(kw) * N + l], b = weight[uint(kw + 1) * N + l];
     const float wl = (a + f * (b - a)) * zh_rot(l);
     [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) acc += (wl * Y[q]) * vec3(lc[base + q], lc[base + n2 + q], lc[base + 2 * n2 + q]);
   }
-  return acc;
+  // Eq. 26: a parent of the hierarchy scaled by its reflection ratio.
+  return acc * ratio[k].xyz;
 }
 
 float key_[kSlMaxLights];
+uint lb_;  // the first entry of this receiver's list: key_ is indexed from it
 uint order_[kSlMaxLights];
 
 // Section 7.2: whether SL a comes before SL b at P.
@@ -127,7 +133,7 @@ bool before(uint a, uint b, vec3 P) {
     if (da != db) return da < db;
     if (oa != ob) return oa < ob;
   }
-  return key_[a] < key_[b];
+  return key_[a - lb_] < key_[b - lb_];
 }
 
 void main() {
@@ -146,11 +152,13 @@ void main() {
     [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) hn[q] *= hcoef(l);
   }
   // The active SLs (in index order) and their distances from p.
+  const uvec2 list = lists[rlist[i]];
+  lb_ = list.x;
   uint na = 0, eliminated = 0;
-  for (uint k = 0; k < pc.lights; ++k) {
+  for (uint k = list.x; k < list.x + list.y; ++k) {
     const vec4 adj = sl_adjusted(k, P, Nrm);
     if (adj.w > 0.0) {
-      key_[k] = length(adj.xyz - P) - adj.w;
+      key_[k - lb_] = length(adj.xyz - P) - adj.w;
       order_[na++] = k;
     } else {
       ++eliminated;

@@ -62,6 +62,8 @@ struct GpuState {
   std::uint64_t radiance_hash = 0, ranges_hash = 0, basis_hash = 0, albedo_hash = 0;
   // accumulate_indirect
   vk::Buffer spheres, rotation, object, object_centre, inter_begin, inter_list, consts, intensity_in, ind_out, ind_status;
+  vk::Buffer entry_sl, ratio, rlist, list_range;
+  std::uint64_t entry_sl_hash = 0, ratio_hash = 0, rlist_hash = 0, list_range_hash = 0;
   std::uint64_t spheres_hash = 0, rotation_hash = 0, object_hash = 0, object_centre_hash = 0, inter_begin_hash = 0,
                 inter_list_hash = 0, consts_hash = 0, intensity_in_hash = 0;
 };
@@ -273,18 +275,25 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   const Tables& t = *tp;
   const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  const auto& cuts = *ctx.get<std::shared_ptr<const SlCuts>>(kSlCuts);
   const int n = s.order, n2 = n * n;
   const std::size_t m = pose.size(), count = r.soa.size(), objects = pose.object_centre.size();
-  if (m > gpu::kSlMaxLights)
-    throw std::invalid_argument("spherical_lights accumulate_indirect on vulkan: " + std::to_string(m) +
-                                " spherical lights exceed the shader's bound of " + std::to_string(gpu::kSlMaxLights) +
-                                " per receiver (use fewer proxy spheres, or --backend cpu)");
+  std::size_t entries = 0, longest = 0;
+  for (const auto& l : cuts.lists) {
+    entries += l.sl.size();
+    longest = std::max(longest, l.sl.size());
+  }
+  if (longest > gpu::kSlMaxLights)
+    throw std::invalid_argument("spherical_lights accumulate_indirect on vulkan: a receiver cluster sums " + std::to_string(longest) +
+                                " spherical lights, above the shader's bound of " + std::to_string(gpu::kSlMaxLights) +
+                                " (use the hierarchy, fewer proxy spheres, or --backend cpu)");
   if (t.log.order != n || t.weight.order != n || t.weight.rows < 2 || t.log.rows < 2)
     throw std::logic_error("spherical_lights accumulate_indirect on vulkan: tables of another order");
   check_count(count, "receivers", "accumulate_indirect");
   check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", "accumulate_indirect");
   check_fits(dev, count * 4 * sizeof(float), "the indirect shading of " + std::to_string(count) + " receivers", "accumulate_indirect");
   check_fits(dev, m * 3 * n2 * sizeof(float), "the intensities of " + std::to_string(m) + " SLs", "accumulate_indirect");
+  check_fits(dev, entries * 12 * sizeof(float), "the rotations of " + std::to_string(entries) + " SLs in the cluster lists", "accumulate_indirect");
 
   // The intensities where intensity_update left them on the device, else uploaded from the host.
   const DeviceField* dlc = device_field(ctx, kIntensity);
@@ -294,21 +303,38 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   if (lc_floats != m * 3 * n2 || (dlc ? dlc->order : hlc->order) != n)
     throw std::logic_error("spherical_lights accumulate_indirect on vulkan: the intensities do not match the " + std::to_string(m) + " SLs");
 
-  // The SLs: spheres, rotations, objects, object centres and the intersecting lists as CSR arrays.
-  std::vector<float> spheres(std::max<std::size_t>(1, m) * 4, 0.0f), rotation(std::max<std::size_t>(1, m) * 12, 0.0f),
+  // The cluster lists' entries (section 7.3), concatenated: spheres, rotations, objects, SLs, ratios
+  // and the intersecting entries as CSR arrays; per receiver its cluster's list.
+  const std::size_t rows = std::max<std::size_t>(1, entries);
+  std::vector<float> spheres(rows * 4, 0.0f), rotation(rows * 12, 0.0f), ratio(rows * 4, 1.0f),
       centres(std::max<std::size_t>(1, objects) * 4, 0.0f);
-  std::vector<std::uint32_t> object(std::max<std::size_t>(1, m), 0u), inter_begin(m + 1, 0u), inter_list;
-  for (std::size_t i = 0; i < m; ++i) {
-    spheres[4 * i] = pose.centre[i].x;
-    spheres[4 * i + 1] = pose.centre[i].y;
-    spheres[4 * i + 2] = pose.centre[i].z;
-    spheres[4 * i + 3] = pose.radius[i];
-    for (int c = 0; c < 3; ++c)
-      for (int k = 0; k < 3; ++k) rotation[12 * i + 4 * c + k] = pose.rotation[i][c][k];
-    object[i] = static_cast<std::uint32_t>(pose.object[i]);
-    for (int j : pose.intersecting[i]) inter_list.push_back(static_cast<std::uint32_t>(j));
-    inter_begin[i + 1] = static_cast<std::uint32_t>(inter_list.size());
+  std::vector<std::uint32_t> object(rows, 0u), entry_sl(rows, 0u), inter_begin(entries + 1, 0u), inter_list;
+  std::vector<std::uint32_t> list_range(2 * std::max<std::size_t>(1, cuts.lists.size()), 0u);
+  std::size_t e = 0;
+  for (std::size_t li = 0; li < cuts.lists.size(); ++li) {
+    const SlList& l = cuts.lists[li];
+    const std::size_t begin = e;
+    list_range[2 * li] = static_cast<std::uint32_t>(begin);
+    list_range[2 * li + 1] = static_cast<std::uint32_t>(l.sl.size());
+    for (std::size_t a = 0; a < l.sl.size(); ++a, ++e) {
+      const int i = l.sl[a];
+      spheres[4 * e] = pose.centre[i].x;
+      spheres[4 * e + 1] = pose.centre[i].y;
+      spheres[4 * e + 2] = pose.centre[i].z;
+      spheres[4 * e + 3] = pose.radius[i];
+      for (int c = 0; c < 3; ++c)
+        for (int k = 0; k < 3; ++k) rotation[12 * e + 4 * c + k] = pose.rotation[i][c][k];
+      object[e] = static_cast<std::uint32_t>(pose.object[i]);
+      entry_sl[e] = static_cast<std::uint32_t>(i);
+      if (!l.ratio.empty())
+        for (int c = 0; c < 3; ++c) ratio[4 * e + c] = l.ratio[a][c];
+      for (int j : l.intersecting[a]) inter_list.push_back(static_cast<std::uint32_t>(begin + j));
+      inter_begin[e + 1] = static_cast<std::uint32_t>(inter_list.size());
+    }
   }
+  std::vector<std::uint32_t> rlist(std::max<std::size_t>(1, count), 0u);
+  for (std::size_t c = 0; c < r.clusters.size(); ++c)
+    for (std::size_t i = r.clusters[c].begin; i < r.clusters[c].end; ++i) rlist[i] = static_cast<std::uint32_t>(cuts.list_of_cluster[c]);
   if (inter_list.empty()) inter_list.push_back(0u);
   for (std::size_t o = 0; o < objects; ++o)
     for (int k = 0; k < 3; ++k) centres[4 * o + k] = pose.object_centre[o][k];
@@ -334,6 +360,10 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   put_if_changed(dev, g.inter_begin, g.inter_begin_hash, inter_begin, "spherical_lights intersecting offsets");
   put_if_changed(dev, g.inter_list, g.inter_list_hash, inter_list, "spherical_lights intersecting lists");
   put_if_changed(dev, g.consts, g.consts_hash, consts, "spherical_lights indirect constants");
+  put_if_changed(dev, g.entry_sl, g.entry_sl_hash, entry_sl, "spherical_lights list entries");
+  put_if_changed(dev, g.ratio, g.ratio_hash, ratio, "spherical_lights reflection ratios");
+  put_if_changed(dev, g.rlist, g.rlist_hash, rlist, "spherical_lights receiver lists");
+  put_if_changed(dev, g.list_range, g.list_range_hash, list_range, "spherical_lights list ranges");
   if (!dlc) put_if_changed(dev, g.intensity_in, g.intensity_in_hash, hlc->v, "spherical_lights intensity input");
   const std::size_t uploaded = dev.transfer_bytes().upload - before;
   const vk::Buffer& lc = dlc ? *dlc->buffer : g.intensity_in;
@@ -363,12 +393,14 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
       vk::Bind::buffer_at(gpu::kSlIndBindConsts, g.consts),               vk::Bind::buffer_at(gpu::kSlIndBindBasis, basis),
       vk::Bind::buffer_at(gpu::kSlIndBindOl, g.ol),                       vk::Bind::buffer_at(gpu::kSlIndBindSqIndex, plan.sq_begin),
       vk::Bind::buffer_at(gpu::kSlIndBindSqTerms, plan.sq_terms),         vk::Bind::buffer_at(gpu::kSlIndBindOut, g.ind_out),
-      vk::Bind::buffer_at(gpu::kSlIndBindStatus, g.ind_status)};
+      vk::Bind::buffer_at(gpu::kSlIndBindStatus, g.ind_status),           vk::Bind::buffer_at(gpu::kSlIndBindEntrySl, g.entry_sl),
+      vk::Bind::buffer_at(gpu::kSlIndBindRatio, g.ratio),                 vk::Bind::buffer_at(gpu::kSlIndBindRList, g.rlist),
+      vk::Bind::buffer_at(gpu::kSlIndBindLists, g.list_range)};
   const float weight_scale = static_cast<float>((t.weight.rows - 1) / kHalfPi);
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("accumulate_indirect");
     dispatch_chunks<Push>(rec, p, binds, count, gpu::kSlIndirectGroup, [&](std::uint32_t first, std::uint32_t end) {
-      return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(m), static_cast<std::uint32_t>(t.log.rows),
+      return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(entries), static_cast<std::uint32_t>(t.log.rows),
                   static_cast<std::uint32_t>(t.weight.rows), g.ol_count, t.log.scale, weight_scale};
     });
     rec.end_timer();

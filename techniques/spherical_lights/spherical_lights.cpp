@@ -596,7 +596,6 @@ void pass_receivers(State& st, const Settings& s, FrameContext& ctx) {
 void pass_cut(const Settings& s, FrameContext& ctx) {
   const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
   const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
-  const auto& lc = *ctx.get<std::shared_ptr<const Intensity>>(kIntensity);
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
   auto cuts = std::make_shared<SlCuts>();
   const SlList flat = flat_sl_list(pose);
@@ -604,6 +603,8 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
   bool any_tree = false;
   for (const auto& tr : pose.trees) any_tree |= tr != nullptr;
   if (s.hierarchy && any_tree) {
+    // The ratios need the intensities on the host (a device backend's copy is read back here).
+    const auto& lc = *ctx.get<std::shared_ptr<const Intensity>>(kIntensity);
     cuts->lists.resize(nc);
     cuts->list_of_cluster.resize(nc);
     tbb::parallel_for(0, nc, [&](int c) {
