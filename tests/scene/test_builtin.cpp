@@ -316,8 +316,9 @@ TEST(Builtin, Box1AndBox8BoundTheSameCube) {
   ASSERT_EQ(one.proxies[0].spheres.size(), 1u);
   ASSERT_EQ(eight.proxies[0].spheres.size(), 8u);
   // The same posed cube (0.8 m, on the plane, turned about +y so that two faces face the camera).
-  const auto& a = object_of(scene::evaluate(one, 0.0), one.proxies[0].node).positions;
-  const auto& b = object_of(scene::evaluate(eight, 0.0), eight.proxies[0].node).positions;
+  // Copies: the posed scenes are temporaries.
+  const std::vector<glm::vec3> a = object_of(scene::evaluate(one, 0.0), one.proxies[0].node).positions;
+  const std::vector<glm::vec3> b = object_of(scene::evaluate(eight, 0.0), eight.proxies[0].node).positions;
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i], b[i]);
   float lo = 1e9f, hi = -1e9f;
@@ -368,8 +369,9 @@ TEST(Builtin, BendIsStraightAtZeroNinetyDegreesAtOneAndOneEightyAtTwoSeconds) {
     EXPECT_GT(glm::dot(d, dir), 0.9999f) << "t=" << t << ": end axis (" << d.x << ", " << d.y << ", " << d.z << ")";
   }
   // The held state equals the 180 degree one.
-  const auto& at2 = object_of(scene::evaluate(s, 2.0), ps.node).positions;
-  const auto& at3 = object_of(scene::evaluate(s, 3.0), ps.node).positions;
+  // Copies: the posed scenes are temporaries.
+  const std::vector<glm::vec3> at2 = object_of(scene::evaluate(s, 2.0), ps.node).positions;
+  const std::vector<glm::vec3> at3 = object_of(scene::evaluate(s, 3.0), ps.node).positions;
   for (std::size_t v = 0; v < at2.size(); ++v) ASSERT_LT(glm::length(at2[v] - at3[v]), 1e-6f);
 
   // Over the bend: above the ground, no triangle turned inside out, volume kept, and at 180 degrees
