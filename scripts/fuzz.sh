@@ -74,6 +74,8 @@ ninja -C "$BUILD" -j "$JOBS" "${TARGETS[@]/#/fuzz_}"
 symbolizer="$(command -v llvm-symbolizer || command -v llvm-symbolizer-14 || true)"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=0${symbolizer:+:external_symbolizer_path=$symbolizer}"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+# Leaks inside third-party libraries that softgi cannot free, each named with its reason there.
+export LSAN_OPTIONS="suppressions=$ROOT/tests/fuzz/lsan.supp:print_suppressions=0"
 failed=()
 for t in "${TARGETS[@]}"; do
   corpus="$(corpus_of "$t")"
