@@ -23,6 +23,36 @@ double product_flops(const ProductPlan& p) {
   return f;
 }
 
+// rho_N of eq. 24 in SH: the clamped cosine about n over pi (E/pi per unit radiance), n^2 floats.
+std::array<float, sh::kMaxCoeffs> brdf_vector(int order, const glm::vec3& n) {
+  std::array<float, sh::kMaxCoeffs> hn{};
+  sh::eval_basis(order, sh::Vec3<float>{n.x, n.y, n.z}, hn.data());
+  const std::vector<double> cc = sh::clamped_cosine_zh(order);
+  for (int l = 0; l < order; ++l)
+    for (int mm = -l; mm <= l; ++mm) hn[sh::index(l, mm)] *= static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+  return hn;
+}
+
+// The SH exponentials of `count` log vectors f into g (receiver-major, order^2 each) by the
+// technique's method; returns their squares and products.
+sh::ExpStats exponentiate(const Settings& s, const Tables& t, const float* f, float* g, std::size_t count) {
+  BatchExp be;
+  be.order = s.order;
+  be.method = s.exp;
+  be.tables = t.sh.get();
+  be.plan = &ProductPlan::get(s.order);
+  sh::ExpStats es;
+  exp_batch(s.isa, be, f, g, count, 0, es);
+  return es;
+}
+
+// Eqs. 23-24: rho_N . (exp(S) - exp(S + G)) for the exponentials e0 = exp(S), e1 = exp(S + G).
+float pair_visibility(const float* e0, const float* e1, const std::array<float, sh::kMaxCoeffs>& hn, int n2) {
+  float v = 0.0f;
+  for (int q = 0; q < n2; ++q) v += (e0[q] - e1[q]) * hn[q];
+  return v;
+}
+
 struct Scratch {
   std::vector<float> G;           // per SL: log vector of its (rule-adjusted) sphere, n^2
   std::vector<float> key;         // per SL: distance from p to its adjusted sphere
@@ -45,13 +75,9 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
   vbar.assign(m, 0.0f);
   lbar.assign(m, glm::vec3(0.0f));
 
-  std::array<float, sh::kMaxCoeffs> y{}, hn{};
-  sh::eval_basis(order, sh::Vec3<float>{n.x, n.y, n.z}, hn.data());
-  const std::vector<double> cc = sh::clamped_cosine_zh(order);
-  std::array<float, kMaxAccOrder> hcoef{}, wrot{};
-  for (int l = 0; l < order; ++l) hcoef[l] = static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
-  for (int l = 0; l < order; ++l)
-    for (int mm = -l; mm <= l; ++mm) hn[sh::index(l, mm)] *= hcoef[l];
+  std::array<float, sh::kMaxCoeffs> y{};
+  const std::array<float, sh::kMaxCoeffs> hn = brdf_vector(order, n);
+  std::array<float, kMaxAccOrder> wrot{};
 
   for (std::size_t k = 0; k < m; ++k) {
     const int slk = list.sl[k];
@@ -129,23 +155,16 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
       sc.prefix[q] += Gi[q];
     }
   }
-  BatchExp be;
-  be.order = order;
-  be.method = s.exp;
-  be.tables = t.sh.get();
-  be.plan = &ProductPlan::get(order);
-  sh::ExpStats es;
-  exp_batch(s.isa, be, sc.f.data(), sc.g.data(), 2 * na, 0, es);
+  const sh::ExpStats es = exponentiate(s, t, sc.f.data(), sc.g.data(), 2 * na);
+  const ProductPlan& plan = ProductPlan::get(order);
   st.exps += static_cast<long long>(2 * na);
-  st.exp_flops += es.squares * square_flops(*be.plan) + es.products * product_flops(*be.plan);
+  st.exp_flops += es.squares * square_flops(plan) + es.products * product_flops(plan);
   // Eq. 23: V = exp(S) - exp(S + G_i), the part of S_i's cap no closer SL covers; eq. 24: dotted
   // with the BRDF vector.
   for (std::size_t a = 0; a < na; ++a) {
     const int i = sc.order[a];
     const float* e0 = sc.g.data() + 2 * a * n2;
-    const float* e1 = e0 + n2;
-    float v = 0.0f;
-    for (int q = 0; q < n2; ++q) v += (e0[q] - e1[q]) * hn[q];
+    float v = pair_visibility(e0, e0 + n2, hn, n2);
     if (v < 0.0f) {
       // SH ringing of the two exponentials; a visibility is never negative.
       v = 0.0f;
@@ -162,11 +181,7 @@ glm::vec3 local_lights_term(const Settings& s, const Tables& t, const SlPose* po
                             const glm::vec3& p, const glm::vec3& n) {
   const int order = s.order, n2 = order * order;
   if (lights.empty() || !(glm::dot(n, n) > 0.0f)) return glm::vec3(0.0f);
-  std::array<float, sh::kMaxCoeffs> hn{};
-  sh::eval_basis(order, sh::Vec3<float>{n.x, n.y, n.z}, hn.data());
-  const std::vector<double> cc = sh::clamped_cosine_zh(order);
-  for (int l = 0; l < order; ++l)
-    for (int mm = -l; mm <= l; ++mm) hn[sh::index(l, mm)] *= static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+  const std::array<float, sh::kMaxCoeffs> hn = brdf_vector(order, n);
   // Every leaf SL and every light, rule-adjusted, by distance from p: a light is darkened by every
   // sphere before it (eq. 23; lights belong to no object, so nothing is left out).
   struct Entry {
@@ -201,19 +216,11 @@ glm::vec3 local_lights_term(const Settings& s, const Tables& t, const SlPose* po
   }
   if (which.empty()) return glm::vec3(0.0f);
   g.resize(f.size());
-  BatchExp be;
-  be.order = order;
-  be.method = s.exp;
-  be.tables = t.sh.get();
-  be.plan = &ProductPlan::get(order);
-  sh::ExpStats es;
-  exp_batch(s.isa, be, f.data(), g.data(), 2 * which.size(), 0, es);
+  exponentiate(s, t, f.data(), g.data(), 2 * which.size());
   glm::vec3 out(0.0f);
   for (std::size_t a = 0; a < which.size(); ++a) {
     const float* e0 = g.data() + 2 * a * n2;
-    const float* e1 = e0 + n2;
-    float v = 0.0f;
-    for (int q = 0; q < n2; ++q) v += (e0[q] - e1[q]) * hn[q];
+    const float v = pair_visibility(e0, e0 + n2, hn, n2);
     // A light's surface emits its radiance uniformly: its average radiance (eq. 16) is that radiance.
     out += std::max(v, 0.0f) * lights[which[a]].radiance;
   }
