@@ -35,13 +35,7 @@ constexpr int kDisplay = 1024;       // paper 000 section 6: renderings at 1024x
 constexpr int kReceiverScale = 4;    // 256x256 receiver buffer
 constexpr double kFrameStep = 1.0 / 30.0;
 
-void BM_FmaPeak(benchmark::State& state) {
-  const int threads = static_cast<int>(state.range(0));
-  double best = 0.0;
-  for (auto _ : state) best = std::max(best, softgi::bench::fma_gflops(threads, 20'000'000));
-  state.counters["GFLOP/s"] = best;
-  if (threads == 2) softgi::bench::record_peak(best);
-}
+using softgi::bench::BM_FmaPeak;
 BENCHMARK(BM_FmaPeak)->Arg(1)->Arg(2)->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 const char* const kKernels[] = {"auto", "avx512", "avx2", "scalar"};

@@ -55,13 +55,7 @@ namespace sx = softgi::techniques::shexp;
 using softgi::bench::fma_gflops;
 using softgi::bench::peak_gflops;
 
-void BM_FmaPeak(benchmark::State& state) {
-  const int threads = static_cast<int>(state.range(0));
-  double best = 0.0;
-  for (auto _ : state) best = std::max(best, fma_gflops(threads, 20'000'000));
-  state.counters["GFLOP/s"] = best;
-  if (threads == 2) softgi::bench::record_peak(best);
-}
+using softgi::bench::BM_FmaPeak;
 BENCHMARK(BM_FmaPeak)->Arg(1)->Arg(2)->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // --- the accumulation kernel --------------------------------------------------------------------

@@ -27,13 +27,7 @@ namespace {
 constexpr int kDisplay = 512;
 constexpr double kFrameStep = 1.0 / 30.0;
 
-void BM_FmaPeak(benchmark::State& state) {
-  const int threads = static_cast<int>(state.range(0));
-  double best = 0.0;
-  for (auto _ : state) best = std::max(best, softgi::bench::fma_gflops(threads, 20'000'000));
-  state.counters["GFLOP/s"] = best;
-  if (threads == 2) softgi::bench::record_peak(best);
-}
+using softgi::bench::BM_FmaPeak;
 BENCHMARK(BM_FmaPeak)->Arg(1)->Arg(2)->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 const scene::Scene& scene_named(const std::string& name) {
