@@ -315,6 +315,37 @@ TEST(io_gltf, TruncatedGlbIsAnError) {
   EXPECT_NE(error_of([&] { load_gltf(dir.file("cut.glb"), s); }).find("truncated GLB"), std::string::npos);
 }
 
+// A BIN chunk that declares more bytes than follow its header, with the file's total length
+// consistent with the cut: the payload must not be read from beyond the file.
+TEST(io_gltf, BinChunkLongerThanTheFileIsAnError) {
+  ScratchDir dir;
+  GltfBuilder b;
+  add_quad_mesh(b, true);
+  std::vector<unsigned char> bytes = b.glb();
+  const auto u32_at = [&](std::size_t at) {
+    return std::uint32_t(bytes[at]) | std::uint32_t(bytes[at + 1]) << 8 | std::uint32_t(bytes[at + 2]) << 16 |
+           std::uint32_t(bytes[at + 3]) << 24;
+  };
+  const std::size_t bin_header = 20 + u32_at(12);
+  ASSERT_LT(bin_header + 8, bytes.size()) << "the builder's GLB has a BIN chunk";
+  ASSERT_EQ(bin_header + 8 + u32_at(bin_header), bytes.size());
+  // Less than the 8 bytes tinygltf's own bound leaves out.
+  const std::uint32_t cut = 4;
+  bytes.resize(bytes.size() - cut);
+  const std::uint32_t length = u32_at(8) - cut;
+  for (int i = 0; i < 4; ++i) bytes[8 + i] = static_cast<unsigned char>(length >> (8 * i));
+  softgi::test::write_bytes(dir.file("longbin.glb"), bytes);
+  Scene s;
+  const std::string e = error_of([&] { load_gltf(dir.file("longbin.glb"), s); });
+  EXPECT_NE(e.find("longbin.glb: truncated GLB: the BIN chunk declares"), std::string::npos) << e;
+  // A tail too short for a chunk header.
+  bytes.resize(bin_header + 4);
+  for (int i = 0; i < 4; ++i) bytes[8 + i] = static_cast<unsigned char>((bin_header + 4) >> (8 * i));
+  softgi::test::write_bytes(dir.file("longbin.glb"), bytes);
+  EXPECT_NE(error_of([&] { load_gltf(dir.file("longbin.glb"), s); }).find("too few for a chunk header"),
+            std::string::npos);
+}
+
 TEST(io_gltf, MissingAndMalformedFilesAreErrors) {
   ScratchDir dir;
   Scene s;

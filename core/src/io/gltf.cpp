@@ -211,6 +211,20 @@ struct Loader {
         fail("truncated GLB: the JSON chunk declares " + std::to_string(json_len) + " bytes, beyond the file's " +
              std::to_string(length));
       }
+      // tinygltf bounds the BIN chunk's payload by the file length without the chunk's own 8-byte
+      // header, so a payload declared up to 8 bytes too long would be copied from beyond the file.
+      const std::uint64_t bin_begin = 20 + std::uint64_t(json_len);
+      if (bin_begin < length) {
+        if (bin_begin + 8 > length) {
+          fail("truncated GLB: " + std::to_string(length - bin_begin) +
+               " bytes follow the JSON chunk, too few for a chunk header (8)");
+        }
+        const std::uint32_t bin_len = u32(bytes.data() + bin_begin);
+        if (bin_begin + 8 + bin_len > length) {
+          fail("truncated GLB: the BIN chunk declares " + std::to_string(bin_len) + " bytes but " +
+               std::to_string(length - bin_begin - 8) + " follow its header");
+        }
+      }
       check_json_depth(reinterpret_cast<const char*>(bytes.data() + 20), json_len, "the GLB JSON chunk");
       const std::string json(reinterpret_cast<const char*>(bytes.data() + 20), json_len);
       std::string rewritten = rewrite_draco_json(json);
