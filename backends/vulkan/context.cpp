@@ -193,6 +193,8 @@ DeviceInfo describe_device(VkPhysicalDevice pd, int index) {
     d.driver_name = driver.driverName;
     d.driver_info = driver.driverInfo;
     d.subgroup_size = subgroup.subgroupSize;
+    // gallivm's LP_MAX_TGSI_LOOP_ITERATIONS: one counter for every loop of the invocation.
+    if (driver.driverID == VK_DRIVER_ID_MESA_LLVMPIPE) d.loop_iteration_limit = 65535;
     d.max_allocation_bytes = maint3.maxMemoryAllocationSize;
   }
   d.name = base.deviceName;
@@ -381,6 +383,7 @@ Context::Context(const ContextOptions& options) : options_(options), fence_timeo
     const int sel = select_device(infos, request);
     physical_ = pds[sel];
     info_ = infos[sel];
+    if (options.loop_iteration_limit > 0) info_.loop_iteration_limit = options.loop_iteration_limit;
     const int qf = pick_queue_family(physical_, nullptr);
     if (qf < 0) throw std::runtime_error("vulkan: device '" + info_.name + "' has no compute queue");
     queue_family_ = static_cast<std::uint32_t>(qf);

@@ -4,6 +4,7 @@
 // batch_body.hpp exp_block), shared with the other shaders that exponentiate in
 // shaders/include/sh_exp.glsl (which documents the methods).
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 #include "softgi_shared.h"
 
 layout(constant_id = 0) const uint N = 4;       // accumulation order
@@ -29,7 +30,20 @@ layout(push_constant) uniform Push {
   uint end;       // one past the last
   uint ol_count;  // knots of the OL table
   uint degree;    // series degree p (PS*, PS)
+  uint budget;    // loop iterations an invocation may run (0xffffffff: no limit; see below)
+  uint sq_terms;  // terms of one square (ProductPlan)
+  uint pr_terms;  // terms of one product
 } pc;
+
+// Mesa's llvmpipe ends every loop of an invocation once its loops together have iterated 65535
+// times (one counter per SIMD batch), which would silently cut the squarings or the series short.
+// An upper bound of the batch's iterations (the subgroup's most squarings): the input and output
+// loops, the OL search, the series' products and squares, then the squarings (rows, terms, copy).
+uint loop_cost(int s) {
+  const uint n2 = N * N, step = 2u * n2 + max(pc.sq_terms, pc.pr_terms);
+  const uint series = METHOD == kExpPs || METHOD == kExpPsStar ? (pc.degree + 1u) * step : 0u;
+  return 5u * n2 + 16u + series + uint(s) * (2u * n2 + pc.sq_terms);
+}
 
 void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
@@ -39,6 +53,7 @@ void main() {
   for (uint k = 0; k < n2; ++k) f[k] = f_in[base + k];
   int s;
   const uint code = sh_exp(f, METHOD, pc.ol_count, pc.degree, s);
+  if (pc.budget != 0xffffffffu && loop_cost(subgroupMax(s)) > pc.budget) atomicMin(status[kExpStatusLoopBudget], i + 1);
   if (code == kShExpBadInput) {
     atomicMin(status[kExpStatusBadInput], i + 1);
     return;

@@ -108,6 +108,17 @@ void sh_exp_ol_lookup(float norm, uint m, out float a, out float b) {
   b = ol[2 * m + lo] + w * (ol[2 * m + lo + 1] - ol[2 * m + lo]);
 }
 
+// The squarings sh_exp does for a vector whose non-DC part has norm `norm` (sh::paper_squarings:
+// ||f^|| / 2^s in [1/8, 1/4)); 0 for the methods that do not square.
+int sh_exp_squarings(float norm, uint method) {
+  if ((method == kExpHyb || method == kExpPsStar) && norm > 0.0 && !isinf(norm)) {
+    int e;
+    frexp(norm, e);  // floor(log2 norm) = e - 1
+    return max(0, e + 2);
+  }
+  return 0;
+}
+
 // exp_g = exp*(f) by `method` (kExp*; PS* and PS only with SH_EXP_SERIES), `s` the squarings done.
 // ol_count: knots of the OL table; degree: the series degree p (PS*, PS). Returns kShExpOk, or
 // kShExpBadInput / kShExpDcOverflow with exp_g unset. Overflow of the result is the caller's check.
@@ -123,11 +134,7 @@ uint sh_exp(in float f[kAccumMaxCoeffs], uint method, uint ol_count, uint degree
   }
   if (!finite) return kShExpBadInput;
   const float norm = sqrt(norm2);
-  if ((method == kExpHyb || method == kExpPsStar) && norm > 0.0 && !isinf(norm)) {
-    int e;
-    frexp(norm, e);  // floor(log2 norm) = e - 1 (sh::paper_squarings)
-    s = max(0, e + 2);
-  }
+  s = sh_exp_squarings(norm, method);
   const float scale = ldexp(1.0, -s);
   const float dc = exp(f[0] / kSqrt4Pi * scale);
   if (isinf(dc)) return kShExpDcOverflow;

@@ -13,8 +13,8 @@ namespace softgi::gpu {
 
 SOFTGI_SL_CONST_UINT(kSlIntensityGroup, 64u)  // invocations (SL x channel) per workgroup
 SOFTGI_SL_CONST_UINT(kSlIndirectGroup, 64u)   // receivers per workgroup
-// The most SLs accumulate_indirect.comp sorts per receiver (its per-invocation key and order
-// arrays are this long); the host refuses more.
+// The most SLs accumulate_indirect.comp orders per receiver (its per-invocation key arrays are this
+// long); the host refuses more.
 SOFTGI_SL_CONST_UINT(kSlMaxLights, 512u)
 
 // intensity.comp bindings (set 0): section 5.2, eqs. 10-11.
@@ -49,6 +49,12 @@ SOFTGI_SL_CONST_UINT(kSlIndBindEntrySl, 17u)    // uint per list entry: its SL (
 SOFTGI_SL_CONST_UINT(kSlIndBindRatio, 18u)      // vec4 per list entry: the reflection ratio t (eq. 25), rgb
 SOFTGI_SL_CONST_UINT(kSlIndBindRList, 19u)      // uint per receiver: its cluster's list (section 7.3)
 SOFTGI_SL_CONST_UINT(kSlIndBindLists, 20u)      // uvec2 per list: first entry, entries
+SOFTGI_SL_CONST_UINT(kSlIndBindState, 21u)      // float[(n^2 + 4) * count]: per receiver the pass state
+                                                // (prefix sum of G, the sum so far (rgb), last SL)
+// accumulate_indirect.comp's per-receiver state: the last SL summed (the bits of a uint in the state's
+// last float), none yet, or the receiver done.
+SOFTGI_SL_CONST_UINT(kSlStateNone, 0xffffffffu)
+SOFTGI_SL_CONST_UINT(kSlStateDone, 0xfffffffeu)
 
 // accumulate_indirect.comp's blocking order (section 7.2; spherical_lights::Blocking).
 SOFTGI_SL_CONST_UINT(kSlPerSphere, 0u)
@@ -60,7 +66,9 @@ SOFTGI_SL_CONST_UINT(kSlStatusClamped, 2u)     // Vbar below 0 set to 0
 SOFTGI_SL_CONST_UINT(kSlStatusBadInput, 3u)    // a non-finite log coefficient
 SOFTGI_SL_CONST_UINT(kSlStatusDcOverflow, 4u)  // a DC factor overflowed
 SOFTGI_SL_CONST_UINT(kSlStatusOverflow, 5u)    // an exponential overflowed
-SOFTGI_SL_CONST_UINT(kSlStatusWords, 6u)
+SOFTGI_SL_CONST_UINT(kSlStatusUnfinished, 6u)  // receivers that stopped at the pass's loop budget
+SOFTGI_SL_CONST_UINT(kSlStatusBudget, 7u)      // one SL's work alone exceeds the loop budget
+SOFTGI_SL_CONST_UINT(kSlStatusWords, 8u)
 
 #undef SOFTGI_SL_CONST_UINT
 #ifdef __cplusplus

@@ -46,7 +46,8 @@ SOFTGI_CONST_UINT(kExpStatusSquarings, 0u)
 SOFTGI_CONST_UINT(kExpStatusBadInput, 1u)    // first receiver with a non-finite log coefficient + 1 (atomicMin of i + 1; 0xffffffff none)
 SOFTGI_CONST_UINT(kExpStatusOverflow, 2u)    // first receiver whose result overflowed + 1 (same convention)
 SOFTGI_CONST_UINT(kExpStatusDcOverflow, 3u)  // first receiver whose DC factor overflowed + 1
-SOFTGI_CONST_UINT(kExpStatusWords, 4u)
+SOFTGI_CONST_UINT(kExpStatusLoopBudget, 4u)  // first receiver whose loops exceed the driver's limit + 1
+SOFTGI_CONST_UINT(kExpStatusWords, 5u)
 
 // accumulate_log bindings (set 0)
 SOFTGI_CONST_UINT(kAccBindReceivers, 0u)     // float[6 * count]: px, py, pz, nx, ny, nz planes

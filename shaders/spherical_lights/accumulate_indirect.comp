@@ -4,16 +4,26 @@
 // 004 section 6.2 (shaders/include/replacement_rule.glsl), its log vector G_i (eq. 34: the cap log
 // ZH table and the SHEXP basis recurrence, as accumulate_log.comp), its average radiance Lbar_i =
 // w_theta . L^c (eqs. 16-18: the w_theta table, turned to the direction of p in the SL's rest
-// frame). The active SLs are sorted by blocking order (section 7.2: per sphere by distance; per
+// frame). The active SLs are taken in blocking order (section 7.2: per sphere by distance; per
 // object by object-centre distance, object, distance), S_i is the sum of the G of the SLs before S_i
 // less those of its own object that intersect it (eq. 21), and Vbar_i = H(N) . (exp(S_i) -
 // exp(S_i + G_i)) clamped at 0 (eqs. 23-24), the exponentials by the CPU's method (HYB or OL,
 // shaders/include/sh_exp.glsl). The arithmetic follows receiver_terms in techniques/spherical_lights/
 // sl_indirect.cpp step by step; the tables are the CPU's own floats, uploaded. The logs G are
-// recomputed where needed rather than stored: only the SLs' sort keys and order are held per
-// invocation (kSlMaxLights each).
+// recomputed where needed rather than stored: only the SLs' order keys are held per invocation
+// (kSlMaxLights each).
+//
+// Resumable passes: Mesa's llvmpipe (lavapipe) ends every loop of an invocation once all its loops
+// together have iterated 65535 times (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS, one counter per SIMD
+// batch), which silently truncates the squarings of a receiver with many SLs. So an invocation
+// counts its loop iterations (as the batch does: the subgroup's largest trip count of each loop)
+// and, before an SL would take it past pc.budget, saves its state (the prefix sum of G, the sum so
+// far, the last SL summed) and stops; the host dispatches again until no receiver is unfinished.
+// The next SL is found by a scan for the smallest (key, index) after the last one, so a pass needs
+// no sorted order from the previous one. On other drivers the budget is unlimited: one pass.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 #include "softgi_shared.h"
 #include "sl_shared.h"
 
@@ -50,6 +60,7 @@ layout(std430, set = 0, binding = kSlIndBindEntrySl) readonly buffer EntrySl { u
 layout(std430, set = 0, binding = kSlIndBindRatio) readonly buffer Ratio { vec4 ratio[]; };
 layout(std430, set = 0, binding = kSlIndBindRList) readonly buffer RList { uint rlist[]; };
 layout(std430, set = 0, binding = kSlIndBindLists) readonly buffer Lists { uvec2 lists[]; };
+layout(std430, set = 0, binding = kSlIndBindState) buffer State { float state[]; };
 layout(push_constant) uniform Push {
   uint count;         // receivers in all (the planes of rec are this long)
   uint first;         // first receiver of this dispatch
@@ -60,6 +71,9 @@ layout(push_constant) uniform Push {
   uint ol_count;      // knots of the OL table
   float log_scale;    // log table: (rows - 1) / (pi/2)
   float weight_scale; // w_theta table: (rows - 1) / (pi/2)
+  uint budget;        // loop iterations one invocation may run in this pass (0xffffffff: no limit)
+  uint resume;        // 0: the first pass; 1: continue from the state
+  uint sq_terms;      // terms of the square (ProductPlan): one squaring's inner iterations
 } pc;
 
 float hcoef(uint l) { return consts[l]; }
@@ -121,91 +135,125 @@ vec3 sl_average_radiance(uint k, vec3 P) {
   return acc * ratio[k].xyz;
 }
 
-float key_[kSlMaxLights];
-uint lb_;  // the first entry of this receiver's list: key_ is indexed from it
-uint order_[kSlMaxLights];
+float key_[kSlMaxLights];  // per list entry: distance to its adjusted sphere, < 0 when eliminated
+float od_[kSlMaxLights];   // per list entry: distance of its object's centre (per-object blocking)
+uint lb_;                  // the first entry of this receiver's list: the arrays are indexed from it
 
-// Section 7.2: whether SL a comes before SL b at P.
-bool before(uint a, uint b, vec3 P) {
+// Section 7.2 with the index as the last key: whether SL a comes before SL b at P (a total order,
+// the CPU's stable sort of the SLs in index order).
+bool before(uint a, uint b) {
   if (BLOCKING == kSlPerObject) {
-    const uint oa = object[a], ob = object[b];
-    const float da = length(object_centre[oa].xyz - P), db = length(object_centre[ob].xyz - P);
+    const float da = od_[a - lb_], db = od_[b - lb_];
     if (da != db) return da < db;
+    const uint oa = object[a], ob = object[b];
     if (oa != ob) return oa < ob;
   }
-  return key_[a - lb_] < key_[b - lb_];
+  const float ka = key_[a - lb_], kb = key_[b - lb_];
+  if (ka != kb) return ka < kb;
+  return a < b;
 }
+
+// Loop iterations, as llvmpipe counts them, of the loops below (upper bounds): sh_exp with s
+// squarings (the norm, the OL search, the start vector, then per squaring the rows, the terms and
+// the copy), one sphere's log vector or average radiance (the basis recurrence and the bands), and
+// the fixed loops of one SL's pair.
+uint cost_exp(int s) { return 2u * N * N + 16u + uint(s) * (2u * N * N + pc.sq_terms); }
+uint cost_sphere() { return 4u * N * N + 16u; }
+uint cost_pair_fixed() { return 6u * N * N + 3u * cost_sphere(); }
 
 void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
   if (i >= pc.end) return;
+  const uint n2 = N * N, sbase = i * (n2 + 4u);
+  uint last = kSlStateNone;
+  if (pc.resume != 0u) {
+    last = floatBitsToUint(state[sbase + n2 + 3u]);
+    if (last == kSlStateDone) return;
+  }
   const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
   const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
   if (!(dot(Nrm, Nrm) > 0.0)) {
     outv[i] = vec4(0.0);
+    state[sbase + n2 + 3u] = uintBitsToFloat(kSlStateDone);
     return;
   }
-  const uint n2 = N * N;
   float hn[kAccumMaxCoeffs];
   sh_basis_eval(Nrm, hn);
   [[unroll]] for (uint l = 0; l < N; ++l) {
     [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) hn[q] *= hcoef(l);
   }
-  // The active SLs (in index order) and their distances from p.
+  // The active SLs' order keys and their distances from p.
   const uvec2 list = lists[rlist[i]];
   lb_ = list.x;
-  uint na = 0, eliminated = 0;
+  uint eliminated = 0;
   for (uint k = list.x; k < list.x + list.y; ++k) {
     const vec4 adj = sl_adjusted(k, P, Nrm);
     if (adj.w > 0.0) {
       key_[k - lb_] = length(adj.xyz - P) - adj.w;
-      order_[na++] = k;
     } else {
+      key_[k - lb_] = -1.0;
       ++eliminated;
     }
+    if (BLOCKING == kSlPerObject) od_[k - lb_] = length(object_centre[object[k]].xyz - P);
   }
-  // Stable insertion sort into blocking order (the CPU's std::stable_sort).
-  for (uint a = 1; a < na; ++a) {
-    const uint x = order_[a];
-    uint b = a;
-    while (b > 0) {
-      const uint y = order_[b - 1];
-      if (!before(x, y, P)) break;
-      order_[b] = y;
-      --b;
-    }
-    order_[b] = x;
-  }
-  float prefix[kAccumMaxCoeffs], S[kAccumMaxCoeffs], G[kAccumMaxCoeffs], e0[kAccumMaxCoeffs];
-  [[unroll]] for (uint q = 0; q < n2; ++q) prefix[q] = 0.0;
+  const uint list_max = subgroupMax(list.y);
+  uint used = cost_sphere() + list_max * 8u;
+  float prefix[kAccumMaxCoeffs], S[kAccumMaxCoeffs], G[kAccumMaxCoeffs], e0[kAccumMaxCoeffs], SG[kAccumMaxCoeffs];
   vec3 acc = vec3(0.0);
-  uint clamped = 0;
-  for (uint a = 0; a < na; ++a) {
-    const uint k = order_[a];
+  if (pc.resume == 0u) {
+    [[unroll]] for (uint q = 0; q < n2; ++q) prefix[q] = 0.0;
+    atomicAdd(status[kSlStatusEliminated], eliminated);
+  } else {
+    [[unroll]] for (uint q = 0; q < n2; ++q) prefix[q] = state[sbase + q];
+    acc = vec3(state[sbase + n2], state[sbase + n2 + 1u], state[sbase + n2 + 2u]);
+  }
+  uint pairs = 0, clamped = 0;
+  bool finished = false, failed = false;
+  for (;;) {
+    // The next SL in blocking order: the smallest after the last one summed.
+    uint k = kSlStateNone;
+    for (uint e = list.x; e < list.x + list.y; ++e) {
+      if (key_[e - lb_] < 0.0) continue;
+      if (last != kSlStateNone && !before(last, e)) continue;
+      if (k == kSlStateNone || before(e, k)) k = e;
+    }
+    used += list_max;
+    if (k == kSlStateNone) {
+      finished = true;
+      break;
+    }
+    // Eq. 21: S_k, the G of the SLs before k less those of its own object that intersect it.
     [[unroll]] for (uint q = 0; q < n2; ++q) S[q] = prefix[q];
-    // Eq. 21: intersecting SLs of S_k's own object are not its blockers.
     for (uint t = inter_begin[k]; t < inter_begin[k + 1]; ++t) {
       const uint j = inter_list[t];
-      const vec4 adj = sl_adjusted(j, P, Nrm);
-      // j darkens k's blockers only if it is active and came before k in the (stable) order.
-      if (adj.w > 0.0 && (before(j, k, P) || (!before(k, j, P) && j < k))) {
-        sl_log_vector(adj, P, G);
+      if (key_[j - lb_] >= 0.0 && before(j, k)) {
+        sl_log_vector(sl_adjusted(j, P, Nrm), P, G);
         [[unroll]] for (uint q = 0; q < n2; ++q) S[q] -= G[q];
       }
     }
     sl_log_vector(sl_adjusted(k, P, Nrm), P, G);
+    float n0 = 0.0, n1 = 0.0;
+    for (uint q = 1; q < n2; ++q) {
+      SG[q] = S[q] + G[q];
+      n0 += S[q] * S[q];
+      n1 += SG[q] * SG[q];
+    }
+    SG[0] = S[0] + G[0];
+    const uint cost = cost_pair_fixed() + subgroupMax(inter_begin[k + 1] - inter_begin[k]) * cost_sphere() +
+                      cost_exp(subgroupMax(sh_exp_squarings(sqrt(n0), METHOD))) + cost_exp(subgroupMax(sh_exp_squarings(sqrt(n1), METHOD)));
+    if (pc.budget != 0xffffffffu) {
+      if (cost + 2u * list_max + cost_sphere() > pc.budget) atomicMin(status[kSlStatusBudget], i + 1);
+      if (pairs > 0u && used + cost + list_max > pc.budget) break;  // resumed in the next pass
+    }
+    used += cost;
     int s;
     uint code = sh_exp(S, METHOD, pc.ol_count, 0u, s);
-    [[unroll]] for (uint q = 0; q < n2; ++q) {
-      e0[q] = exp_g[q];
-      S[q] += G[q];
-      prefix[q] += G[q];
-    }
-    if (code == kShExpOk) code = sh_exp(S, METHOD, pc.ol_count, 0u, s);
+    [[unroll]] for (uint q = 0; q < n2; ++q) e0[q] = exp_g[q];
+    if (code == kShExpOk) code = sh_exp(SG, METHOD, pc.ol_count, 0u, s);
     if (code != kShExpOk) {
       atomicMin(status[code == kShExpBadInput ? kSlStatusBadInput : kSlStatusDcOverflow], i + 1);
-      outv[i] = vec4(0.0);
-      return;
+      failed = true;
+      break;
     }
     // Eq. 23: V = exp(S) - exp(S + G), the part of the SL's cap no closer SL covers; eq. 24: dotted
     // with the BRDF vector.
@@ -214,6 +262,7 @@ void main() {
     [[unroll]] for (uint q = 0; q < n2; ++q) {
       finite = finite && !isinf(e0[q]) && !isnan(e0[q]) && !isinf(exp_g[q]) && !isnan(exp_g[q]);
       v += (e0[q] - exp_g[q]) * hn[q];
+      prefix[q] += G[q];
     }
     if (!finite) atomicMin(status[kSlStatusOverflow], i + 1);
     if (v < 0.0) {
@@ -221,9 +270,20 @@ void main() {
       ++clamped;
     }
     acc += sl_average_radiance(k, P) * v;
+    last = k;
+    ++pairs;
   }
-  outv[i] = vec4(max(acc, vec3(0.0)), 0.0);
-  atomicAdd(status[kSlStatusPairs], na);
-  atomicAdd(status[kSlStatusEliminated], eliminated);
+  atomicAdd(status[kSlStatusPairs], pairs);
   atomicAdd(status[kSlStatusClamped], clamped);
+  if (failed || finished) {
+    outv[i] = failed ? vec4(0.0) : vec4(max(acc, vec3(0.0)), 0.0);
+    state[sbase + n2 + 3u] = uintBitsToFloat(kSlStateDone);
+    return;
+  }
+  [[unroll]] for (uint q = 0; q < n2; ++q) state[sbase + q] = prefix[q];
+  state[sbase + n2] = acc.x;
+  state[sbase + n2 + 1u] = acc.y;
+  state[sbase + n2 + 2u] = acc.z;
+  state[sbase + n2 + 3u] = uintBitsToFloat(last);
+  atomicAdd(status[kSlStatusUnfinished], 1u);
 }

@@ -113,6 +113,12 @@ void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& ho
   }
 }
 
+std::uint32_t loop_budget(const vk::DeviceInfo& d) {
+  constexpr std::uint32_t kMargin = 4096;
+  if (d.loop_iteration_limit == 0) return std::numeric_limits<std::uint32_t>::max();
+  return d.loop_iteration_limit > 2 * kMargin ? d.loop_iteration_limit - kMargin : d.loop_iteration_limit / 2;
+}
+
 PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique) {
   const int n2 = p.order * p.order;
   const std::vector<std::uint32_t> begin(p.sq_begin.begin(), p.sq_begin.end());
@@ -129,6 +135,8 @@ PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const st
   b.sq_terms = dev.upload_vector(pack_terms(p.sq_j, p.sq_k, p.sq_v), kStorage, o + " squares");
   b.pr_range = dev.upload_vector(pr_range, kStorage, o + " products index");
   b.pr_terms = dev.upload_vector(pack_terms(p.pr_j, p.pr_k, p.pr_v), kStorage, o + " products");
+  b.sq_count = static_cast<std::uint32_t>(p.sq_begin.back());
+  b.pr_count = static_cast<std::uint32_t>(p.pr_begin.back());
   return b;
 }
 
@@ -208,8 +216,9 @@ vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline&
 vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
                                   std::uint32_t ol_count, int degree, const std::string& submit_name) {
   struct Push {
-    std::uint32_t first, end, ol_count, degree;
+    std::uint32_t first, end, ol_count, degree, budget, sq_terms, pr_terms;
   };
+  const std::uint32_t budget = loop_budget(dev.device_info());
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kExpBindIn, b.in),                vk::Bind::buffer_at(gpu::kExpBindOut, b.out),
       vk::Bind::buffer_at(gpu::kExpBindOl, b.ol),                vk::Bind::buffer_at(gpu::kExpBindSqIndex, b.plan.sq_begin),
@@ -219,7 +228,7 @@ vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("exponentiate");
     dispatch_chunks<Push>(rec, p, binds, count, gpu::kExponentiateGroup, [&](std::uint32_t first, std::uint32_t end) {
-      return Push{first, end, ol_count, static_cast<std::uint32_t>(degree)};
+      return Push{first, end, ol_count, static_cast<std::uint32_t>(degree), budget, b.plan.sq_count, b.plan.pr_count};
     });
     rec.end_timer();
     rec.barrier();
@@ -228,7 +237,7 @@ vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p
 
 void reset_exp_status(vk::Context& dev, vk::Buffer& status, const std::string& name) {
   const std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
-  const std::uint32_t status0[gpu::kExpStatusWords] = {0, none, none, none};
+  const std::uint32_t status0[gpu::kExpStatusWords] = {0, none, none, none, none};
   dev.ensure_buffer(status, sizeof status0, kStorage, vk::MemoryKind::Host, name);
   dev.upload(status, status0, sizeof status0);
 }
@@ -273,7 +282,7 @@ std::size_t AccumulationInputs::upload(vk::Context& dev, const ReceiverSoA& soa,
 bool exp_status_failed(const std::uint32_t (&status)[gpu::kExpStatusWords]) {
   const std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
   return status[gpu::kExpStatusBadInput] != none || status[gpu::kExpStatusDcOverflow] != none ||
-         status[gpu::kExpStatusOverflow] != none;
+         status[gpu::kExpStatusOverflow] != none || status[gpu::kExpStatusLoopBudget] != none;
 }
 
 void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const float* log, int n2, const std::string& pass,
@@ -293,6 +302,10 @@ void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const
   }
   if (status[gpu::kExpStatusOverflow] != none)
     throw std::overflow_error(pass + ": receiver " + std::to_string(status[gpu::kExpStatusOverflow] - 1) + ": a result coefficient overflowed");
+  if (status[gpu::kExpStatusLoopBudget] != none)
+    throw std::invalid_argument(pass + ": receiver " + std::to_string(status[gpu::kExpStatusLoopBudget] - 1) +
+                                ": its exponential needs more loop iterations than this Vulkan driver runs per invocation "
+                                "(llvmpipe's limit); lower 'order' or 'ps_degree', or use the cpu backend");
 }
 
 }  // namespace softgi::techniques::common::gpu_passes

@@ -42,6 +42,9 @@ vk::ComputePipeline& pipeline(vk::Context& dev, PipelineCache& cache, const std:
 
 std::uint32_t bits(float v);          // a float's bit pattern, for mixed uint/float term buffers
 std::string mib(std::size_t bytes);  // "1.5 MiB"
+// Loop iterations a shader that counts its own may run per invocation on this device: the driver's
+// limit less a margin for the loops it does not count, or no limit (0xffffffff).
+std::uint32_t loop_budget(const vk::DeviceInfo& d);
 double timer_seconds(const vk::SubmitResult& res);  // the first timer's seconds, -1 without timers
 
 // Per-pass buffers larger than the device allows are reported before anything is allocated, naming
@@ -135,6 +138,7 @@ std::vector<std::uint32_t> pack_terms(const std::vector<std::uint16_t>& j, const
 // (begin, offdiag_end) per output plus a final (end, end) + packed terms.
 struct PlanBuffers {
   vk::Buffer sq_begin, sq_terms, pr_range, pr_terms;
+  std::uint32_t sq_count = 0, pr_count = 0;  // terms of one square, of one product
 };
 PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique);
 // The basis-recurrence constants (basis_recurrence_constants) and each order's product plan, uploaded

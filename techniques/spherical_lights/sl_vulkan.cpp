@@ -61,7 +61,7 @@ struct GpuState {
   vk::Buffer radiance, ranges, basis, albedo, intensity;
   std::uint64_t radiance_hash = 0, ranges_hash = 0, basis_hash = 0, albedo_hash = 0;
   // accumulate_indirect
-  vk::Buffer spheres, rotation, object, object_centre, inter_begin, inter_list, consts, intensity_in, ind_out, ind_status;
+  vk::Buffer spheres, rotation, object, object_centre, inter_begin, inter_list, consts, intensity_in, ind_out, ind_status, ind_state;
   vk::Buffer entry_sl, ratio, rlist, list_range;
   std::uint64_t entry_sl_hash = 0, ratio_hash = 0, rlist_hash = 0, list_range_hash = 0;
   std::uint64_t spheres_hash = 0, rotation_hash = 0, object_hash = 0, object_centre_hash = 0, inter_begin_hash = 0,
@@ -369,11 +369,15 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   const vk::Buffer& lc = dlc ? *dlc->buffer : g.intensity_in;
 
   const std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
-  const std::uint32_t status0[gpu::kSlStatusWords] = {0, 0, 0, none, none, none};
-  dev.ensure_buffer(g.ind_status, sizeof status0, kStorage, vk::MemoryKind::Host, "spherical_lights indirect status");
-  dev.upload(g.ind_status, status0, sizeof status0);
+  std::uint32_t status[gpu::kSlStatusWords] = {0, 0, 0, none, none, none, 0, none};
+  dev.ensure_buffer(g.ind_status, sizeof status, kStorage, vk::MemoryKind::Host, "spherical_lights indirect status");
+  dev.upload(g.ind_status, status, sizeof status);
   dev.ensure_buffer(g.ind_out, std::max<std::size_t>(1, count) * 4 * sizeof(float), kStorage, vk::MemoryKind::Host,
                     "spherical_lights indirect shading");
+  check_fits(dev, std::max<std::size_t>(1, count) * (n2 + 4) * sizeof(float), "the pass state of " + std::to_string(count) + " receivers",
+             "accumulate_indirect");
+  dev.ensure_buffer(g.ind_state, std::max<std::size_t>(1, count) * (n2 + 4) * sizeof(float), kStorage, vk::MemoryKind::Device,
+                    "spherical_lights indirect pass state");
   const std::uint32_t blocking = s.blocking == Blocking::PerObject ? gpu::kSlPerObject : gpu::kSlPerSphere;
   vk::ComputePipeline& p = pipeline(dev, g.pipelines,
                                     "sl.indirect.n" + std::to_string(n) + ".rule" + std::to_string(static_cast<int>(s.rule)) + ".m" +
@@ -383,6 +387,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   struct Push {
     std::uint32_t count, first, end, lights, log_rows, weight_rows, ol_count;
     float log_scale, weight_scale;
+    std::uint32_t budget, resume, sq_terms;
   };
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kSlIndBindReceivers, rb.inputs.receivers), vk::Bind::buffer_at(gpu::kSlIndBindSpheres, g.spheres),
@@ -395,20 +400,38 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
       vk::Bind::buffer_at(gpu::kSlIndBindSqTerms, plan.sq_terms),         vk::Bind::buffer_at(gpu::kSlIndBindOut, g.ind_out),
       vk::Bind::buffer_at(gpu::kSlIndBindStatus, g.ind_status),           vk::Bind::buffer_at(gpu::kSlIndBindEntrySl, g.entry_sl),
       vk::Bind::buffer_at(gpu::kSlIndBindRatio, g.ratio),                 vk::Bind::buffer_at(gpu::kSlIndBindRList, g.rlist),
-      vk::Bind::buffer_at(gpu::kSlIndBindLists, g.list_range)};
+      vk::Bind::buffer_at(gpu::kSlIndBindLists, g.list_range),           vk::Bind::buffer_at(gpu::kSlIndBindState, g.ind_state)};
   const float weight_scale = static_cast<float>((t.weight.rows - 1) / kHalfPi);
-  const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
-    rec.begin_timer("accumulate_indirect");
-    dispatch_chunks<Push>(rec, p, binds, count, gpu::kSlIndirectGroup, [&](std::uint32_t first, std::uint32_t end) {
-      return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(entries), static_cast<std::uint32_t>(t.log.rows),
-                  static_cast<std::uint32_t>(t.weight.rows), g.ol_count, t.log.scale, weight_scale};
-    });
-    rec.end_timer();
-    rec.barrier();
-  }, "spherical_lights accumulate_indirect");
-
-  std::uint32_t status[gpu::kSlStatusWords];
-  dev.download(g.ind_status, status, sizeof status);
+  // Passes until every receiver has summed all its SLs: one where the driver has no loop limit,
+  // else as many as the limit requires (the shader's header comment).
+  const std::uint32_t budget = loop_budget(dev.device_info());
+  const std::uint32_t sq_terms = static_cast<std::uint32_t>(ProductPlan::get(n).sq_begin.back());
+  double secs = 0.0;
+  int passes = 0;
+  for (;;) {
+    const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
+      rec.begin_timer("accumulate_indirect");
+      dispatch_chunks<Push>(rec, p, binds, count, gpu::kSlIndirectGroup, [&](std::uint32_t first, std::uint32_t end) {
+        return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(entries), static_cast<std::uint32_t>(t.log.rows),
+                    static_cast<std::uint32_t>(t.weight.rows), g.ol_count, t.log.scale, weight_scale, budget, passes > 0 ? 1u : 0u, sq_terms};
+      });
+      rec.end_timer();
+      rec.barrier();
+    }, "spherical_lights accumulate_indirect");
+    secs += std::max(0.0, timer_seconds(res));
+    ++passes;
+    dev.download(g.ind_status, status, sizeof status);
+    if (status[gpu::kSlStatusBudget] != none)
+      throw std::invalid_argument("spherical_lights accumulate_indirect on vulkan: receiver " + std::to_string(status[gpu::kSlStatusBudget] - 1) +
+                                  ": one SL's exponentials need more loop iterations than this driver runs per invocation (" +
+                                  std::to_string(budget) + " on " + dev.device_info().driver_name + "); lower 'order'");
+    if (status[gpu::kSlStatusUnfinished] == 0 || status[gpu::kSlStatusBadInput] != none || status[gpu::kSlStatusDcOverflow] != none) break;
+    // Every pass sums at least one SL of each unfinished receiver, so a receiver's list bounds the passes.
+    if (passes > static_cast<int>(gpu::kSlMaxLights) + 1)
+      throw std::logic_error("spherical_lights accumulate_indirect on vulkan: receivers still unfinished after " + std::to_string(passes) + " passes");
+    status[gpu::kSlStatusUnfinished] = 0;
+    dev.upload(g.ind_status, status, sizeof status);
+  }
   if (status[gpu::kSlStatusBadInput] != none)
     throw std::invalid_argument("spherical_lights accumulate_indirect on vulkan: receiver " + std::to_string(status[gpu::kSlStatusBadInput] - 1) +
                                 " has a non-finite log coefficient");
@@ -426,7 +449,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   for (std::size_t i = 0; i < count; ++i) out->value[i] = glm::vec3(rgba[4 * i], rgba[4 * i + 1], rgba[4 * i + 2]);
 
   auto& rec = ctx.record();
-  const double secs = timer_seconds(res), pairs = status[gpu::kSlStatusPairs];
+  const double pairs = status[gpu::kSlStatusPairs];
   rec.counters["receivers"] = static_cast<double>(count);
   rec.counters["sls"] = static_cast<double>(m);
   rec.counters["pairs"] = pairs;
@@ -436,6 +459,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
   rec.counters["per_object_blocking"] = s.blocking == Blocking::PerObject;
   rec.counters["kernel_gpu_seconds"] = secs;
+  rec.counters["passes"] = passes;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
   rec.bytes = out->value.size() * sizeof(glm::vec3);
   ctx.put<std::shared_ptr<const Shading>>(kIndirectShading, out);

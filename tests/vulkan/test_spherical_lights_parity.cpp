@@ -58,8 +58,11 @@ constexpr double kIntensityRelTol = 1e-4;
 // exp(S + G) (a difference of two nearly equal vectors for a far or heavily occluded SL: its relative
 // error is that of the exponentials times |exp(S)| / |V|), then the w_theta-weighted radiance (asin
 // polynomial and recurrence basis) and a sum over the SLs in another order (blocking order on the
-// GPU, SL index on the CPU). Observed: <= 1.4e-3 (character, OL); 3.9e-3 on spheres with HYB, at a
-// receiver whose shading (2e-5) is within a factor 2 of the comparison floor (1e-4 of the largest).
+// GPU, SL index on the CPU). HYB's squarings double the error of its start vector five times over on
+// character's receivers (s = 5), and V is a small difference of two such results: the CPU's own AVX2
+// and scalar kernels differ by up to 3.5e-3 there. Observed: <= 8.1e-4 (character, OL); 3.8e-3
+// (character, HYB, every leaf); 3.9e-3 on spheres with HYB, at a receiver whose shading (2e-5) is
+// within a factor 2 of the comparison floor (1e-4 of the largest).
 constexpr double kIndirectRelTol = 5e-3;
 // The final image of a frame whose GPU passes all ran on Vulkan against the CPU frame: the
 // indirect and direct errors above, passed on through the intensity (the sample points' shading
@@ -79,16 +82,6 @@ struct Case {
   const char* hierarchy;  // section 7.3: cluster cuts with reflection ratios, or every leaf
 };
 const Case kCases[] = {{"per_sphere", "hyb", "true"}, {"per_object", "hyb", "true"}, {"per_sphere", "ol", "true"}, {"per_sphere", "hyb", "false"}};
-
-// KNOWN GAP: on character with HYB, accumulate_indirect differs from the CPU on about 5 % of the
-// receivers (up to 10 % of the frame's largest value; the clamped-pair counts differ by a third),
-// and which receivers differ changes when unrelated, never-executed code is added to the shader:
-// a compiler-dependent fault (lavapipe/LLVM 15, or undefined behaviour not yet found) of the HYB
-// pipeline on a scene with intersecting same-object SLs. OL on the same scene and every other
-// scene pass. Reported and not asserted (the rows are printed) until it is found.
-bool known_gap(const std::string& scene, const Case& cs, const std::string& what) {
-  return scene == "character" && std::string(cs.exp) == "hyb" && (what == "accumulate_indirect" || what == "final image");
-}
 
 // The passes with a Vulkan implementation and their tolerances.
 const std::map<std::string, double> kPassTol = {
@@ -180,9 +173,7 @@ TEST_P(SphericalLightsParity, EveryVulkanPassMatchesTheCpuPass) {
         }
         ASSERT_FALSE(cpu.empty()) << pass.name;
         const Compared d = compare_rows(cpu, gpu, width);
-        if (!known_gap(name, cs, pass.name)) {
-          EXPECT_LE(d.worst, tol_it->second) << pass.name << ": row " << d.worst_index << " differs by " << d.worst << " of its size";
-        }
+        EXPECT_LE(d.worst, tol_it->second) << pass.name << ": row " << d.worst_index << " differs by " << d.worst << " of its size";
         const auto& cc = result.passes[result.passes.size() - 2].counters;
         const auto& gc = result.passes.back().counters;
         if (pass.name.rfind("accumulate", 0) == 0) {
@@ -191,13 +182,15 @@ TEST_P(SphericalLightsParity, EveryVulkanPassMatchesTheCpuPass) {
         }
         if (pass.name == "accumulate_indirect") {
           EXPECT_EQ(cc.at("eliminated_pairs"), gc.at("eliminated_pairs"));
-          if (!known_gap(name, cs, pass.name)) {
-            EXPECT_NEAR(cc.at("visibility_clamped"), gc.at("visibility_clamped"), 2.0 + 1e-3 * cc.at("pairs"));
+          EXPECT_NEAR(cc.at("visibility_clamped"), gc.at("visibility_clamped"), 2.0 + 1e-3 * cc.at("pairs"));
+          // Where the driver limits loop iterations (llvmpipe), character's receivers sum their SLs
+          // with HYB over several resumed passes: the comparison above covers that path.
+          if (name == "character" && std::string(cs.exp) == "hyb" && ctx_->device_info().loop_iteration_limit != 0) {
+            EXPECT_GT(gc.at("passes"), 1.0);
           }
         }
-        std::printf("[sl parity] %-12s %-10s %-3s %-22s %6zu rows, worst relative difference %.3g (tolerance %.1g)%s\n", name.c_str(),
-                    cs.blocking, cs.exp, pass.name.c_str(), cpu.size() / width, d.worst, tol_it->second,
-                    known_gap(name, cs, pass.name) ? " KNOWN GAP, not asserted" : "");
+        std::printf("[sl parity] %-12s %-10s %-3s %-22s %6zu rows, worst relative difference %.3g (tolerance %.1g)\n", name.c_str(),
+                    cs.blocking, cs.exp, pass.name.c_str(), cpu.size() / width, d.worst, tol_it->second);
         ++compared;
       }
       EXPECT_EQ(compared, kPassTol.size()) << "every GPU pass compared";
@@ -220,16 +213,47 @@ TEST_P(SphericalLightsParity, EveryVulkanPassMatchesTheCpuPass) {
       const Image& img = ctx.get<Image>(render::kFinal);
       const std::vector<float> gpu_final = flatten(img.rgb);
       const Compared d = compare_rows(cpu_final, gpu_final, 3);
-      if (!known_gap(name, cs, "final image")) {
-        EXPECT_LE(d.worst, kImageRelTol) << "final image: pixel " << d.worst_index << " differs by " << d.worst;
-      }
-      std::printf("[sl parity] %-12s %-10s %-3s %-22s %6zu rows, worst relative difference %.3g (tolerance %.1g)%s\n", name.c_str(),
-                  cs.blocking, cs.exp, "final image", cpu_final.size() / 3, d.worst, kImageRelTol,
-                  known_gap(name, cs, "final image") ? " KNOWN GAP, not asserted" : "");
+      EXPECT_LE(d.worst, kImageRelTol) << "final image: pixel " << d.worst_index << " differs by " << d.worst;
+      std::printf("[sl parity] %-12s %-10s %-3s %-22s %6zu rows, worst relative difference %.3g (tolerance %.1g)\n", name.c_str(),
+                  cs.blocking, cs.exp, "final image", cpu_final.size() / 3, d.worst, kImageRelTol);
     }
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(BuiltinScenes, SphericalLightsParity, ::testing::Values("sphere_plane", "box8", "spheres", "character"));
+
+// accumulate_indirect under a loop-iteration limit (llvmpipe's, or one set for the test on other
+// drivers) sums each receiver's SLs over several passes through the saved state; the split changes
+// no arithmetic, so the indirect shading is the same to the bit as in one unlimited pass.
+TEST(SphericalLightsVulkan, ResumedPassesGiveTheSameIndirectLight) {
+  backends::register_cpu_backend();
+  const scene::Scene sc = scene::make_builtin("spheres");
+  std::unique_ptr<render::Technique> tech = sl::create();
+  render::ParamSet params = render::default_params(*tech);
+  params.set("hierarchy", "false");
+  render::RenderRequest req;
+  req.width = req.height = 24;
+  auto run = [&](std::uint32_t limit, double& passes) {
+    backends::vulkan::ContextOptions o;
+    o.validation = 1;
+    o.loop_iteration_limit = limit;
+    backends::VulkanBackend vk(std::make_shared<backends::vulkan::Context>(o));
+    const render::FrameResult r = vk.render(*tech, sc, params, req);
+    passes = 0.0;
+    for (const auto& p : r.passes)
+      if (p.name == "accumulate_indirect") passes = p.counters.at("passes");
+    return r.indirect.rgb;
+  };
+  double many = 0.0, one = 0.0;
+  const std::vector<glm::vec3> split = run(8000, many);
+  // 0xffffffff is past any driver's limit: the budget is then that driver's own, or none.
+  const std::vector<glm::vec3> whole = run(0xffffffffu, one);
+  EXPECT_GT(many, 2.0) << "a limit of 8000 iterations splits the SLs of the receivers over passes";
+  EXPECT_EQ(one, 1.0);
+  ASSERT_EQ(split.size(), whole.size());
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < split.size(); ++i) differ += split[i] != whole[i];
+  EXPECT_EQ(differ, 0u) << "pixels whose indirect light changed with the pass split";
+}
 
 }  // namespace

@@ -21,6 +21,7 @@
 #include "softgi/techniques/image_splat.hpp"
 #include "softgi/techniques/shexp.hpp"
 #include "vulkan_test_util.hpp"
+#include "softgi_shared.h"  // the exponentiate status words
 
 using namespace softgi;
 namespace sx = softgi::techniques::shexp;
@@ -124,8 +125,8 @@ TEST(VulkanBackend, ShexpIntermediatesStayOnTheDeviceUnlessRequested) {
     // already, and the log vectors stay there.
     EXPECT_EQ(by_pass["accumulate_log"].upload, 0u);
     EXPECT_EQ(by_pass["accumulate_log"].download, 0u);
-    // exponentiate reads only its status words back (4 uint32), never the visibility.
-    EXPECT_EQ(by_pass["exponentiate"].download, 4 * sizeof(std::uint32_t));
+    // exponentiate reads only its status words back, never the visibility.
+    EXPECT_EQ(by_pass["exponentiate"].download, gpu::kExpStatusWords * sizeof(std::uint32_t));
     // shade reads back its result (4 floats per receiver) and its clamp count, not the visibility.
     EXPECT_LT(by_pass["shade"].download, field_bytes);
     EXPECT_EQ(second.transfer.upload, sum.upload);
@@ -173,7 +174,7 @@ TEST(VulkanBackend, ImageSplatLogOcclusionStaysOnTheDevice) {
     ASSERT_TRUE(by_pass.count("accumulate_log") && by_pass.count("exponentiate"));
     EXPECT_EQ(by_pass["accumulate_log"].upload, 0u);
     EXPECT_EQ(by_pass["accumulate_log"].download, 0u);
-    EXPECT_EQ(by_pass["exponentiate"].download, 4 * sizeof(std::uint32_t));  // the status words only
+    EXPECT_EQ(by_pass["exponentiate"].download, gpu::kExpStatusWords * sizeof(std::uint32_t));  // the status words only
   }
   ctx.reset();
   EXPECT_EQ(log->problems(), 0u) << log->summary();
@@ -320,4 +321,37 @@ TEST(VulkanBackend, UnknownDeviceListsTheDevices) {
     EXPECT_NE(std::string(e.what()).find("no-such-gpu"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("0: "), std::string::npos) << e.what();
   }
+}
+
+// llvmpipe ends every loop of a shader invocation after 65535 iterations of all its loops together.
+// Under a limit of 20000 (set for the test, so that it runs on every driver) an exponential that needs
+// more (order 6, PS-30: 29 products of about 1500 terms each) is an error that names the limit,
+// never a silently truncated series; under llvmpipe's own limit the same frame renders.
+TEST(VulkanBackend, ExponentialBeyondTheLoopLimitIsAnError) {
+  const scene::Scene sc = scene::make_builtin("spheres");
+  auto tech = sx::create();
+  render::ParamSet params = render::default_params(*tech);
+  params.set("order", "6");
+  params.set("exp", "ps");
+  params.set("ps_degree", "30");
+  render::RenderRequest req;
+  req.width = 16;
+  req.height = 12;
+  backends::vulkan::ContextOptions o;
+  o.validation = 1;
+  o.loop_iteration_limit = 20000;
+  {
+    backends::VulkanBackend vk(std::make_shared<backends::vulkan::Context>(o));
+    std::string what;
+    try {
+      vk.render(*tech, sc, params, req);
+    } catch (const std::exception& e) {
+      what = e.what();
+    }
+    EXPECT_NE(what.find("exponentiate: receiver"), std::string::npos) << what;
+    EXPECT_NE(what.find("loop iterations"), std::string::npos) << what;
+  }
+  o.loop_iteration_limit = 65535;
+  backends::VulkanBackend vk(std::make_shared<backends::vulkan::Context>(o));
+  EXPECT_NO_THROW(vk.render(*tech, sc, params, req));
 }

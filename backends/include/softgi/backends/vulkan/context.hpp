@@ -86,6 +86,9 @@ struct DeviceInfo {
   std::uint32_t api_version = 0, driver_version = 0, vendor_id = 0, device_id = 0;
   VkPhysicalDeviceLimits limits{};  // maxStorageBufferRange, maxComputeWorkGroupCount, ...
   std::uint32_t subgroup_size = 0;
+  // Loop iterations a shader invocation may run, all its loops together, before the driver ends
+  // them silently; 0: no such limit. Mesa's llvmpipe: 65535 per SIMD batch of subgroup_size lanes.
+  std::uint32_t loop_iteration_limit = 0;
   std::uint32_t timestamp_valid_bits = 0;  // of the compute queue family; 0: no timestamps
   std::uint64_t device_local_bytes = 0;    // largest device-local heap
   std::uint64_t max_allocation_bytes = 0;  // maxMemoryAllocationSize (0: the device does not say)
@@ -105,6 +108,9 @@ struct ContextOptions {
   // A submission that has not completed within this time is an error (a GPU hang, or a shader
   // looping forever, becomes an exception instead of a frozen process).
   double fence_timeout_seconds = 120.0;
+  // > 0: the per-invocation loop-iteration limit the shaders are written against, instead of the
+  // driver's (DeviceInfo::loop_iteration_limit); a tighter one exercises the passes that respect it.
+  std::uint32_t loop_iteration_limit = 0;
 };
 
 // Every device the loader sees (through a temporary instance without layers).
