@@ -69,11 +69,13 @@ void main() {
       } else if (RULE == kRuleClamped) {
         const float t = clamp(ratio, 0.0, 1.0);
         rho = inside ? rin : t * rout;
+      } else if (RULE == kRuleInsideOnly) {
+        rho = inside ? rin : r;  // outside: the sphere whole (below, hh stays h)
       } else {
         const float a = dmin < dd ? max(ratio, 1.0) : 1.0;
         rho = inside ? rin : a * rout;
       }
-      hh = rho;
+      hh = (RULE == kRuleInsideOnly && !inside) ? h : rho;
     }
     const vec3 v = d + (hh - h) * Nrm;
     const float inv = inversesqrt(max(dot(v, v), 1e-30));

@@ -11,6 +11,7 @@ vec4 apply_replacement_rule(uint rule, vec3 p, vec3 n, vec3 center, float radius
   const float h = dot(cp, n);
   if (h >= r) return vec4(center, r);  // entirely in front (p is then outside S)
   const bool inside = dot(cp, cp) < r * r;
+  if (rule == kRuleInsideOnly && !inside) return vec4(center, r);
   const vec3 q1 = center - h * n;
   const float rin = max(h, 0.0);               // inside: shrunk to tangency, or eliminated
   const float rout = max(0.5 * (h + r), 0.0);  // S' with diameter q0 q1; 0 when entirely behind
@@ -25,6 +26,8 @@ vec4 apply_replacement_rule(uint rule, vec3 p, vec3 n, vec3 center, float radius
     rho = inside ? rin : clamp(ratio, 0.0, 1.0) * rout;
   } else if (rule == kRulePrinted) {
     rho = inside ? rin : (d > dmin ? max(1.0, ratio) : 1.0) * rout;
+  } else if (rule == kRuleInsideOnly) {
+    rho = rin;
   }
   if (!(rho > 1e-6 * r)) rho = 0.0;
   return vec4(q1 + rho * n, rho);

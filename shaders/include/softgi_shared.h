@@ -35,6 +35,7 @@ SOFTGI_CONST_UINT(kRuleOff, 0u)
 SOFTGI_CONST_UINT(kRuleContinuous, 1u)
 SOFTGI_CONST_UINT(kRuleClamped, 2u)
 SOFTGI_CONST_UINT(kRulePrinted, 3u)
+SOFTGI_CONST_UINT(kRuleInsideOnly, 4u)
 // Exponential methods of the Vulkan exponentiate pass.
 SOFTGI_CONST_UINT(kExpHyb, 0u)
 SOFTGI_CONST_UINT(kExpOl, 1u)

@@ -27,6 +27,7 @@ const char* to_string(ReplacementRule r) {
     case ReplacementRule::Continuous: return "continuous";
     case ReplacementRule::Clamped: return "clamped";
     case ReplacementRule::Printed: return "printed";
+    case ReplacementRule::InsideOnly: return "inside_only";
   }
   return "?";
 }
@@ -36,7 +37,8 @@ ReplacementRule parse_replacement_rule(const std::string& s) {
   if (s == "continuous") return ReplacementRule::Continuous;
   if (s == "clamped") return ReplacementRule::Clamped;
   if (s == "printed") return ReplacementRule::Printed;
-  throw std::invalid_argument("unknown replacement rule '" + s + "' (expected off, continuous, clamped or printed)");
+  if (s == "inside_only") return ReplacementRule::InsideOnly;
+  throw std::invalid_argument("unknown replacement rule '" + s + "' (expected off, continuous, clamped, printed or inside_only)");
 }
 
 // ---------------------------------------------------------------------------------------------

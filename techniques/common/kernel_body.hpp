@@ -60,6 +60,8 @@ __attribute__((always_inline)) inline typename V::F blocker_view(const ZhTable& 
     } else if (rule == ReplacementRule::Clamped) {
       const F t = V::min(V::max(ratio, zero), one);
       rho = V::select(inside, rin, V::mul(t, rout));
+    } else if (rule == ReplacementRule::InsideOnly) {
+      rho = rin;  // the lanes outside S are restored below
     } else {
       const F a = V::select(V::lt(dmin, dd), V::max(ratio, one), one);
       rho = V::select(inside, rin, V::mul(a, rout));
@@ -67,6 +69,12 @@ __attribute__((always_inline)) inline typename V::F blocker_view(const ZhTable& 
     const auto front = V::ge(h, r);
     rho = V::select(front, r, rho);
     hh = V::select(front, h, rho);
+    if (rule == ReplacementRule::InsideOnly) {
+      // Any sphere that p is outside of is left whole.
+      const auto outside = V::ge(d2, r2);
+      rho = V::select(outside, r, rho);
+      hh = V::select(outside, h, hh);
+    }
   }
   // v = P' - p = d + (hh - h) N. Its length is taken from v itself (not from a2 + hh^2) so that
   // s = v/|v| stays a unit vector under the cancellation of a receiver on its own sphere.

@@ -30,7 +30,7 @@ ParamDesc self_shadow_rules(bool def) {
 }
 
 ParamDesc replacement_rule(const std::string& def) {
-  return ParamDesc::choice("replacement_rule", def, {"continuous", "clamped", "printed"},
+  return ParamDesc::choice("replacement_rule", def, {"continuous", "clamped", "printed", "inside_only"},
                            "reading of the scale factor a of paper 004 section 6.2 (docs/techniques/shexp.md)");
 }
 

@@ -33,7 +33,8 @@ using namespace common::gpu_passes;
 static_assert(static_cast<int>(ReplacementRule::Off) == static_cast<int>(gpu::kRuleOff) &&
                   static_cast<int>(ReplacementRule::Continuous) == static_cast<int>(gpu::kRuleContinuous) &&
                   static_cast<int>(ReplacementRule::Clamped) == static_cast<int>(gpu::kRuleClamped) &&
-                  static_cast<int>(ReplacementRule::Printed) == static_cast<int>(gpu::kRulePrinted),
+                  static_cast<int>(ReplacementRule::Printed) == static_cast<int>(gpu::kRulePrinted) &&
+                  static_cast<int>(ReplacementRule::InsideOnly) == static_cast<int>(gpu::kRuleInsideOnly),
               "ReplacementRule and softgi_shared.h disagree");
 static_assert(kMaxAccOrder * kMaxAccOrder == static_cast<int>(gpu::kAccumMaxCoeffs), "softgi_shared.h: max coefficients");
 

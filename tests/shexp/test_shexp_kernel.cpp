@@ -152,7 +152,8 @@ TEST_P(ShexpKernel, MatchesTheScalarFormulas) {
         // 37 receivers: a partial last block.
         RandomSetup s = coherent ? coherent_setup(order, 37, 23, 50 + order) : random_setup(order, 37, 41, 100 + order);
         for (ReplacementRule rule :
-             {ReplacementRule::Off, ReplacementRule::Continuous, ReplacementRule::Clamped, ReplacementRule::Printed}) {
+             {ReplacementRule::Off, ReplacementRule::Continuous, ReplacementRule::Clamped, ReplacementRule::Printed,
+              ReplacementRule::InsideOnly}) {
           const std::vector<float> ref = reference_accumulation(t, rule, s.rec, s.blockers);
           double scale = 0.0;
           for (float v : ref) scale = std::max(scale, static_cast<double>(std::abs(v)));
@@ -530,6 +531,15 @@ TEST(ShexpRules, CasesOfFigure5) {
   }
   // Off: unaltered even when behind.
   EXPECT_EQ(apply_replacement_rule(ReplacementRule::Off, p, n, {2.0f, -1.5f, 0.0f}, 1.0f).radius, 1.0f);
+  // InsideOnly: the inside rule as the others; a sphere that p is outside of stays whole, straddling
+  // T_p (no horizon adjustment) or behind it.
+  EXPECT_EQ(apply_replacement_rule(ReplacementRule::InsideOnly, p, n, {0.3f, -0.2f, 0.0f}, 1.0f).radius, 0.0f);
+  EXPECT_FLOAT_EQ(apply_replacement_rule(ReplacementRule::InsideOnly, p, n, {0.3f, 0.4f, 0.0f}, 1.0f).radius, 0.4f);
+  for (const glm::vec3 c : {glm::vec3(5.0f, 0.5f, 0.0f), glm::vec3(2.0f, -0.5f, 0.0f), glm::vec3(2.0f, -1.5f, 0.0f)}) {
+    const AdjustedSphere w = apply_replacement_rule(ReplacementRule::InsideOnly, p, n, c, 1.0f);
+    EXPECT_EQ(w.radius, 1.0f);
+    EXPECT_EQ(w.center, c);
+  }
 }
 
 namespace {
@@ -602,7 +612,7 @@ TEST(ShexpRules, NoDiscontinuityAcrossTheSphereBoundary) {
 
 // The other readings of the scale factor are discontinuous where docs/techniques/shexp.md says: the
 // clamped one (a = min(1, .)) when the centre is in front of T_p, the printed one (a = max(1, .))
-// whenever S straddles T_p. "Discontinuous" = the same bound as above fails by more than 10x.
+// and the inside rule alone (the sphere whole just outside) whenever S straddles T_p. "Discontinuous" = the same bound as above fails by more than 10x.
 TEST(ShexpRules, OtherReadingsJumpWhereDocumented) {
   sh::ShTables tables = make_tables(4);
   const ZhTable t = make_zh_table(tables.cap_log(), 4, true);
@@ -615,6 +625,8 @@ TEST(ShexpRules, OtherReadingsJumpWhereDocumented) {
   EXPECT_FALSE(jumps(ReplacementRule::Clamped, behind));
   EXPECT_TRUE(jumps(ReplacementRule::Printed, in_front));
   EXPECT_TRUE(jumps(ReplacementRule::Printed, behind));
+  EXPECT_TRUE(jumps(ReplacementRule::InsideOnly, in_front));
+  EXPECT_TRUE(jumps(ReplacementRule::InsideOnly, behind));
   EXPECT_FALSE(jumps(ReplacementRule::Continuous, in_front));
   EXPECT_FALSE(jumps(ReplacementRule::Continuous, behind));
 }

@@ -291,6 +291,11 @@ TEST_F(ImageSplatParity, PerPairCutsAndEveryExponentialRunOnBothBackends) {
   printed.set("indirect", "false");
   const Run b = run("character", sc, printed, "printed rule");
   EXPECT_EQ(b.compared, 4u) << "accumulate_log, exponentiate, upsample and shade_direct";
+  render::ParamSet inside = params_for(4);
+  inside.set("replacement_rule", "inside_only");
+  inside.set("indirect", "false");
+  const Run d = run("character", sc, inside, "inside-only rule");
+  EXPECT_EQ(d.compared, 4u) << "accumulate_log, exponentiate, upsample and shade_direct";
   render::ParamSet exact = params_for(3);
   exact.set("exp", "exact");
   exact.set("indirect", "false");

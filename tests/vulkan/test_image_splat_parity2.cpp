@@ -246,7 +246,7 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
   result.passes.push_back(render::PassRecord{"accumulate_indirect"});
   int cases = 0;
   std::map<std::string, std::pair<double, double>> worst;  // per operator: rgb, omega
-  for (auto rule : {techniques::common::ReplacementRule::Off, techniques::common::ReplacementRule::Continuous, techniques::common::ReplacementRule::Clamped, techniques::common::ReplacementRule::Printed})
+  for (auto rule : {techniques::common::ReplacementRule::Off, techniques::common::ReplacementRule::Continuous, techniques::common::ReplacementRule::Clamped, techniques::common::ReplacementRule::Printed, techniques::common::ReplacementRule::InsideOnly})
     for (auto op : {is::IndirectOperator::PointSampled, is::IndirectOperator::AveragedExact, is::IndirectOperator::AveragedPolynomial,
                     is::IndirectOperator::Exact})
       for (int n : {3, 6}) {  // 4 is in the scene test; each order is a pipeline to compile
@@ -282,7 +282,7 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
       }
   for (const auto& [op, w] : worst)
     std::printf("[parity2] random receivers, %-24s worst rgb %.3g omega %.3g\n", op.c_str(), w.first, w.second);
-  EXPECT_EQ(cases, 4 * (2 + 2 + 1 + 2) * 3);
+  EXPECT_EQ(cases, 5 * (2 + 2 + 1 + 2) * 3);
 }
 
 // Bad proxies get the CPU evaluator's message on Vulkan too, for the exact operator as well.

@@ -14,6 +14,7 @@ AdjustedSphere apply_replacement_rule(ReplacementRule rule, const glm::vec3& p, 
   const float h = glm::dot(cp, n);
   if (h >= r) return {center, r};  // entirely in front (p is then outside S)
   const bool inside = glm::dot(cp, cp) < r * r;
+  if (rule == ReplacementRule::InsideOnly && !inside) return {center, r};
   const glm::vec3 q1 = center - h * n;
   const float rin = std::max(h, 0.0f);                 // inside: shrunk to tangency, or eliminated
   const float rout = std::max(0.5f * (h + r), 0.0f);   // S' with diameter q0 q1; 0 when entirely behind
@@ -29,6 +30,7 @@ AdjustedSphere apply_replacement_rule(ReplacementRule rule, const glm::vec3& p, 
     }
     case ReplacementRule::Clamped: rho = inside ? rin : std::clamp(ratio, 0.0f, 1.0f) * rout; break;
     case ReplacementRule::Printed: rho = inside ? rin : (d > dmin ? std::max(1.0f, ratio) : 1.0f) * rout; break;
+    case ReplacementRule::InsideOnly: rho = rin; break;
     case ReplacementRule::Off: break;
   }
   // A sphere that rounding shrank below 1e-6 of its radius is eliminated (the kernels do the same).

@@ -32,6 +32,9 @@
 //    T_p, a jump when it is in front).
 //  - Printed: rho = max(1, x) (h + r)/2 outside, as extracted (a jump at the boundary; rho can
 //    exceed r, so the sphere can outgrow S).
+//  - InsideOnly: the inside rule only; a sphere that p is outside of is left whole even where it
+//    reaches below T_p (no horizon adjustment: paper 001 section 8.1 names that adjustment as an
+//    error source, and this reading measures its share; it jumps at the boundary of S).
 //  - Off: spheres unaltered (every receiver inside a sphere is fully shadowed).
 // A sphere that rounding shrank below 1e-6 of its radius is eliminated (a receiver lying on its own
 // proxy sphere otherwise sees a direction of pure noise).
@@ -41,7 +44,7 @@
 
 namespace softgi::proxies {
 
-enum class ReplacementRule { Off, Continuous, Clamped, Printed };
+enum class ReplacementRule { Off, Continuous, Clamped, Printed, InsideOnly };
 inline constexpr ReplacementRule kDefaultReplacementRule = ReplacementRule::Continuous;
 
 struct AdjustedSphere {
