@@ -405,7 +405,6 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   // Passes until every receiver has summed all its SLs: one where the driver has no loop limit,
   // else as many as the limit requires (the shader's header comment).
   const std::uint32_t budget = loop_budget(dev.device_info());
-  const std::uint32_t sq_terms = static_cast<std::uint32_t>(ProductPlan::get(n).sq_begin.back());
   double secs = 0.0;
   int passes = 0;
   for (;;) {
@@ -413,7 +412,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
       rec.begin_timer("accumulate_indirect");
       dispatch_chunks<Push>(rec, p, binds, count, gpu::kSlIndirectGroup, [&](std::uint32_t first, std::uint32_t end) {
         return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(entries), static_cast<std::uint32_t>(t.log.rows),
-                    static_cast<std::uint32_t>(t.weight.rows), g.ol_count, t.log.scale, weight_scale, budget, passes > 0 ? 1u : 0u, sq_terms};
+                    static_cast<std::uint32_t>(t.weight.rows), g.ol_count, t.log.scale, weight_scale, budget, passes > 0 ? 1u : 0u, plan.sq_count};
       });
       rec.end_timer();
       rec.barrier();
