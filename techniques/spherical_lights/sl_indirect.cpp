@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
 
 #include "sl_passes.hpp"
@@ -225,6 +226,148 @@ glm::vec3 local_lights_term(const Settings& s, const Tables& t, const SlPose* po
     out += std::max(v, 0.0f) * lights[which[a]].radiance;
   }
   return out;
+}
+
+namespace {
+
+// A 32-bit integer hash (Wellons' lowbias32) for the per-receiver jitter: the same receiver gets the
+// same rays on every backend and every run.
+std::uint32_t hash32(std::uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7feb352du;
+  x ^= x >> 15;
+  x *= 0x846ca68bu;
+  x ^= x >> 16;
+  return x;
+}
+float unit_float(std::uint32_t h) { return static_cast<float>(h >> 8) * (1.0f / 16777216.0f); }
+
+// Nearest positive distance along unit d from p to the sphere (c, r), or -1. `from_inside`: p may be
+// inside, then the exit distance.
+float ray_sphere(const glm::vec3& p, const glm::vec3& d, const glm::vec3& c, float r, bool from_inside) {
+  const glm::vec3 oc = p - c;
+  const float b = glm::dot(oc, d), q = glm::dot(oc, oc) - r * r;
+  const float disc = b * b - q;
+  if (disc < 0.0f) return -1.0f;
+  const float root = std::sqrt(disc);
+  if (q > 0.0f) {
+    const float t = -b - root;
+    return t > 0.0f ? t : -1.0f;
+  }
+  return from_inside ? -b + root : -1.0f;
+}
+
+}  // namespace
+
+void accumulate_indirect_ray_cast(const Settings& s, const SlPose& pose, const Intensity& lc, const ReceiverSoA& rec, std::size_t begin,
+                                  std::size_t end, glm::vec3* out, IndirectStats& st) {
+  const int order = lc.order, n2 = order * order;
+  const int strata = s.ray_strata, rays = strata * strata;
+  const bool run_time = s.pre.intersecting == IntersectingOcclusion::RunTime;
+  struct Active {
+    int sl;
+    glm::vec3 centre;  // rule-adjusted sphere: what the rays are tested against
+    float radius;
+  };
+  struct Hit {
+    int a;  // index into `active`
+    float t;
+  };
+  std::vector<Active> active;
+  std::vector<Hit> hits;
+  std::array<float, sh::kMaxCoeffs> y{};
+  for (std::size_t r = begin; r < end; ++r) {
+    const glm::vec3 p(rec.px[r], rec.py[r], rec.pz[r]), n(rec.nx[r], rec.ny[r], rec.nz[r]);
+    out[r - begin] = glm::vec3(0.0f);
+    if (!(glm::dot(n, n) > 0.0f)) continue;
+    active.clear();
+    for (std::size_t i = 0; i < pose.leaves; ++i) {
+      // The rules and the elimination test of the Sh pass (receiver_terms), so the two differ only
+      // in how the light of the SLs they keep is integrated.
+      const AdjustedSphere adj = apply_replacement_rule(s.rule, p, n, pose.centre[i], pose.radius[i]);
+      const float dist = glm::length(adj.center - p);
+      if (!(adj.radius > 0.0f) || !(dist > adj.radius)) {
+        ++st.eliminated;
+        continue;
+      }
+      active.push_back({static_cast<int>(i), adj.center, adj.radius});
+    }
+    st.lights += static_cast<long long>(active.size());
+    if (active.empty()) continue;
+    // A frame about N for the cosine-weighted directions (pdf cos / pi: E/pi is their mean radiance).
+    const glm::vec3 a = std::abs(n.x) < 0.9f ? glm::vec3(1.0f, 0.0f, 0.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
+    const glm::vec3 tx = glm::normalize(glm::cross(a, n)), ty = glm::cross(n, tx);
+    const std::uint32_t seed = hash32(static_cast<std::uint32_t>(r) * 0x9e3779b9u + 0x632be5abu);
+    glm::vec3 sum(0.0f);
+    for (int k = 0; k < rays; ++k) {
+      const std::uint32_t h = hash32(seed ^ static_cast<std::uint32_t>(k) * 0x85ebca6bu);
+      const float u1 = (static_cast<float>(k / strata) + unit_float(h)) / static_cast<float>(strata);
+      const float u2 = (static_cast<float>(k % strata) + unit_float(hash32(h))) / static_cast<float>(strata);
+      // Shirley and Chiu's concentric map of the stratum to the unit disc (area-preserving and far
+      // less distorting than polar coordinates, so fewer strata straddle a cap's rim), lifted to the
+      // hemisphere (Malley's method: cosine-weighted).
+      const float sx = 2.0f * u1 - 1.0f, sy = 2.0f * u2 - 1.0f;
+      float rad = 0.0f, phi = 0.0f;
+      const float quarter = static_cast<float>(sh::kPi) / 4.0f;
+      if (sx != 0.0f || sy != 0.0f) {
+        if (std::abs(sx) > std::abs(sy)) {
+          rad = sx;
+          phi = quarter * (sy / sx);
+        } else {
+          rad = sy;
+          phi = 2.0f * quarter - quarter * (sx / sy);
+        }
+      }
+      const float dx = rad * std::cos(phi), dy = rad * std::sin(phi);
+      const glm::vec3 d = dx * tx + dy * ty + std::sqrt(std::max(0.0f, 1.0f - dx * dx - dy * dy)) * n;
+      hits.clear();
+      for (std::size_t q = 0; q < active.size(); ++q) {
+        const float t = ray_sphere(p, d, active[q].centre, active[q].radius, false);
+        if (t > 0.0f) hits.push_back({static_cast<int>(q), t});
+      }
+      if (hits.empty()) continue;
+      std::size_t first = 0, last = hits.size();
+      if (run_time) {
+        // Only the nearest SL the ray hits is seen.
+        for (std::size_t q = 1; q < hits.size(); ++q)
+          if (hits[q].t < hits[first].t) first = q;
+        last = first + 1;
+      }
+      for (std::size_t hq = first; hq < last; ++hq) {
+        const Hit& hh = hits[hq];
+        const int i = active[hh.a].sl;
+        if (!run_time) {
+          // Section 6.2: S_i counts unless an SL in front of it that is not one of its own
+          // object's intersecting SLs covers this direction.
+          bool blocked = false;
+          for (const Hit& g : hits)
+            if (g.t < hh.t && g.a != hh.a) {
+              const auto& x = pose.intersecting[i];
+              if (std::find(x.begin(), x.end(), active[g.a].sl) == x.end()) {
+                blocked = true;
+                break;
+              }
+            }
+          if (blocked) continue;
+        }
+        // The radiance leaving the SL's own sphere where this ray sees it (its intensity is defined
+        // on that sphere); where the adjusted sphere pokes out of it, the adjusted hit's normal.
+        const glm::vec3 c = pose.centre[i];
+        float t = ray_sphere(p, d, c, pose.radius[i], true);
+        glm::vec3 m = t > 0.0f ? (p + t * d - c) : (p + hh.t * d - active[hh.a].centre);
+        const float ml = glm::length(m);
+        m = ml > 0.0f ? m / ml : n;
+        const glm::vec3 dl = glm::transpose(pose.rotation[i]) * m;
+        sh::eval_basis(order, sh::Vec3<float>{dl.x, dl.y, dl.z}, y.data());
+        const float* L = lc.v.data() + static_cast<std::size_t>(i) * 3 * n2;
+        glm::vec3 rad3(0.0f);
+        for (int q = 0; q < n2; ++q) rad3 += y[q] * glm::vec3(L[q], L[n2 + q], L[2 * n2 + q]);
+        sum += rad3;
+      }
+    }
+    st.rays += rays;
+    out[r - begin] = glm::max(sum / static_cast<float>(rays), glm::vec3(0.0f));
+  }
 }
 
 SlList flat_sl_list(const SlPose& pose) {

@@ -47,6 +47,11 @@ inline constexpr const char* kIndirectShading = "sl.indirect_shading";
 // Section 7.2: the order in which blocker SLs darken an SL.
 enum class Blocking { PerSphere, PerObject };
 
+// How the receiver pass integrates each SL's light. Sh: the paper's average radiance times average
+// visibility (eqs. 12-24). RayCast: a reference for that approximation, the same posed SLs,
+// intensities and replacement rules integrated exactly by cosine-weighted rays against the spheres.
+enum class IndirectVisibility { Sh, RayCast };
+
 struct Settings {
   int order = 4;
   sh::ExpMethod exp = sh::ExpMethod::HYB;
@@ -63,7 +68,9 @@ struct Settings {
   bool reflection_ratios = true;  // eq. 25
   bool lights_as_sls = true;      // section 7.3 local lights; false: paper 004's analytic lights
   double theta_max = 0.0;
-  PrecomputeOptions pre;
+  IndirectVisibility visibility = IndirectVisibility::Sh;
+  int ray_strata = 64;            // RayCast: ray_strata^2 stratified cosine-weighted directions per receiver
+  PrecomputeOptions pre;          // pre.intersecting: the paper's precomputed occlusion, or at run time (RayCast only)
 };
 // Throws std::invalid_argument naming the parameter.
 Settings read_settings(const render::ParamSet& p);
@@ -182,9 +189,20 @@ struct IndirectStats {
   long long clamped = 0;       // Vbar below 0 set to 0
   long long exps = 0;
   double exp_flops = 0.0;      // floating-point operations of the exponentials' SH squares and products
+  long long rays = 0;          // RayCast: rays cast
 };
 void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list,
                          const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out, IndirectStats& stats);
+
+// RayCast (a reference for the two functions above): per receiver, E/pi = (1/pi) int L(w) max(0, N.w) dw
+// over ray_strata^2 stratified cosine-weighted directions, L(w) the intensity L^c of the SL a
+// ray hits at the point of that SL's sphere it sees (in the SL's rest frame). The replacement rules
+// adjust the spheres the rays are tested against, as for Sh. With the paper's precomputed occlusion
+// an SL counts where no SL in front of it blocks it except the intersecting SLs of its own object
+// (which it ignores, section 6.2); with the occlusion at run time (`pre.intersecting`) only the
+// nearest SL a ray hits counts. Every leaf SL, no hierarchy (its cut and ratios are Sh's).
+void accumulate_indirect_ray_cast(const Settings& s, const SlPose& pose, const Intensity& lc, const ReceiverSoA& rec, std::size_t begin,
+                                  std::size_t end, glm::vec3* out, IndirectStats& stats);
 
 // The same for one receiver with each list entry's terms returned: vbar[e] (0 where the rules
 // eliminated it) and lbar[e], its average radiance times its ratio.

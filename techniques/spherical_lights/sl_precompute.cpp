@@ -339,8 +339,26 @@ ObjectSls precompute_object(const scene::Scene& scene, int object_node, const sc
     for (std::size_t j = 0; j < spheres.size(); ++j)
       if (j != i && glm::length(c - spheres[j].center) < spheres[i].radius + spheres[j].radius)
         L.intersecting.push_back(static_cast<int>(j));
-    compute_light(L, c, [&](const glm::vec3& p) { return in_segment(spheres, i, p); },
-                  [&](std::uint32_t t) { return in_set[i][t] != 0; });
+    if (options.intersecting == IntersectingOcclusion::Precomputed) {
+      compute_light(L, c, [&](const glm::vec3& p) { return in_segment(spheres, i, p); },
+                    [&](std::uint32_t t) { return in_set[i][t] != 0; });
+    } else {
+      // Occlusion at run time: the surface behind an intersecting light's segment is this light's
+      // too, and the receivers decide per direction which of the two they see.
+      auto seg = [&](const glm::vec3& p) {
+        if (in_segment(spheres, i, p)) return true;
+        for (int j : L.intersecting)
+          if (in_segment(spheres, static_cast<std::size_t>(j), p)) return true;
+        return false;
+      };
+      auto tri = [&](std::uint32_t t) {
+        if (in_set[i][t]) return true;
+        for (int j : L.intersecting)
+          if (in_set[j][t]) return true;
+        return false;
+      };
+      compute_light(L, c, seg, tri);
+    }
   }
 
   // Groups (paper 001 section 7.3, parent SLs of a hierarchy): the same rules with the union of the

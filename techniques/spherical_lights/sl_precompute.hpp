@@ -16,12 +16,22 @@
 
 namespace softgi::techniques::spherical_lights {
 
+// Where the occlusion between intersecting lights of one object is taken into account.
+// Precomputed (the paper, section 6.2): a light's sample points and albedo are its own segment's
+// (rule 2 of section 4.2), so it emits nothing where an intersecting light's surface lies, and the
+// receivers ignore intersecting lights as its blockers. RunTime: its sample points and albedo may
+// also lie in the segments of the lights intersecting it, and the receivers resolve the occlusion
+// per direction (only the ray-cast receiver pass can: the blocker function of an intersecting light
+// is not circularly symmetric).
+enum class IntersectingOcclusion { Precomputed, RunTime };
+
 struct PrecomputeOptions {
   int order = 4;               // SH order n of intensities, albedo and basis sums (n^2 coefficients)
   int geodesic_frequency = 3;  // sample directions: 10 f^2 + 2 (f = 3: the paper's 92)
   int cubemap_resolution = 16; // albedo cube map, texels per face side
   int projection_strata = 64;  // eq. 9-10: N = strata^2 jittered stratified directions
   unsigned seed = 1;           // jitter of those directions
+  IntersectingOcclusion intersecting = IntersectingOcclusion::Precomputed;
 };
 
 // Vertices of the geodesic sphere of frequency f >= 1 built on the icosahedron (each face cut into

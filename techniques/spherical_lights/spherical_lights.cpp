@@ -55,6 +55,13 @@ Settings read_settings(const render::ParamSet& p) {
   s.pre.geodesic_frequency = p.get_int("geodesic_frequency");
   s.pre.cubemap_resolution = p.get_int("cubemap_resolution");
   s.pre.projection_strata = p.get_int("projection_strata");
+  s.visibility = p.get_enum("indirect_visibility") == "ray_cast" ? IndirectVisibility::RayCast : IndirectVisibility::Sh;
+  s.ray_strata = p.get_int("ray_strata");
+  s.pre.intersecting = p.get_enum("intersecting") == "run_time" ? IntersectingOcclusion::RunTime : IntersectingOcclusion::Precomputed;
+  if (s.pre.intersecting == IntersectingOcclusion::RunTime && s.visibility != IndirectVisibility::RayCast)
+    throw std::invalid_argument("spherical_lights: intersecting=run_time needs indirect_visibility=ray_cast (the blocker function of "
+                                "an intersecting SL is not circularly symmetric, so the SH visibility cannot resolve it; paper 001 "
+                                "section 6.2)");
   return s;
 }
 
@@ -138,7 +145,7 @@ std::string object_key(const scene::Scene& scene, int set, const PrecomputeOptio
   }
   std::ostringstream os;
   os << opt.order << '|' << opt.geodesic_frequency << '|' << opt.cubemap_resolution << '|' << opt.projection_strata << '|'
-     << opt.seed << '|' << std::hex << h.value();
+     << opt.seed << '|' << static_cast<int>(opt.intersecting) << '|' << std::hex << h.value();
   return os.str();
 }
 
@@ -643,16 +650,21 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
 }
 
 void pass_indirect(const Settings& s, FrameContext& ctx) {
-  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
   const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
   const auto& lc = *ctx.get<std::shared_ptr<const Intensity>>(kIntensity);
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
-  const auto& cuts = *ctx.get<std::shared_ptr<const SlCuts>>(kSlCuts);
   auto out = std::make_shared<Shading>();
   out->value.resize(r.soa.size());
   tbb::combinable<IndirectStats> stats;
   const auto t0 = std::chrono::steady_clock::now();
   const int nc = static_cast<int>(r.clusters.size());
+  if (s.visibility == IndirectVisibility::RayCast) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 16), [&](const tbb::blocked_range<std::size_t>& br) {
+      accumulate_indirect_ray_cast(s, pose, lc, r.soa, br.begin(), br.end(), out->value.data() + br.begin(), stats.local());
+    });
+  } else {
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& cuts = *ctx.get<std::shared_ptr<const SlCuts>>(kSlCuts);
   tbb::parallel_for(tbb::blocked_range<int>(0, nc, 1), [&](const tbb::blocked_range<int>& cr) {
     for (int c = cr.begin(); c != cr.end(); ++c) {
       const ReceiverCluster& rc = r.clusters[c];
@@ -662,6 +674,7 @@ void pass_indirect(const Settings& s, FrameContext& ctx) {
       });
     }
   });
+  }
   const double secs = common::seconds_since(t0);
   IndirectStats total;
   stats.combine_each([&](const IndirectStats& x) {
@@ -670,6 +683,7 @@ void pass_indirect(const Settings& s, FrameContext& ctx) {
     total.clamped += x.clamped;
     total.exps += x.exps;
     total.exp_flops += x.exp_flops;
+    total.rays += x.rays;
   });
   auto& rec = ctx.record();
   rec.counters["receivers"] = static_cast<double>(r.soa.size());
@@ -682,6 +696,7 @@ void pass_indirect(const Settings& s, FrameContext& ctx) {
   rec.counters["exp_flops"] = total.exp_flops;
   rec.counters["exp_gflops"] = secs > 0.0 ? total.exp_flops / secs * 1e-9 : 0.0;
   rec.counters["per_object_blocking"] = s.blocking == Blocking::PerObject;
+  if (s.visibility == IndirectVisibility::RayCast) rec.counters["rays"] = static_cast<double>(total.rays);
   rec.bytes = out->value.size() * sizeof(glm::vec3);
   ctx.put<std::shared_ptr<const Shading>>(kIndirectShading, out);
 }
@@ -773,6 +788,15 @@ class SphericalLights final : public render::Technique {
                                   "how the scene's spherical lights shade (with analytic_lights): as SLs of constant intensity "
                                   "under the two-exponential visibility (section 7.3), or by paper 004's light-lobe method"));
     d.push_back(common::params::kernel());
+    d.push_back(ParamDesc::choice("indirect_visibility", "sh", {"sh", "ray_cast"},
+                                  "receiver pass: average radiance x two-exponential visibility (sh, eqs. 12-24), or a reference "
+                                  "that integrates the same SLs exactly with cosine-weighted rays against their spheres (ray_cast; "
+                                  "host code on every backend, every leaf SL)"));
+    d.push_back(ParamDesc::integer("ray_strata", 64, 2, 256, "ray_cast: strata^2 stratified cosine-weighted rays per receiver"));
+    d.push_back(ParamDesc::choice("intersecting", "precomputed", {"precomputed", "run_time"},
+                                  "occlusion between intersecting SLs of one object: in the emission, ignored by the receivers "
+                                  "(precomputed, section 6.2), or resolved per ray at the receivers (run_time, the paper's future "
+                                  "work; needs indirect_visibility=ray_cast)"));
     return d;
   }
 
@@ -853,6 +877,13 @@ class SphericalLights final : public render::Technique {
                                                    if (!k.intensity) return {};
                                                    return [s, f = k.intensity](FrameContext& c) { f(s, c); };
                                                  })});
+      if (s.visibility == IndirectVisibility::RayCast) {
+        g.add({"accumulate_indirect", {kReceivers, kSlPose, kIntensity}, {}, {kIndirectShading},
+               std::string("reference: every leaf SL integrated by ") + std::to_string(s.ray_strata * s.ray_strata) +
+                   " cosine-weighted rays per receiver against the SL spheres, intersecting SLs' occlusion " +
+                   (s.pre.intersecting == IntersectingOcclusion::RunTime ? "at run time" : "precomputed (section 6.2)"),
+               cpu([s](FrameContext& c) { pass_indirect(s, c); })});
+      } else {
       g.add({"sl_cut", {kReceivers, kTables, kSlPose, kIntensity}, {}, {kSlCuts},
              s.hierarchy ? "per receiver cluster: cut of the SL hierarchies (paper 004 eq. 36), reflection ratios (eq. 25)"
                          : "every leaf SL for every receiver cluster",
@@ -865,6 +896,7 @@ class SphericalLights final : public render::Technique {
                                                    if (!k.indirect) return {};
                                                    return [s, f = k.indirect](FrameContext& c) { f(s, c); };
                                                  })});
+      }
       g.add({"indirect_image", {render::kGBuffer, kReceivers, kIndirectShading}, {}, {render::kIndirect},
              "per-vertex indirect radiance through the G-buffer", cpu([](FrameContext& c) { pass_to_image(c, true); })});
     }

@@ -214,6 +214,15 @@ if(NOT region MATCHES "ground")
   message(FATAL_ERROR "sl_fig10_box8_indirect: errors over '${region}', expected the ground plane")
 endif()
 
+# Section 8.1's precomputed occlusion of intersecting SLs: the SH receiver pass, its ray-cast
+# reference, and the ray-cast pass with the occlusion at run time, over every surface.
+set(OUT ${WORK_DIR}/sl_occlusion)
+run_experiment(sl_occlusion_box8 ${OUT})
+file(READ ${OUT}/results.json j)
+check_variants("${j}" ${OUT} sl)
+variant_index("${j}" sl_ray_cast_run_time irt)
+variant_index("${j}" sl_ray_cast irc)
+
 # --- bad input ----------------------------------------------------------------------------------
 expect_failure("unknown experiment 'nosuch'.*image_splat_fig5" experiment nosuch --out ${WORK_DIR}/bad)
 expect_failure("--out" experiment shexp_orders)

@@ -421,6 +421,41 @@ TEST(SlPrecompute, BoxOctantsDiscardOccludedDirectionsAndKeepSegments) {
   EXPECT_LT(o.bytes(), 200u * 1024u);  // the paper's 32-150 KB per object
 }
 
+// With the occlusion between intersecting lights left to run time, a light keeps the directions
+// whose surface lies in an intersecting light's segment (on the box an octant's sphere intersects
+// its six face and edge neighbours; only the opposite octant's directions stay discarded), and where
+// the paper's rule keeps a direction both choose the same sample point (the box is convex: the
+// farthest back hit of the own segment is the only back hit).
+TEST(SlPrecompute, RunTimeOcclusionKeepsTheIntersectingLightsDirections) {
+  const glm::vec3 half(0.5f);
+  TestScene t = make_scene(box_mesh(half, 9), octant_spheres(half));
+  PrecomputeOptions rt;
+  rt.intersecting = IntersectingOcclusion::RunTime;
+  const ObjectSls a = precompute_object(t.scene, 0, t.set, {});
+  const ObjectSls b = precompute_object(t.scene, 0, t.set, rt);
+  for (std::size_t i = 0; i < 8; ++i) {
+    const SphericalLightData& La = a.sls[i];
+    const SphericalLightData& Lb = b.sls[i];
+    ASSERT_EQ(Lb.intersecting.size(), 6u) << i;
+    EXPECT_GT(La.outcomes.occluded, Lb.outcomes.occluded) << i;
+    EXPECT_EQ(Lb.outcomes.back_hit + Lb.outcomes.occluded, 92) << i;
+    for (std::size_t k = 0; k < Lb.sample_count(); ++k) {
+      const glm::vec3 q = Lb.sample_positions[k];
+      bool own = in_segment(t.set.spheres, i, q);
+      for (int j : Lb.intersecting) own = own || in_segment(t.set.spheres, static_cast<std::size_t>(j), q);
+      EXPECT_TRUE(own) << "light " << i << " sample " << k << " lies in no segment it may use";
+    }
+    std::size_t kb = 0;
+    for (std::size_t k = 0; k < La.sample_count(); ++k) {
+      while (kb < Lb.sample_count() && Lb.sample_direction[kb] != La.sample_direction[k]) ++kb;
+      ASSERT_LT(kb, Lb.sample_count()) << "light " << i << " lost direction " << La.sample_direction[k];
+      EXPECT_EQ(Lb.sample_positions[kb], La.sample_positions[k]);
+    }
+    // The albedo cube map now sees the neighbours' faces too: more of the sphere carries albedo.
+    EXPECT_GT(Lb.albedo_sh[0], La.albedo_sh[0]) << i;
+  }
+}
+
 TEST(SlPrecompute, CentreOutsideThinObjectUsesOppositeRay) {
   // A 2 x 0.1 x 2 slab and a light centred 0.25 above it: upward rays hit nothing, and their opposite
   // rays meet the top face from outside (case 3); downward rays cross it and leave through the bottom.

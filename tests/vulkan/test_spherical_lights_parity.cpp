@@ -256,4 +256,41 @@ TEST(SphericalLightsVulkan, ResumedPassesGiveTheSameIndirectLight) {
   EXPECT_EQ(differ, 0u) << "pixels whose indirect light changed with the pass split";
 }
 
+// The ray-cast reference of the receiver pass is host code on every backend: on Vulkan it reads the
+// intensities the device computed (brought back for it) and gives the CPU frame's indirect light up
+// to the intensity and sample-shading tolerances above (a few 1e-4 of the largest value; 2e-3 of
+// the image's largest value bounds them with the receivers' interpolation through the G-buffer).
+TEST(SphericalLightsVulkan, RayCastReceiverPassRunsOnTheHost) {
+  backends::register_cpu_backend();
+  const scene::Scene sc = scene::make_builtin("sphere_plane");
+  std::unique_ptr<render::Technique> tech = sl::create();
+  render::ParamSet params = render::default_params(*tech);
+  params.set("indirect_visibility", "ray_cast");
+  params.set("ray_strata", "8");
+  render::RenderRequest req;
+  req.width = req.height = 24;
+  backends::CpuBackend cpu;
+  auto ctx = softgi::testing::validated_context();
+  const auto log = ctx->validation_log();
+  auto vk = std::make_unique<backends::VulkanBackend>(ctx);
+  ctx.reset();
+  const render::FrameResult a = cpu.render(*tech, sc, params, req);
+  const render::FrameResult b = vk->render(*tech, sc, params, req);
+  vk.reset();
+  EXPECT_EQ(log->problems(), 0u) << log->summary();
+  ASSERT_EQ(a.indirect.rgb.size(), b.indirect.rgb.size());
+  float peak = 0.0f, worst = 0.0f;
+  for (std::size_t i = 0; i < a.indirect.rgb.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      peak = std::max(peak, a.indirect.rgb[i][c]);
+      worst = std::max(worst, std::abs(a.indirect.rgb[i][c] - b.indirect.rgb[i][c]));
+    }
+  EXPECT_GT(peak, 0.0f);
+  EXPECT_LE(worst, 2e-3f * peak);
+  for (const auto& p : b.passes)
+    if (p.name == "accumulate_indirect") {
+      EXPECT_GT(p.counters.at("rays"), 0.0);
+    }
+}
+
 }  // namespace
