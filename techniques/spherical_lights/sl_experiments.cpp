@@ -49,9 +49,10 @@ render::ExperimentDef validation(const std::string& name, const std::string& tit
 // receiver pass, its ray-cast reference with the same precomputed occlusion (so the difference of
 // the two is the SH approximation of average radiance x visibility), and the ray-cast pass with the
 // occlusion resolved at run time (the paper's future work: intersecting SLs emit what their
-// neighbours' segments hold and hide each other per ray). Indirect light over every surface, where
-// an object's own SLs reflect onto it.
-render::ExperimentDef occlusion(const std::string& name, const std::string& title, const std::string& scene, double time) {
+// neighbours' segments hold and hide each other per ray). Indirect light over every surface (where
+// an object's own SLs reflect onto it), or over the ground plane (where the figures show it).
+render::ExperimentDef occlusion(const std::string& name, const std::string& title, const std::string& scene, double time,
+                                render::ExperimentRegion region) {
   render::ExperimentDef e;
   e.name = name;
   e.title = title;
@@ -63,7 +64,7 @@ render::ExperimentDef occlusion(const std::string& name, const std::string& titl
   e.width = e.height = 512;
   e.quick_width = e.quick_height = 48;
   e.image = render::ExperimentImage::Indirect;
-  e.region = render::ExperimentRegion::Surface;
+  e.region = region;
   e.reference_orders = {0};
   e.baseline = "sl";
   e.variants = {{"sl", "spherical_lights", {"hierarchy=false"}},
@@ -108,10 +109,17 @@ std::vector<render::ExperimentDef> experiments() {
     d.push_back(validation(std::string(c.name) + "_indirect", std::string(c.title) + ", indirect light on the ground", *c.paper, c.scene,
                            c.time, ExperimentImage::Indirect));
   }
-  d.push_back(occlusion("sl_occlusion_box8", "Precomputed occlusion of intersecting SLs: box with eight SLs (section 8.1)", "box8", 0.0));
-  d.push_back(occlusion("sl_occlusion_model", "Precomputed occlusion of intersecting SLs: the bunny (section 8.1)", "bunny", 0.0));
-  d.push_back(occlusion("sl_occlusion_benchmark", "Precomputed occlusion of intersecting SLs: several animated objects (section 8.1)",
-                        "assembly", 1.0));
+  const Case occluded[] = {
+      {"sl_occlusion_box8", "Precomputed occlusion of intersecting SLs: box with eight SLs (section 8.1)", nullptr, "box8", 0.0},
+      {"sl_occlusion_model", "Precomputed occlusion of intersecting SLs: the bunny (section 8.1)", nullptr, "bunny", 0.0},
+      {"sl_occlusion_benchmark", "Precomputed occlusion of intersecting SLs: several animated objects (section 8.1)", nullptr, "assembly",
+       1.0},
+  };
+  for (const Case& c : occluded) {
+    d.push_back(occlusion(c.name, c.title, c.scene, c.time, render::ExperimentRegion::Surface));
+    d.push_back(occlusion(std::string(c.name) + "_ground", std::string(c.title) + ", on the ground", c.scene, c.time,
+                          render::ExperimentRegion::Ground));
+  }
   return d;
 }
 

@@ -1,0 +1,33 @@
+# The comparative benchmark suite (bench/bench_techniques) at a tiny size: every registered
+# technique runs on two built-in scenes on every registered backend, and the median table names each
+# (technique, scene, backend) once with a ratio, the fastest of a scene and backend at 1.00. Bad flags
+# fail with a message naming them.
+execute_process(COMMAND ${BENCH} --scenes=sphere_plane,box1 --size=16 --benchmark_min_time=0
+  OUTPUT_VARIABLE o ERROR_VARIABLE e RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "bench_techniques failed (${rc}):\n${o}${e}")
+endif()
+foreach(t shexp image_splat spherical_lights)
+  foreach(s sphere_plane box1)
+    if(NOT o MATCHES "\\| ${s} \\| [a-z]+ \\| ${t} \\| [0-9.]+ \\| [0-9.]+ \\|")
+      message(FATAL_ERROR "no median row for ${t} on ${s}:\n${o}${e}")
+    endif()
+  endforeach()
+endforeach()
+if(o MATCHES "not run")
+  message(FATAL_ERROR "a benchmark did not run:\n${o}${e}")
+endif()
+if(NOT o MATCHES "\\| 1\\.00 \\|")
+  message(FATAL_ERROR "no technique at 1.00x the fastest:\n${o}")
+endif()
+if(NOT o MATCHES "ms:accumulate_log=")
+  message(FATAL_ERROR "no per-pass counters:\n${o}")
+endif()
+execute_process(COMMAND ${BENCH} --scenes=nosuch OUTPUT_VARIABLE o ERROR_VARIABLE e RESULT_VARIABLE rc)
+if(rc EQUAL 0 OR NOT e MATCHES "unknown built-in scene 'nosuch'")
+  message(FATAL_ERROR "--scenes=nosuch (${rc}):\n${o}${e}")
+endif()
+execute_process(COMMAND ${BENCH} --size=0 OUTPUT_VARIABLE o ERROR_VARIABLE e RESULT_VARIABLE rc)
+if(rc EQUAL 0 OR NOT e MATCHES "--size: '0'")
+  message(FATAL_ERROR "--size=0 (${rc}):\n${o}${e}")
+endif()
