@@ -14,6 +14,7 @@
 #include "output_dir.hpp"
 #include "softgi/io/image_io.hpp"
 #include "softgi/metrics/image_metrics.hpp"
+#include "softgi/metrics/reference_noise.hpp"
 
 namespace softgi::app {
 
@@ -31,6 +32,7 @@ struct DiffArgs {
   double psnr_peak = 0.0;
   double map_scale = 0.0;
   bool json = false;
+  std::vector<std::string> halves;  // two independent halves of the reference: its noise taken out of relMSE
 };
 
 Mask read_mask(const std::string& path) {
@@ -102,6 +104,11 @@ void run_diff(const DiffArgs& args) {
   opt.relmse_epsilon = args.relmse_epsilon;
   opt.psnr_peak = args.psnr_peak;
   const metrics::Metrics m = metrics::compare(test, ref, mask, opt);
+  std::optional<metrics::NoiseCorrectedError> nc;
+  if (!args.halves.empty()) {
+    const Image a = io::read_image(args.halves[0]), b = io::read_image(args.halves[1]);
+    nc = metrics::noise_corrected_relmse(test, a, b, mask, opt.relmse_epsilon);
+  }
   const double peak = args.psnr_peak > 0.0 ? args.psnr_peak : reference_peak(ref, mask);
 
   double map_scale = 0.0;
@@ -125,6 +132,11 @@ void run_diff(const DiffArgs& args) {
       j["relmse"] = m.relmse;
       j["relmse_epsilon"] = opt.relmse_epsilon;
     }
+    if (nc && want("relmse")) {
+      j["relmse_noise_corrected"] = {{"halves", args.halves},     {"raw", nc->raw},         {"reference_noise", nc->noise},
+                                     {"corrected", nc->corrected}, {"ci95", {nc->ci_low, nc->ci_high}},
+                                     {"below_noise_floor", nc->below_noise_floor()}};
+    }
     if (want("psnr")) {
       j["psnr"] = json_number(m.psnr);
       j["psnr_peak"] = peak;
@@ -143,6 +155,10 @@ void run_diff(const DiffArgs& args) {
             << "pixels     " << m.pixels << (args.mask.empty() ? "" : " (mask " + args.mask + ")") << "\n";
   if (want("rmse")) std::cout << "rmse       " << m.rmse << "\n";
   if (want("relmse")) std::cout << "relmse     " << m.relmse << "  (epsilon " << opt.relmse_epsilon << ")\n";
+  if (nc && want("relmse"))
+    std::cout << "relmse, reference noise removed  " << nc->corrected << "  95% [" << nc->ci_low << ", " << nc->ci_high
+              << "]  (against the halves' mean " << nc->raw << ", of which their noise " << nc->noise << ")"
+              << (nc->below_noise_floor() ? "  below the reference's noise floor" : "") << "\n";
   if (want("psnr"))
     std::cout << "psnr       " << m.psnr << " dB  (peak " << peak
               << (args.psnr_peak > 0.0 ? ", given" : " = reference max") << ")\n";
@@ -167,6 +183,11 @@ void register_diff(CLI::App& app) {
   sub->add_option("--map-scale", args->map_scale, "luminance difference shown as full colour (0: 99th percentile)");
   sub->add_option("--epsilon", args->relmse_epsilon, "relMSE epsilon: (a-b)^2 / (b^2 + epsilon), > 0");
   sub->add_option("--peak", args->psnr_peak, "PSNR peak (0: the reference's largest channel value)");
+  sub->add_option("--halves", args->halves,
+                  "two independent halves of the reference (same renderer and spp, other seeds): also print relMSE against "
+                  "their mean with the reference's own noise removed, and its 95% interval")
+      ->expected(2)
+      ->check(CLI::ExistingFile);
   sub->add_flag("--json", args->json, "print JSON instead of text");
   sub->callback([args] { run_diff(*args); });
 }

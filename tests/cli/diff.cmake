@@ -89,3 +89,26 @@ expect_failure("mask.*8x8" diff ${D}/diff_test.exr ${D}/diff_reference.exr --mas
 expect_failure("--epsilon" diff ${D}/diff_test.exr ${D}/diff_reference.exr --epsilon 0)
 expect_failure("--map-scale" diff ${D}/diff_test.exr ${D}/diff_reference.exr --map-scale nan --map ${WORK_DIR}/x.png)
 expect_failure("reference|required" diff ${D}/diff_test.exr)
+
+# --halves: relMSE with the reference's noise removed. Identical halves carry no noise: the corrected
+# value is the plain relMSE against them. Halves diff_test and diff_reference have the mean
+# reference + 0.125, which diff_test misses by exactly their half-difference (0.125) at every pixel:
+# all of its error is the reference's noise, so the corrected value is 0 and below the noise floor.
+run_json(j diff ${D}/diff_test.exr ${D}/diff_reference.exr --halves ${D}/diff_reference.exr ${D}/diff_reference.exr)
+string(JSON nc GET "${j}" relmse_noise_corrected)
+expect_within("${nc}" corrected 0.1279843 0.1279863)
+expect_within("${nc}" reference_noise -0.000001 0.000001)
+run_json(j diff ${D}/diff_test.exr ${D}/diff_reference.exr --halves ${D}/diff_test.exr ${D}/diff_reference.exr)
+string(JSON nc GET "${j}" relmse_noise_corrected)
+expect_within("${nc}" corrected -0.000001 0.000001)
+string(JSON floor GET "${nc}" below_noise_floor)
+if(NOT floor)
+  message(FATAL_ERROR "an error that is all reference noise is not below the noise floor:\n${j}")
+endif()
+execute_process(COMMAND ${SOFTGI} diff ${D}/diff_test.exr ${D}/diff_reference.exr --halves ${D}/diff_test.exr ${D}/diff_reference.exr
+  OUTPUT_VARIABLE o ERROR_VARIABLE e RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0 OR NOT o MATCHES "reference noise removed.*below the reference's noise floor")
+  message(FATAL_ERROR "diff --halves text (${rc}):\n${o}${e}")
+endif()
+expect_failure("second half image is 8x8" diff ${D}/diff_test.exr ${D}/diff_reference.exr --halves ${D}/diff_reference.exr ${D}/diff_small.exr)
+expect_failure("--halves" diff ${D}/diff_test.exr ${D}/diff_reference.exr --halves ${D}/diff_reference.exr)

@@ -1,0 +1,35 @@
+// Errors against a noisy Monte Carlo reference with the reference's own noise taken out
+// (docs/metrics.md, "Reference noise").
+#pragma once
+
+#include "softgi/image.hpp"
+
+namespace softgi::metrics {
+
+// The reference is the mean r = (a + b) / 2 of two independent halves a and b (the same renderer and
+// sample count, independent seeds). Per pixel and channel, r = m + e with m the converged value and
+// e its noise (variance s^2, independent of the test image t): E[(t - r)^2] = (t - m)^2 + s^2, and
+// (a - b)^2 / 4 is an unbiased estimate of s^2 (var(a - b) = 2 var(a) = 4 s^2). So
+//   raw       = mean (t - r)^2 / (r^2 + eps)                      (relMSE against r)
+//   noise     = mean ((a - b)^2 / 4) / (r^2 + eps)                (what r's noise adds to raw)
+//   corrected = raw - noise                                      (relMSE against m, estimated)
+// with a 95 % confidence interval of `corrected` from the spread of its per-pixel terms (pixels are
+// independent: every pixel draws its own samples; a pixel's channels are not, so its term is their
+// mean). The weights 1 / (r^2 + eps) use the noisy r, as relMSE does.
+struct NoiseCorrectedError {
+  double raw = 0.0, noise = 0.0, corrected = 0.0;
+  double ci_low = 0.0, ci_high = 0.0;  // 95 % interval of `corrected`
+  long long pixels = 0;                // pixels counted
+  // The reference cannot resolve this error: the interval reaches 0, or the reference's noise is
+  // more than 10 % of the corrected error.
+  bool below_noise_floor() const;
+};
+// Throws std::invalid_argument naming the image (test, first half, second half) that is empty,
+// non-finite or of another size, a mask of another size or selecting nothing, or a bad epsilon.
+NoiseCorrectedError noise_corrected_relmse(const Image& test, const Image& half_a, const Image& half_b, const Mask& mask = {},
+                                           double epsilon = 1e-2);
+
+// The two halves' mean, the reference they stand for.
+Image mean_of_halves(const Image& half_a, const Image& half_b);
+
+}  // namespace softgi::metrics
