@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "cached_reference.hpp"
 #include "commands.hpp"
 #include "frame_output.hpp"
 #include "output_dir.hpp"
@@ -101,6 +102,7 @@ Image on_surface(Image img, const Mask& surface) {
 struct Reference {
   std::string key, label;  // "full" / "sh4"
   int order = 0;
+  bool cached = false;  // served by the reference cache
   reference::ReferenceResult result;
 };
 
@@ -271,9 +273,10 @@ std::vector<Reference> render_references(const CompareSetup& cs, const CompareAr
     opt.width = w;
     opt.height = h;
     opt.jitter = false;
-    ref.result = reference::render_reference(sc, opt, progress_printer("reference, " + ref.label));
+    ref.result = cached_reference(sc, opt, progress_printer("reference, " + ref.label), ref.cached);
     out.write_image_pair("reference_" + ref.key, ref.result.final_image);
-    std::cerr << "compare: reference, " << ref.label << ": " << fmt(ref.result.seconds, 3) << " s, " << ref.result.rays
+    std::cerr << "compare: reference, " << ref.label << ": " << fmt(ref.result.seconds, 3) << " s"
+              << (ref.cached ? " (cached: the time of the render that made it)" : "") << ", " << ref.result.rays
               << " rays\n";
   }
   return refs;
@@ -376,6 +379,7 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
                      {"spp", r.result.spp},
                      {"seconds", r.result.seconds},
                      {"rays", r.result.rays},
+                     {"cached", r.cached},
                      {"blockers", "geometry"},
                      {"indirect", true},
                      {"jitter", false},

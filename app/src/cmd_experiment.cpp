@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "cached_reference.hpp"
 #include "../../techniques/image_splat/splat_math.hpp"
 #include "commands.hpp"
 #include "experiment.hpp"
@@ -147,6 +148,7 @@ struct Variant {
 
 struct Reference {
   int order = 0;
+  bool cached = false;  // served by the reference cache
   reference::ReferenceResult result;
   const Image& compared(Compared c) const { return c == Compared::Indirect ? result.indirect : result.final_image; }
 };
@@ -384,10 +386,11 @@ class ExperimentRunner {
     opt.width = w;
     opt.height = h;
     opt.jitter = false;
-    r.result = reference::render_reference(sc, opt, progress_printer("reference, " + ref_label(n)));
+    r.result = cached_reference(sc, opt, progress_printer("reference, " + ref_label(n)), r.cached);
     out->write_image_pair("reference_" + ref_key(n), r.result.final_image);
     if (def.image == Compared::Indirect) out->write_image_pair("reference_" + ref_key(n) + "_indirect", r.result.indirect);
-    std::cerr << "experiment: reference, " << ref_label(n) << ": " << fmt(r.result.seconds, 3) << " s\n";
+    std::cerr << "experiment: reference, " << ref_label(n) << ": " << fmt(r.result.seconds, 3) << " s"
+              << (r.cached ? " (cached: the time of the render that made it)" : "") << "\n";
     refs.push_back(std::move(r));
   }
 
@@ -461,6 +464,7 @@ class ExperimentRunner {
                      {"spp", r.result.spp},
                      {"seconds", r.result.seconds},
                      {"rays", r.result.rays},
+                     {"cached", r.cached},
                      {"image", "reference_" + ref_key(r.order) + ".png"}});
   j["references"] = jrefs;
   if (def.silhouettes) {

@@ -5,6 +5,9 @@ file(MAKE_DIRECTORY ${WORK_DIR})
 
 include(${CMAKE_CURRENT_LIST_DIR}/lib/expect.cmake)
 
+# References go through a cache of this test's own, rendered on the first run and served on the
+# second (the same scene, frame and options), with the same images.
+set(ENV{SOFTGI_CACHE_DIR} ${WORK_DIR}/cache)
 set(OUT ${WORK_DIR}/spheres)
 execute_process(COMMAND ${SOFTGI} compare --scene spheres --width 48 --height 36 --spp 4 --out ${OUT}
   OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
@@ -22,6 +25,23 @@ foreach(f compare.json summary.md reference_full.exr reference_full.png referenc
 endforeach()
 
 file(READ ${OUT}/compare.json j)
+string(JSON cached GET "${j}" references 0 cached)
+if(cached)
+  message(FATAL_ERROR "the first run's reference came from the cache:\n${j}")
+endif()
+execute_process(COMMAND ${SOFTGI} compare --scene spheres --width 48 --height 36 --spp 4 --out ${WORK_DIR}/again
+  OUTPUT_VARIABLE out2 ERROR_VARIABLE err2 RESULT_VARIABLE rc)
+file(READ ${WORK_DIR}/again/compare.json j2)
+string(JSON cached GET "${j2}" references 0 cached)
+if(NOT rc EQUAL 0 OR NOT cached OR NOT err2 MATCHES "\\(cached")
+  message(FATAL_ERROR "the second run did not use the cached reference (${rc}):\n${err2}")
+endif()
+execute_process(COMMAND ${SOFTGI} diff ${OUT}/reference_full.exr ${WORK_DIR}/again/reference_full.exr --json
+  OUTPUT_VARIABLE d RESULT_VARIABLE rc)
+string(JSON max_abs GET "${d}" max_abs)
+if(NOT rc EQUAL 0 OR NOT max_abs EQUAL 0)
+  message(FATAL_ERROR "the cached reference image differs from the rendered one (${rc}):\n${d}")
+endif()
 string(JSON scene GET "${j}" scene name)
 string(JSON n LENGTH "${j}" techniques)
 string(JSON n_refs LENGTH "${j}" references)

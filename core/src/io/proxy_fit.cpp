@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "fnv.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/proxies/binding.hpp"
 
@@ -44,26 +45,6 @@ std::string proxy_cache_dir() {
 }
 
 namespace {
-
-struct Fnv {
-  std::uint64_t h = 1469598103934665603ull;
-  void bytes(const void* p, std::size_t n) {
-    const auto* c = static_cast<const unsigned char*>(p);
-    for (std::size_t i = 0; i < n; ++i) {
-      h ^= c[i];
-      h *= 1099511628211ull;
-    }
-  }
-  template <class T>
-  void pod(const T& v) {
-    bytes(&v, sizeof v);
-  }
-  template <class T>
-  void vec(const std::vector<T>& v) {
-    pod(v.size());
-    if (!v.empty()) bytes(v.data(), v.size() * sizeof(T));
-  }
-};
 
 const scene::Mesh& node_mesh(const scene::Scene& s, int node) {
   if (node < 0 || node >= static_cast<int>(s.nodes.size()) || s.nodes[node].mesh < 0 ||

@@ -1,0 +1,22 @@
+// Reference renders through the disk cache (softgi/io/reference_cache.hpp), for compare and
+// experiment: the same scene, frame and options are rendered once.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "softgi/reference/reference.hpp"
+
+namespace softgi::app {
+
+// Bumped whenever render_reference's images change for the same inputs, so that entries written by
+// an older renderer are not served.
+inline constexpr int kReferenceRendererVersion = 1;
+
+// render_reference, or the cached images of an earlier identical render (`cached` says which; the
+// result's seconds are then the original render's). A cache entry that cannot be read is rendered
+// again, with a line on stderr saying why.
+reference::ReferenceResult cached_reference(const scene::Scene& scene, const reference::ReferenceOptions& opt,
+                                            const std::function<void(double)>& progress, bool& cached);
+
+}  // namespace softgi::app
