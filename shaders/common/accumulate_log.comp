@@ -23,7 +23,7 @@ layout(std430, set = 0, binding = kAccBindListRange) readonly buffer ListRange {
 layout(std430, set = 0, binding = kAccBindBlockers) readonly buffer Blockers { vec4 blockers[]; };
 layout(std430, set = 0, binding = kAccBindWeights) readonly buffer Weights { float weights[]; };
 layout(std430, set = 0, binding = kAccBindTable) readonly buffer Table { float table[]; };
-layout(std430, set = 0, binding = kAccBindOut) writeonly buffer Out { float outv[]; };
+layout(std430, set = 0, binding = kAccBindOut) buffer Out { float outv[]; };
 layout(push_constant) uniform Push {
   uint count;       // receivers in all (the planes of rec are this long)
   uint first;       // first receiver of this dispatch
@@ -32,6 +32,9 @@ layout(push_constant) uniform Push {
   float scale;      // table: (rows - 1) / (pi/2)
   float cut;        // > 0: a blocker counts only where |c - p| < cut r, before the rules (image_splat's
                     // per-pair sphere-of-influence cut, paper 000 section 4.1); 0: every blocker
+  uint chunk_first; // this dispatch sums blockers [chunk_first, chunk_first + chunk_count) of each list
+  uint chunk_count; // (a driver's loop-iteration limit caps what one invocation may loop over)
+  uint chunk_add;   // 1: add to the sums of the chunks before (read back from outv); 0: the first chunk
 } pc;
 
 void main() {
@@ -39,10 +42,12 @@ void main() {
   if (i >= pc.end) return;
   const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
   const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
-  float acc[kAccumMaxCoeffs];
-  [[unroll]] for (uint c = 0; c < N * N; ++c) acc[c] = 0.0;
   const uvec2 range = ranges[rlist[i]];
-  for (uint b = range.x; b < range.x + range.y; ++b) {
+  if (pc.chunk_add != 0u && pc.chunk_first >= range.y) return;  // this list ended in an earlier chunk
+  float acc[kAccumMaxCoeffs];
+  [[unroll]] for (uint c = 0; c < N * N; ++c) acc[c] = pc.chunk_add != 0u ? outv[i * N * N + c] : 0.0;
+  const uint b_end = range.x + min(range.y, pc.chunk_first + pc.chunk_count);
+  for (uint b = range.x + pc.chunk_first; b < b_end; ++b) {
     const vec4 sphere = blockers[b];
     const float r = sphere.w;
     const vec3 d = sphere.xyz - P;

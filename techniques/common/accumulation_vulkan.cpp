@@ -1,5 +1,6 @@
 #include "accumulation_vulkan.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -192,12 +193,27 @@ PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int ord
   return p;
 }
 
+std::uint32_t accumulate_log_chunk(const vk::DeviceInfo& d, int order) {
+  const std::uint32_t budget = loop_budget(d);
+  if (budget == std::numeric_limits<std::uint32_t>::max()) return budget;
+  const std::uint32_t n = static_cast<std::uint32_t>(order);
+  // The blocker loop itself, the band weights (n), the cos/sin recurrence (n - 1), the outer (n) and
+  // inner (n (n + 1) / 2) basis loops.
+  const std::uint32_t per_blocker = 2u * (1u + n + (n - 1u) + n + n * (n + 1u) / 2u);
+  return std::max<std::uint32_t>(1u, budget / per_blocker);
+}
+
 vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline& p, const AccumulateBuffers& b, std::size_t count,
-                                    const ZhTable& log, const std::string& submit_name, float cut) {
+                                    const ZhTable& log, std::uint32_t longest, const std::string& submit_name, float cut,
+                                    std::uint32_t* chunks) {
   struct Push {
     std::uint32_t count, first, end, rows;
     float scale, cut;
+    std::uint32_t chunk_first, chunk_count, chunk_add;
   };
+  const std::uint32_t chunk = accumulate_log_chunk(dev.device_info(), log.order);
+  const std::uint32_t n_chunks = longest <= chunk ? 1u : (longest + chunk - 1u) / chunk;
+  if (chunks) *chunks = n_chunks;
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kAccBindReceivers, b.receivers), vk::Bind::buffer_at(gpu::kAccBindReceiverList, b.rlist),
       vk::Bind::buffer_at(gpu::kAccBindListRange, b.ranges),    vk::Bind::buffer_at(gpu::kAccBindBlockers, b.blockers),
@@ -205,9 +221,16 @@ vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline&
       vk::Bind::buffer_at(gpu::kAccBindBasis, b.basis),         vk::Bind::buffer_at(gpu::kAccBindOut, b.out)};
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("accumulate_log");
-    dispatch_chunks<Push>(rec, p, binds, count, gpu::kAccumulateGroup, [&](std::uint32_t first, std::uint32_t end) {
-      return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(log.rows), log.scale, cut};
-    });
+    for (std::uint32_t k = 0; k < n_chunks; ++k) {
+      const std::uint32_t first_blocker = k * chunk;
+      const std::uint32_t in_chunk = n_chunks == 1 ? std::numeric_limits<std::uint32_t>::max() : chunk;
+      dispatch_chunks<Push>(rec, p, binds, count, gpu::kAccumulateGroup, [&](std::uint32_t first, std::uint32_t end) {
+        return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(log.rows), log.scale, cut,
+                    first_blocker, in_chunk, k > 0 ? 1u : 0u};
+      });
+      // The next chunk reads these sums back.
+      if (k + 1 < n_chunks) rec.barrier();
+    }
     rec.end_timer();
     rec.barrier();
   }, submit_name);
@@ -270,6 +293,8 @@ const PlanBuffers& product_plan_buffers(vk::Context& dev, int order) {
 
 std::size_t AccumulationInputs::upload(vk::Context& dev, const ReceiverSoA& soa, const std::vector<std::uint32_t>& rl,
                                        const PackedBlockers& packed, const std::string& technique) {
+  longest = 0;
+  for (std::size_t i = 1; i < packed.ranges.size(); i += 2) longest = std::max(longest, packed.ranges[i]);
   const std::size_t before = dev.transfer_bytes().upload;
   upload_receivers(dev, receivers, soa, technique + " receivers", &receivers_hash);
   put_if_changed(dev, rlist, rlist_hash, rl, technique + " receiver lists");

@@ -164,17 +164,27 @@ PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int ord
 struct AccumulationInputs {
   vk::Buffer receivers, rlist, ranges, blockers, weights;
   std::uint64_t receivers_hash = 0, rlist_hash = 0, ranges_hash = 0, blockers_hash = 0, weights_hash = 0;
+  std::uint32_t longest = 0;  // the longest blocker list uploaded
   std::size_t upload(vk::Context& dev, const ReceiverSoA& soa, const std::vector<std::uint32_t>& rlist, const PackedBlockers& packed,
                      const std::string& technique);
 };
 
 // The accumulate_log.comp dispatch over `count` receivers (bindings as softgi_shared.h names them),
 // timed as "accumulate_log". cut > 0: a blocker counts only where |c - p| < cut r (image_splat).
+// Under a driver's loop-iteration limit the blocker lists (the longest holds `longest`) are summed
+// in chunks of accumulate_log_chunk blockers, one dispatch each, every chunk adding to the sums
+// before it (the same float additions in the same order as one pass); `chunks` gets their count.
 struct AccumulateBuffers {
   const vk::Buffer &receivers, &rlist, &ranges, &blockers, &weights, &table, &basis, &out;
 };
 vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline& p, const AccumulateBuffers& b, std::size_t count,
-                                    const ZhTable& log, const std::string& submit_name, float cut = 0.0f);
+                                    const ZhTable& log, std::uint32_t longest, const std::string& submit_name, float cut = 0.0f,
+                                    std::uint32_t* chunks = nullptr);
+// Blockers one invocation of accumulate_log.comp at `order` may sum under the device's loop budget:
+// the budget over a bound of the loop iterations per blocker (every loop of the blocker's body
+// counted as if the driver unrolled none of them, doubled: llvmpipe's counter was measured at 1.5x
+// the loop count at order 3), at least 1.
+std::uint32_t accumulate_log_chunk(const vk::DeviceInfo& d, int order);
 
 // exponentiate.comp's methods: HYB, OL, PS* and PS (softgi_shared.h kExp*; the exact exponential
 // stays on the host). The series coefficients of PS* (float(1/k!)) and PS (1.0f/k), k = 0..degree,

@@ -122,9 +122,10 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
                                     words(spv::common_accumulate_log_comp),
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(s.rule)}});
   vk::SubmitResult res;
+  std::uint32_t chunks = 0;
   if (count)
     res = run_accumulate_log(dev, p, {g.inputs.receivers, g.inputs.rlist, g.inputs.ranges, g.inputs.blockers, g.inputs.weights, table, basis_constants(dev), g.log_out}, count, t.log,
-                             "image_splat accumulate_log", pair_cut_factor(t, s.rule));
+                             g.inputs.longest, "image_splat accumulate_log", pair_cut_factor(t, s.rule), &chunks);
 
   double pairs = 0.0;
   for (std::size_t k = 0; k < r.tiles.size(); ++k)
@@ -133,6 +134,7 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   auto& rec = ctx.record();
   rec.counters["receivers"] = static_cast<double>(count);
   rec.counters["pairs"] = pairs;
+  rec.counters["blocker_chunks"] = chunks;
   rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
   rec.counters["kernel_gpu_seconds"] = secs;
   rec.counters["hard_cut"] = t.hard_cut;

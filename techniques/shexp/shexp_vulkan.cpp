@@ -113,8 +113,10 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx) {
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "shexp.accumulate_log.n" + std::to_string(na) + ".rule" + std::to_string(static_cast<int>(s.rule)),
                                     words(spv::common_accumulate_log_comp),
                                     {{0, static_cast<std::uint32_t>(na)}, {1, static_cast<std::uint32_t>(s.rule)}});
+  std::uint32_t chunks = 1;
   const vk::SubmitResult res = run_accumulate_log(
-      dev, p, {g.inputs.receivers, g.inputs.rlist, g.inputs.ranges, g.inputs.blockers, g.inputs.weights, g.log_table, basis, g.field_out}, count, t.log, "shexp accumulate_log");
+      dev, p, {g.inputs.receivers, g.inputs.rlist, g.inputs.ranges, g.inputs.blockers, g.inputs.weights, g.log_table, basis, g.field_out}, count, t.log,
+      g.inputs.longest, "shexp accumulate_log", 0.0f, &chunks);
 
   auto& record = ctx.record();
   double pairs = 0.0;
@@ -123,6 +125,7 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx) {
   record.counters["kernel_gpu_seconds"] = secs;
   record.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
   record.counters["upload_bytes"] = static_cast<double>(uploaded);
+  record.counters["blocker_chunks"] = chunks;
   record.bytes = count * n2a * sizeof(float);
   put_device_field<Field>(ctx, kLogVisibility, DeviceField{&g.field_out, count * n2a, na}, g.m, dev);
 }

@@ -135,15 +135,17 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx, Stage stage
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "sl.accumulate_log.n" + std::to_string(n) + ".rule" + std::to_string(static_cast<int>(s.rule)),
                                     words(spv::common_accumulate_log_comp),
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(s.rule)}});
+  std::uint32_t chunks = 1;
   const vk::SubmitResult res = run_accumulate_log(
       dev, p, {sb.inputs.receivers, sb.inputs.rlist, sb.inputs.ranges, sb.inputs.blockers, sb.inputs.weights, g.log_table, basis, sb.log},
-      count, tp->log, "spherical_lights accumulate_log");
+      count, tp->log, sb.inputs.longest, "spherical_lights accumulate_log", 0.0f, &chunks);
 
   auto& r = ctx.record();
   const double secs = timer_seconds(res);
   const double pairs = static_cast<double>(count) * static_cast<double>(nb);
   r.counters["receivers"] = static_cast<double>(count);
   r.counters["blockers"] = static_cast<double>(nb);
+  r.counters["blocker_chunks"] = chunks;
   r.counters["pairs"] = pairs;
   r.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
   r.counters["kernel_gpu_seconds"] = secs;

@@ -327,6 +327,84 @@ TEST(VulkanBackend, UnknownDeviceListsTheDevices) {
 // Under a limit of 20000 (set for the test, so that it runs on every driver) an exponential that needs
 // more (order 6, PS-30: 29 products of about 1500 terms each) is an error that names the limit,
 // never a silently truncated series; under llvmpipe's own limit the same frame renders.
+// accumulate_log's loops over a receiver's blockers count against a driver's loop-iteration limit
+// (llvmpipe: 65535 per invocation, every loop of the blocker's body included); one list of 8000
+// blockers was cut short there, silently, past about 2800 blockers at order 3 (two thirds of the sum
+// missing). The host now sums long lists in chunks, one dispatch each: 6000 blockers give the CPU's
+// log visibility at orders 3 and 6 (3 and 8 chunks under llvmpipe's limit),
+// and under a tighter limit (20000: more chunks) the sums are the same to the bit (the same float
+// additions in the same order). The blockers lie on a shell around the scene, each a small cap, so
+// that every one adds to the sum. Tolerance: the parity tests' accumulate bound, on the largest value.
+TEST(VulkanBackend, LongBlockerListsAreSummedInChunksUnderTheLoopLimit) {
+  const scene::Scene sc = scene::make_builtin("cornell");  // its 6092 vertices keep the test short
+  auto tech = sx::create();
+  const std::size_t n = 6000;
+  auto run = [&](backends::vulkan::Context* ctx, const std::string& backend, int order, double* chunks) {
+    render::ParamSet params = render::default_params(*tech);
+    params.set("order", std::to_string(order));
+    render::RenderRequest req;
+    req.width = req.height = 8;
+    req.outputs = {"shexp.log_visibility"};
+    render::SteppedFrame frame(*tech, sc, params, req, ctx);
+    render::FrameContext& fc = frame.context();
+    for (const render::PassDesc* p : frame.passes()) {
+      if (p->name == "accumulate_log") break;
+      frame.run(*p, render::kHostImpl);
+    }
+    auto cuts = std::make_shared<sx::Cuts>();
+    sx::BlockerList big;
+    big.order = order;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double z = 1.0 - (2.0 * i + 1.0) / n, ph = 2.399963229728653 * i;  // Fibonacci sphere
+      const double rr = std::sqrt(1.0 - z * z);
+      big.cx.push_back(static_cast<float>(6.0 * rr * std::cos(ph)));
+      big.cy.push_back(static_cast<float>(6.0 * z + 0.5));
+      big.cz.push_back(static_cast<float>(6.0 * rr * std::sin(ph)));
+      big.r.push_back(0.02f);
+    }
+    big.w.assign(n * order, 1.0f);
+    cuts->lists.push_back(std::move(big));
+    const auto& rec = *fc.get<std::shared_ptr<const sx::Receivers>>("shexp.receivers");
+    cuts->list_of_cluster.assign(rec.clusters.size(), 0);
+    fc.put<std::shared_ptr<const sx::Cuts>>("shexp.cuts", cuts);
+    frame.run(frame.pass("accumulate_log"), backend);
+    if (chunks) *chunks = fc.record().counters.at("blocker_chunks");
+    return fc.get<std::shared_ptr<const sx::Field>>("shexp.log_visibility")->v;
+  };
+  backends::register_cpu_backend();
+  for (int order : {3, 6}) {
+    const std::vector<float> cpu = run(nullptr, render::kHostImpl, order, nullptr);
+    auto ctx = softgi::testing::validated_context();
+    const auto log = ctx->validation_log();
+    double chunks = 0.0;
+    const std::vector<float> gpu = run(ctx.get(), backends::vulkan::kBackendName, order, &chunks);
+    ASSERT_EQ(cpu.size(), gpu.size());
+    double worst = 0.0, peak = 0.0;
+    for (std::size_t i = 0; i < cpu.size(); ++i) {
+      peak = std::max(peak, static_cast<double>(std::abs(cpu[i])));
+      worst = std::max(worst, static_cast<double>(std::abs(cpu[i] - gpu[i])));
+    }
+    std::printf("order %d: %g chunks, worst %g of peak %g\n", order, chunks, worst, peak);
+    EXPECT_GT(peak, 0.05);
+    EXPECT_LE(worst, softgi::testing::kAccumulateRelTol * peak) << "order " << order;
+    if (ctx->device_info().loop_iteration_limit > 0) {
+      EXPECT_GT(chunks, 1.0);
+    }
+    if (order == 3) {
+      backends::vulkan::ContextOptions o;
+      o.validation = 1;
+      o.loop_iteration_limit = 20000;
+      auto tight = std::make_shared<backends::vulkan::Context>(o);
+      double more = 0.0;
+      const std::vector<float> split = run(tight.get(), backends::vulkan::kBackendName, order, &more);
+      EXPECT_GT(more, chunks);
+      EXPECT_EQ(split, gpu);
+    }
+    ctx.reset();
+    EXPECT_EQ(log->problems(), 0u) << log->summary();
+  }
+}
+
 TEST(VulkanBackend, ExponentialBeyondTheLoopLimitIsAnError) {
   const scene::Scene sc = scene::make_builtin("spheres");
   auto tech = sx::create();
