@@ -29,7 +29,7 @@ layout(std430, set = 0, binding = kIndBindAlbedo) readonly buffer Albedo { vec4 
 layout(std430, set = 0, binding = kIndBindVis) readonly buffer Vis { float vis[]; };
 layout(std430, set = 0, binding = kIndBindDfac) readonly buffer Dfac { float dfac[]; };
 layout(std430, set = 0, binding = kIndBindConsts) readonly buffer Consts { float consts[]; };
-layout(std430, set = 0, binding = kIndBindOut) writeonly buffer Out { vec4 outv[]; };
+layout(std430, set = 0, binding = kIndBindOut) buffer Out { vec4 outv[]; };
 layout(std430, set = 0, binding = kIndBindPairs) buffer Pairs { uint pairs_inside; };
 layout(std430, set = 0, binding = kIndBindMtab) readonly buffer Mtab { float mtab[]; };
 layout(std430, set = 0, binding = kIndBindQrot) readonly buffer Qrot { float qrot[]; };
@@ -40,6 +40,9 @@ layout(push_constant) uniform Push {
   uint rows;    // table rows
   float scale;  // theta -> row coordinate
   float eta;    // sphere of influence: pairs with |c - p| >= eta r are cut (<= 0: none)
+  uint chunk_first;  // this dispatch sums proxies [chunk_first, chunk_first + chunk_count) of each list
+  uint chunk_count;  // (a driver's loop-iteration limit caps what one invocation may loop over)
+  uint chunk_add;    // 1: add to the sums of the chunks before (read back from outv); 0: the first chunk
 } pc;
 
 float lt(uint k, uint c) { return consts[3 * k + c]; }
@@ -138,11 +141,14 @@ void main() {
   const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
   const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
   const bool cut = pc.eta > 0.0;
-  vec3 acc = vec3(0.0);
-  float om = 0.0;
-  uint inside = 0;
   const uvec2 range = ranges[rlist[i]];
-  for (uint j = range.x; j < range.x + range.y; ++j) {
+  if (pc.chunk_add != 0u && pc.chunk_first >= range.y) return;  // this list ended in an earlier chunk
+  const vec4 before = pc.chunk_add != 0u ? outv[i] : vec4(0.0);
+  vec3 acc = before.xyz;
+  float om = before.w;
+  uint inside = 0;
+  const uint j_end = range.x + min(range.y, pc.chunk_first + pc.chunk_count);
+  for (uint j = range.x + pc.chunk_first; j < j_end; ++j) {
     const vec4 sph = proxies[j];
     // Self-shadowing replacement rules (paper 004 section 6.2), as in the shadow pass.
     const vec4 s = apply_replacement_rule(RULE, P, Nrm, sph.xyz, sph.w);

@@ -79,6 +79,36 @@ bool vulkan_indirect_supported(IndirectOperator op) {
          op == IndirectOperator::Exact;
 }
 
+namespace {
+
+// Proxies one invocation of accumulate_indirect.comp may sum under the device's loop budget: the
+// budget over a bound of one proxy's loop iterations, every loop of its body counted as if the driver
+// unrolled none (llvmpipe counts them all, docs/backends.md), doubled as for accumulate_log.
+std::uint32_t indirect_chunk(const vk::DeviceInfo& d, int order, bool exact) {
+  const std::uint32_t budget = common::gpu_passes::loop_budget(d);
+  if (budget == std::numeric_limits<std::uint32_t>::max()) return budget;
+  const std::uint32_t n = static_cast<std::uint32_t>(order);
+  // The proxy loop; F, the Legendre recurrence, fac, kap (n each); the basis (cos/sin recurrence,
+  // outer and inner loops: 2n + n (n + 1) / 2); B (n bands, n^2 terms).
+  std::uint32_t per = 1u + 4u * n + 2u * n + n * (n + 1u) / 2u + n + n * n;
+  if (exact) {
+    // exact_pair: the multiples (2 n), hp (n + n^2), per band the copy, two z rotations and two
+    // dense w x w products (w = 2l + 1), the m-block offsets (2n - 1) and blocks (1 + w + w^2 each).
+    per += 2u * n + n + n * n + 2u * n - 1u;
+    for (std::uint32_t l = 0; l < n; ++l) {
+      const std::uint32_t w = 2u * l + 1u;
+      per += 1u + w + 2u * l + 2u * (w + w * w);
+    }
+    for (std::uint32_t am = 0; am < n; ++am) {
+      const std::uint32_t w = n - am, blocks = am == 0 ? 1u : 2u;
+      per += blocks * (1u + w + w * w);
+    }
+  }
+  return std::max<std::uint32_t>(1u, budget / (2u * per));
+}
+
+}  // namespace
+
 std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& ctx, const ReceiverBuffer& r, const ProxyBins& bins,
                                                          const IndirectEvaluator& ev) {
   const IndirectSetup& setup = ev.setup();
@@ -162,8 +192,13 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   struct Push {
     std::uint32_t count, first, end, rows;
     float scale, eta;
+    std::uint32_t chunk_first, chunk_count, chunk_add;
   };
   const float eta = setup.eta > 0.0 ? static_cast<float>(setup.eta) : 0.0f;
+  std::uint32_t longest = 0;
+  for (const auto& l : bins.indirect) longest = std::max(longest, static_cast<std::uint32_t>(l.size()));
+  const std::uint32_t chunk = indirect_chunk(dev.device_info(), n, exact);
+  const std::uint32_t n_chunks = longest <= chunk ? 1u : (longest + chunk - 1u) / chunk;
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kIndBindReceivers, g.receivers), vk::Bind::buffer_at(gpu::kIndBindReceiverList, g.rlist),
       vk::Bind::buffer_at(gpu::kIndBindListRange, g.ranges),    vk::Bind::buffer_at(gpu::kIndBindProxies, g.proxies),
@@ -176,9 +211,14 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   if (count)
     res = dev.submit([&](vk::Recorder& rec) {
       rec.begin_timer("accumulate_indirect");
-      dispatch_chunks<Push>(rec, p, binds, count, gpu::kIndGroup, [&](std::uint32_t first, std::uint32_t end) {
-        return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(tv.rows), tv.scale, eta};
-      });
+      for (std::uint32_t c = 0; c < n_chunks; ++c) {
+        const std::uint32_t in_chunk = n_chunks == 1 ? std::numeric_limits<std::uint32_t>::max() : chunk;
+        dispatch_chunks<Push>(rec, p, binds, count, gpu::kIndGroup, [&](std::uint32_t first, std::uint32_t end) {
+          return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(tv.rows), tv.scale, eta, c * chunk, in_chunk,
+                      c > 0 ? 1u : 0u};
+        });
+        if (c + 1 < n_chunks) rec.barrier();  // the next chunk reads these sums back
+      }
       rec.end_timer();
       rec.barrier();
     }, "image_splat accumulate_indirect");
@@ -205,6 +245,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   rec.counters["receivers"] = static_cast<double>(count);
   rec.counters["pairs"] = pairs;
   rec.counters["pairs_inside_influence"] = static_cast<double>(inside);
+  rec.counters["proxy_chunks"] = n_chunks;
   rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
   rec.counters["kernel_gpu_seconds"] = secs;
   rec.counters["upload_bytes"] = static_cast<double>((sph.size() + alb.size() + 6 * count) * sizeof(float) + (rlist.size() + ranges.size()) * 4);

@@ -285,6 +285,78 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
   EXPECT_EQ(cases, 5 * (2 + 2 + 1 + 2) * 3);
 }
 
+// A tile's proxy list longer than llvmpipe's loop budget (65535 iterations per invocation, every
+// loop of a proxy's body counted) was cut short silently; the host now sums long lists in chunks,
+// one dispatch each, adding to the sums before. 3000 proxies around 64 receivers, with the
+// polynomial averaged operator and the exact one (whose nested rotation loops make a proxy costly):
+// the CPU evaluator's sums within the tolerances above, and under a tighter limit (more chunks) the
+// same sums to the bit (the same float additions in the same order).
+TEST_F(ImageSplatParity2, LongProxyListsAreSummedInChunksUnderTheLoopLimit) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  is::ReceiverBuffer r;
+  constexpr int kReceivers = 64, kProxies = 3000;
+  r.soa.resize(kReceivers);
+  for (int i = 0; i < kReceivers; ++i) {
+    glm::vec3 nrm(u(rng), u(rng), u(rng));
+    while (glm::length(nrm) < 0.1f) nrm = glm::vec3(u(rng), u(rng), u(rng));
+    r.soa.set(static_cast<std::size_t>(i), 0.3f * glm::vec3(u(rng), u(rng), u(rng)), glm::normalize(nrm));
+  }
+  r.tiles.push_back(is::ReceiverTile{0, static_cast<std::size_t>(kReceivers), glm::vec3(-0.3f), glm::vec3(0.3f)});
+  is::ProxyBins bins;
+  bins.indirect.resize(1);
+  for (int j = 0; j < kProxies; ++j) {
+    glm::vec3 d(u(rng), u(rng), u(rng));
+    while (glm::length(d) < 0.1f) d = glm::vec3(u(rng), u(rng), u(rng));
+    bins.indirect[0].push(1.2f * glm::normalize(d), 0.15f, glm::vec3(0.2f, 0.5f, 0.8f));
+  }
+  std::vector<glm::vec3> env(static_cast<std::size_t>(sh::num_coeffs(4)), glm::vec3(0.1f));
+  env[0] = glm::vec3(3.0f);
+  const scene::Scene sc = scene::make_builtin("spheres");
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  const render::ParamSet params = render::default_params(*tech_);
+  backends::vulkan::ContextOptions o;
+  o.validation = 1;
+  o.loop_iteration_limit = 20000;
+  auto tight = std::make_shared<backends::vulkan::Context>(o);
+  const auto tight_log = tight->validation_log();
+  for (auto op : {is::IndirectOperator::AveragedPolynomial, is::IndirectOperator::Exact}) {
+    SCOPED_TRACE(is::to_string(op));
+    is::IndirectSetup setup;
+    setup.order = op == is::IndirectOperator::Exact ? 4 : 3;
+    setup.op = op;
+    setup.rule = techniques::common::ReplacementRule::Off;
+    const is::IndirectEvaluator ev(setup, is::irradiance_sh(env, setup.order));
+    std::vector<float> rgb(kReceivers * 3, 0.0f), omega(kReceivers, 0.0f);
+    ev.accumulate(r.soa, 0, kReceivers, bins.indirect[0], rgb.data(), omega.data());
+    auto run = [&](backends::vulkan::Context* c, double& chunks) {
+      render::FrameResult result;
+      render::FrameContext fc(sc, posed, params, 4, 4, result, c);
+      result.passes.push_back(render::PassRecord{"accumulate_indirect"});
+      auto sums = is::vulkan_accumulate_indirect(fc, r, bins, ev);
+      chunks = result.passes.back().counters.at("proxy_chunks");
+      return sums;
+    };
+    double chunks = 0.0, more = 0.0;
+    const auto gpu = run(ctx_.get(), chunks);
+    const auto split = run(tight.get(), more);
+    float peak = 0.0f;
+    for (float v : rgb) peak = std::max(peak, std::abs(v));
+    std::printf("[parity2] %d proxies, %s: %g chunks (%g under a limit of 20000), peak %g\n", kProxies, is::to_string(op), chunks, more, peak);
+    EXPECT_GT(peak, 0.0f);
+    EXPECT_LE(compare_rows(rgb, gpu->rgb, 3), op == is::IndirectOperator::Exact ? kExactRelTol : kIndirectRelTol);
+    EXPECT_LE(compare_rows(omega, gpu->omega, 1), kOmegaRelTol);
+    if (ctx_->device_info().loop_iteration_limit > 0) {
+      EXPECT_GT(chunks, 1.0);
+    }
+    EXPECT_GT(more, chunks);
+    EXPECT_EQ(split->rgb, gpu->rgb);
+    EXPECT_EQ(split->omega, gpu->omega);
+  }
+  tight.reset();
+  EXPECT_EQ(tight_log->problems(), 0u) << tight_log->summary();
+}
+
 // Bad proxies get the CPU evaluator's message on Vulkan too, for the exact operator as well.
 TEST_F(ImageSplatParity2, AccumulateIndirectOnVulkanRejectsBadInput) {
   const scene::Scene sc = scene::make_builtin("spheres");
