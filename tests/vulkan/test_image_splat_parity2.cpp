@@ -213,6 +213,24 @@ TEST_F(ImageSplatParity2, ExactTablesAreExposedForTheUpload) {
   }
 }
 
+namespace {
+
+// One tile of `count` receivers at uniform positions in [-half, half]^3 with uniform random normals.
+is::ReceiverBuffer random_receiver_tile(std::mt19937& rng, int count, float half) {
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  is::ReceiverBuffer r;
+  r.soa.resize(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    glm::vec3 nrm(u(rng), u(rng), u(rng));
+    while (glm::length(nrm) < 0.1f) nrm = glm::vec3(u(rng), u(rng), u(rng));
+    r.soa.set(static_cast<std::size_t>(i), half * glm::vec3(u(rng), u(rng), u(rng)), glm::normalize(nrm));
+  }
+  r.tiles.push_back(is::ReceiverTile{0, static_cast<std::size_t>(count), glm::vec3(-half), glm::vec3(half)});
+  return r;
+}
+
+}  // namespace
+
 // Every replacement rule (the shared GLSL port of techniques::common::apply_replacement_rule), every operator
 // and indirect orders 3 and 6, on random receivers around random proxies in one tile: receivers
 // inside proxies, proxies straddling and behind the tangent plane, with and without a sphere of
@@ -220,15 +238,8 @@ TEST_F(ImageSplatParity2, ExactTablesAreExposedForTheUpload) {
 TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  is::ReceiverBuffer r;
   constexpr int kReceivers = 96, kProxies = 24;
-  r.soa.resize(kReceivers);
-  for (int i = 0; i < kReceivers; ++i) {
-    glm::vec3 nrm(u(rng), u(rng), u(rng));
-    while (glm::length(nrm) < 0.1f) nrm = glm::vec3(u(rng), u(rng), u(rng));
-    r.soa.set(static_cast<std::size_t>(i), glm::vec3(u(rng), u(rng), u(rng)), glm::normalize(nrm));
-  }
-  r.tiles.push_back(is::ReceiverTile{0, static_cast<std::size_t>(kReceivers), glm::vec3(-1.0f), glm::vec3(1.0f)});
+  const is::ReceiverBuffer r = random_receiver_tile(rng, kReceivers, 1.0f);
   is::ProxyBins bins;
   bins.indirect.resize(1);
   for (int j = 0; j < kProxies; ++j)
@@ -294,15 +305,8 @@ TEST_F(ImageSplatParity2, EveryRuleAndOrderMatchesTheEvaluator) {
 TEST_F(ImageSplatParity2, LongProxyListsAreSummedInChunksUnderTheLoopLimit) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  is::ReceiverBuffer r;
   constexpr int kReceivers = 64, kProxies = 3000;
-  r.soa.resize(kReceivers);
-  for (int i = 0; i < kReceivers; ++i) {
-    glm::vec3 nrm(u(rng), u(rng), u(rng));
-    while (glm::length(nrm) < 0.1f) nrm = glm::vec3(u(rng), u(rng), u(rng));
-    r.soa.set(static_cast<std::size_t>(i), 0.3f * glm::vec3(u(rng), u(rng), u(rng)), glm::normalize(nrm));
-  }
-  r.tiles.push_back(is::ReceiverTile{0, static_cast<std::size_t>(kReceivers), glm::vec3(-0.3f), glm::vec3(0.3f)});
+  const is::ReceiverBuffer r = random_receiver_tile(rng, kReceivers, 0.3f);
   is::ProxyBins bins;
   bins.indirect.resize(1);
   for (int j = 0; j < kProxies; ++j) {
