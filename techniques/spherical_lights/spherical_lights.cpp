@@ -663,17 +663,17 @@ void pass_indirect(const Settings& s, FrameContext& ctx) {
       accumulate_indirect_ray_cast(s, pose, lc, r.soa, br.begin(), br.end(), out->value.data() + br.begin(), stats.local());
     });
   } else {
-  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
-  const auto& cuts = *ctx.get<std::shared_ptr<const SlCuts>>(kSlCuts);
-  tbb::parallel_for(tbb::blocked_range<int>(0, nc, 1), [&](const tbb::blocked_range<int>& cr) {
-    for (int c = cr.begin(); c != cr.end(); ++c) {
-      const ReceiverCluster& rc = r.clusters[c];
-      const SlList& list = cuts.lists[cuts.list_of_cluster[c]];
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(rc.begin, rc.end, 32), [&](const tbb::blocked_range<std::size_t>& br) {
-        accumulate_indirect(s, t, pose, lc, list, r.soa, br.begin(), br.end(), out->value.data() + br.begin(), stats.local());
-      });
-    }
-  });
+    const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+    const auto& cuts = *ctx.get<std::shared_ptr<const SlCuts>>(kSlCuts);
+    tbb::parallel_for(tbb::blocked_range<int>(0, nc, 1), [&](const tbb::blocked_range<int>& cr) {
+      for (int c = cr.begin(); c != cr.end(); ++c) {
+        const ReceiverCluster& rc = r.clusters[c];
+        const SlList& list = cuts.lists[cuts.list_of_cluster[c]];
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(rc.begin, rc.end, 32), [&](const tbb::blocked_range<std::size_t>& br) {
+          accumulate_indirect(s, t, pose, lc, list, r.soa, br.begin(), br.end(), out->value.data() + br.begin(), stats.local());
+        });
+      }
+    });
   }
   const double secs = common::seconds_since(t0);
   IndirectStats total;
@@ -884,18 +884,18 @@ class SphericalLights final : public render::Technique {
                    (s.pre.intersecting == IntersectingOcclusion::RunTime ? "at run time" : "precomputed (section 6.2)"),
                cpu([s](FrameContext& c) { pass_indirect(s, c); })});
       } else {
-      g.add({"sl_cut", {kReceivers, kTables, kSlPose, kIntensity}, {}, {kSlCuts},
-             s.hierarchy ? "per receiver cluster: cut of the SL hierarchies (paper 004 eq. 36), reflection ratios (eq. 25)"
-                         : "every leaf SL for every receiver cluster",
-             cpu([s](FrameContext& c) { pass_cut(s, c); })});
-      g.add({"accumulate_indirect", {kReceivers, kTables, kSlPose, kIntensity, kSlCuts}, {}, {kIndirectShading},
-             std::string("average radiance x average visibility per SL (eqs. 14-24), ") +
-                 (s.blocking == Blocking::PerObject ? "per-object" : "per-sphere") + " blocking (section 7.2)",
-             common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_indirect(s, c); }), kernels,
-                                                 [s](const DeviceKernels& k) -> render::PassFn {
-                                                   if (!k.indirect) return {};
-                                                   return [s, f = k.indirect](FrameContext& c) { f(s, c); };
-                                                 })});
+        g.add({"sl_cut", {kReceivers, kTables, kSlPose, kIntensity}, {}, {kSlCuts},
+               s.hierarchy ? "per receiver cluster: cut of the SL hierarchies (paper 004 eq. 36), reflection ratios (eq. 25)"
+                           : "every leaf SL for every receiver cluster",
+               cpu([s](FrameContext& c) { pass_cut(s, c); })});
+        g.add({"accumulate_indirect", {kReceivers, kTables, kSlPose, kIntensity, kSlCuts}, {}, {kIndirectShading},
+               std::string("average radiance x average visibility per SL (eqs. 14-24), ") +
+                   (s.blocking == Blocking::PerObject ? "per-object" : "per-sphere") + " blocking (section 7.2)",
+               common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_indirect(s, c); }), kernels,
+                                                   [s](const DeviceKernels& k) -> render::PassFn {
+                                                     if (!k.indirect) return {};
+                                                     return [s, f = k.indirect](FrameContext& c) { f(s, c); };
+                                                   })});
       }
       g.add({"indirect_image", {render::kGBuffer, kReceivers, kIndirectShading}, {}, {render::kIndirect},
              "per-vertex indirect radiance through the G-buffer", cpu([](FrameContext& c) { pass_to_image(c, true); })});
