@@ -251,8 +251,9 @@ TEST(SlRaycast, HundredThousandTriangles) {
   const double query_s = std::chrono::duration<double>(t2 - t1).count();
   std::printf("%zu triangles: build %.3f s, 20000 rays (+100 brute force) %.3f s, %zu nodes\n", m.triangles.size(),
               build_s, query_s, bvh.node_count());
-  // Generous bounds for a loaded 2-core machine: measured ~0.03 s build.
-  EXPECT_LT(build_s, 2.0);
+  // Times are printed, not asserted (speed belongs to the benchmarks); the tree's size is bounded:
+  // a binary tree over n triangles with at least one per leaf has fewer than 2n nodes.
+  EXPECT_LT(bvh.node_count(), 2 * m.triangles.size());
 }
 
 // --- Voronoi basis sums (eq. 10) ----------------------------------------------------------------------
