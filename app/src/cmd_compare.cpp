@@ -20,6 +20,7 @@
 #include "frame_output.hpp"
 #include "output_dir.hpp"
 #include "softgi/io/scene_file.hpp"
+#include "softgi/metrics/flip.hpp"
 #include "softgi/metrics/image_metrics.hpp"
 #include "softgi/reference/reference.hpp"
 #include "softgi/render/camera.hpp"
@@ -80,6 +81,15 @@ Json metrics_json(const metrics::Metrics& m) {
           {"max_abs", m.max_abs}, {"pixels", m.pixels}};
 }
 
+// HDR-FLIP (docs/metrics.md#flip) with the papers' default observer and tone mapper, averaged over the
+// surface pixels. Renders against an empty background are mostly black, so the stop exposure may come
+// from the median of the lit pixels.
+double hdr_flip(const Image& test, const Image& reference, const Mask& surface) {
+  metrics::FlipOptions opt;
+  opt.positive_median_fallback = true;
+  return metrics::flip_mean(metrics::flip_hdr(test, reference, opt), surface);
+}
+
 // Progress of a long reference render on stderr, every 10 %.
 std::function<void(double)> progress_printer(const std::string& what) {
   auto next = std::make_shared<int>(0);
@@ -115,6 +125,7 @@ struct TechniqueRun {
   double first_frame_seconds = 0.0;
   int order = kDefaultShOrder;
   std::map<std::string, metrics::Metrics> vs_final, vs_direct;  // keyed by reference key
+  std::map<std::string, double> flip_final;                     // HDR-FLIP mean over the surface pixels
   double vs_cpu = -1.0;  // relMSE of the final image against the CPU backend's (other backends, when both ran)
 };
 
@@ -321,6 +332,8 @@ Json measure_runs(std::vector<TechniqueRun>& runs, const std::vector<Reference>&
         if (run.vs_final.count(ref->key)) continue;
         run.vs_final[ref->key] = metrics::compare(run.frame.final_image, ref->result.final_image, surface);
         errors[ref->key] = metrics_json(run.vs_final[ref->key]);
+        run.flip_final[ref->key] = hdr_flip(run.frame.final_image, ref->result.final_image, surface);
+        errors[ref->key]["flip"] = run.flip_final[ref->key];
         const std::string map = run.label + "/error_" + ref->key + ".png";
         if (out.write_png_display(map, metrics::error_map(on_surface(run.frame.final_image, surface),
                                                           on_surface(ref->result.final_image, surface))))
@@ -405,18 +418,19 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
      << "lit by the full environment";
   for (std::size_t i = 1; i < refs.size(); ++i) md << " and by its order-" << refs[i].order << " SH projection";
   md << ". Errors are over the " << surface_pixels << " surface pixels (background excluded); relMSE = mean of "
-     << "(a - b)^2 / (b^2 + " << metrics::MetricOptions{}.relmse_epsilon << "), SSIM on luminance x / (1 + x). "
+     << "(a - b)^2 / (b^2 + " << metrics::MetricOptions{}.relmse_epsilon << "), SSIM on luminance x / (1 + x), "
+     << "FLIP = HDR-FLIP (Andersson et al. 2021; ACES, 67 pixels per degree), mean over the surface pixels. "
      << "Times are of a second frame, 1/30 s after an untimed first one (which also pays one-time setup; "
      << "its time is in compare.json).\n\n"
      << "Shared G-buffer on its own, BVH built from scratch: " << ms(gbr.wall_seconds) << " ms (" << gbr.bytes / 1024
      << " KiB); in the timed frames it refits or reuses the BVH.\n\n";
-  md << "| technique | settings | total (ms) | time per pass (ms) | relMSE vs full | SSIM vs full | relMSE vs SH | SSIM vs SH | images |\n"
-     << "|---|---|---|---|---|---|---|---|---|\n";
+  md << "| technique | settings | total (ms) | time per pass (ms) | relMSE vs full | SSIM vs full | FLIP vs full | relMSE vs SH | SSIM vs SH | images |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& run : runs) {
     if (!run.error.empty()) {
       std::string why = run.error;  // a '|' would end the table cell
       for (std::size_t p = why.find('|'); p != std::string::npos; p = why.find('|', p + 2)) why.replace(p, 1, "\\|");
-      md << "| " << run.label << " | " << run.settings << " | failed: " << why << " | | | | | | |\n";
+      md << "| " << run.label << " | " << run.settings << " | failed: " << why << " | | | | | | | |\n";
       continue;
     }
     std::string passes;
@@ -428,7 +442,9 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
       return it == run.vs_final.end() ? std::string("-") : fmt(ssim ? it->second.ssim : it->second.relmse);
     };
     md << "| " << run.label << " | " << run.settings << " | " << ms(run.frame.total_seconds) << " | " << passes << " | "
-       << get("full", false) << " | " << get("full", true) << " | " << get(shk, false) << " (n=" << run.order << ") | "
+       << get("full", false) << " | " << get("full", true) << " | "
+       << (run.flip_final.count("full") ? fmt(run.flip_final.at("full")) : std::string("-")) << " | " << get(shk, false)
+       << " (n=" << run.order << ") | "
        << get(shk, true) << " | [final](" << run.label << "/final.png) · [error vs full](" << run.label
        << "/error_full.png) · [error vs SH](" << run.label << "/error_" << shk << ".png) |\n";
   }
