@@ -15,6 +15,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -29,6 +30,7 @@
 #include "softgi/io/scene_file.hpp"
 #include "softgi/metrics/image_metrics.hpp"
 #include "softgi/progress.hpp"
+#include "softgi/reference/converge.hpp"
 #include "softgi/reference/reference.hpp"
 #include "softgi/sh/sh.hpp"
 
@@ -46,6 +48,10 @@ struct ReferenceArgs {
   unsigned seed = 1;
   bool convergence = false, no_indirect = false, no_jitter = false, quiet = false;
   float exposure = 1.0f;
+  // Render until the reference's own noise adds at most this relMSE (none: a fixed --spp).
+  std::optional<double> target_noise;
+  int max_spp = reference::ConvergeOptions{}.max_spp;
+  bool spp_given = false;
 };
 
 // "full" -> 0, "sh:N" -> N in 1..kMaxOrder; anything else is an error naming the value.
@@ -98,6 +104,25 @@ void run_reference(const ReferenceArgs& args) {
   opt.indirect = !args.no_indirect;
   opt.jitter = !args.no_jitter;
 
+  const bool converge = args.target_noise.has_value();
+  if (converge && args.convergence)
+    throw std::invalid_argument("--target-noise and --convergence do not combine (--convergence studies one fixed --spp)");
+  reference::ConvergeOptions copt;
+  if (converge) {
+    copt.target_noise = *args.target_noise;
+    copt.max_spp = args.max_spp;
+    if (args.spp_given) copt.min_spp = args.spp;
+    // Checked here as well as in the library, so that bad options fail before the output folder exists.
+    if (!std::isfinite(copt.target_noise) || copt.target_noise <= 0.0)
+      throw std::invalid_argument("--target-noise must be a finite number > 0, got " + std::to_string(copt.target_noise));
+    if (copt.min_spp < 2 || copt.min_spp % 2 != 0)
+      throw std::invalid_argument("with --target-noise, --spp (the first round, both halves) must be even and >= 2, got " +
+                                  std::to_string(copt.min_spp));
+    if (copt.max_spp < copt.min_spp || copt.max_spp % 2 != 0)
+      throw std::invalid_argument("--max-spp must be even and >= the first round's " + std::to_string(copt.min_spp) +
+                                  " spp, got " + std::to_string(copt.max_spp));
+  }
+
   OutputDir out(args.out, "--out", "reference.json");  // before the scene and the render
   const scene::Scene sc = load_cli_scene("reference", args.scene.spec, args.scene.fit_proxies);
 
@@ -111,15 +136,39 @@ void run_reference(const ReferenceArgs& args) {
   reference::PassCallback on_pass;
   if (args.convergence)
     on_pass = [&](int spp, const reference::ReferenceResult& r) { passes.push_back({spp, r.seconds, r.rays, r.final_image}); };
-  ProgressBar bar("reference " + sc.name, !args.quiet);
   const double cpu0 = cpu_seconds();
-  const reference::ReferenceResult res = reference::render_reference(sc, opt, [&](double f) { bar.update(f); }, on_pass);
+  reference::ReferenceResult res;
+  std::optional<reference::ConvergedReference> conv;
+  if (converge) {
+    // One bar per round: the next round's sample count is known only when the last one has ended.
+    std::unique_ptr<ProgressBar> bar;
+    int bar_round = -1;
+    conv = reference::render_converged_reference(sc, opt, copt, [&](int round, int spp, double f) {
+      if (round != bar_round) {
+        bar = std::make_unique<ProgressBar>("reference " + sc.name + " round " + std::to_string(round + 1) + " (" +
+                                                std::to_string(spp) + " spp)",
+                                            !args.quiet);
+        bar_round = round;
+      }
+      bar->update(f);
+    });
+    res = conv->result;
+    opt.spp = res.spp;
+  } else {
+    ProgressBar bar("reference " + sc.name, !args.quiet);
+    res = reference::render_reference(sc, opt, [&](double f) { bar.update(f); }, on_pass);
+  }
   const double cpu = cpu_seconds() - cpu0;
 
   out.write_exr("final.exr", res.final_image);
   out.write_exr("direct.exr", res.direct);
   out.write_exr("indirect.exr", res.indirect);
   out.write_png("final.png", res.final_image, args.exposure);
+  if (conv) {
+    // The halves, for `softgi diff --halves` to take the reference's noise out of an error.
+    out.write_exr("half_a.exr", conv->half_a.final_image);
+    out.write_exr("half_b.exr", conv->half_b.final_image);
+  }
 
   Json j;
   j["scene"] = scene_json(sc, args.scene.spec);
@@ -141,6 +190,19 @@ void run_reference(const ReferenceArgs& args) {
   j["cpu_seconds"] = cpu;
   j["cpu_seconds_per_sample"] = cpu / opt.spp;
   j["threads"] = std::thread::hardware_concurrency();
+  if (conv) {
+    Json rounds = Json::array();
+    for (const auto& r : conv->rounds) rounds.push_back({{"spp", r.spp}, {"noise", r.noise}, {"seconds", r.seconds}});
+    j["converge"] = {{"target_noise", copt.target_noise},
+                     {"max_spp", copt.max_spp},
+                     {"relmse_epsilon", copt.relmse_epsilon},
+                     {"noise", conv->noise},
+                     {"converged", conv->converged},
+                     {"pixels", conv->pixels},
+                     {"seeds", {opt.seed, reference::half_b_seed(opt.seed)}},
+                     {"halves", {"half_a.exr", "half_b.exr"}},
+                     {"rounds", rounds}};
+  }
   j["mean"] = {{"final", channel_means(res.final_image)}, {"direct", channel_means(res.direct)}, {"indirect", channel_means(res.indirect)}};
 
   if (args.convergence) {
@@ -184,6 +246,14 @@ void run_reference(const ReferenceArgs& args) {
             << " spp, " << std::fixed << std::setprecision(2) << res.seconds << " s (" << std::setprecision(4)
             << res.seconds_per_sample << " s per sample pass, " << std::setprecision(1) << res.rays / 1e6 << " Mrays) -> "
             << args.out << "\n";
+  if (conv) {
+    std::cout << std::defaultfloat << std::setprecision(4) << "  noise " << conv->noise << " (relMSE it adds, target "
+              << copt.target_noise << ") after " << conv->rounds.size() << " round(s)\n";
+    if (!conv->converged)
+      std::cerr << "softgi reference: warning: the noise target " << copt.target_noise << " was not reached at --max-spp "
+                << copt.max_spp << " (noise " << conv->noise << "); errors below about " << 10.0 * conv->noise
+                << " are under this reference's noise floor\n";
+  }
 }
 
 void register_reference(CLI::App& app) {
@@ -191,7 +261,12 @@ void register_reference(CLI::App& app) {
   CLI::App* sub = app.add_subcommand("reference", "ray-traced one-bounce ground truth (Embree) of a scene");
   add_scene_options(*sub, args->scene);
   sub->add_option("--out,-o", args->out, "output directory (created)")->required();
-  sub->add_option("--spp", args->spp, "samples per pixel (default 64)");
+  sub->add_option("--spp", args->spp, "samples per pixel (default 64; with --target-noise the first round's, default 16)")
+      ->each([args](const std::string&) { args->spp_given = true; });
+  sub->add_option("--target-noise", args->target_noise,
+                  "render two halves, more samples each round, until the reference's noise adds at most this relMSE "
+                  "(writes half_a.exr and half_b.exr)");
+  sub->add_option("--max-spp", args->max_spp, "with --target-noise: the most samples per pixel (default 4096)");
   sub->add_option("--blockers", args->blockers, "what casts shadows: geometry | proxies (default geometry)");
   sub->add_option("--light", args->light, "full | sh:N (the environment's order-N SH projection)");
   sub->add_option("--frame,--time", args->time, "animation time in seconds (default 0)");

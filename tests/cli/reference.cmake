@@ -53,3 +53,43 @@ expect_failure("out" reference --scene spheres ${args})
 # --width 0 is refused as `render` refuses it (not read as "the camera's width").
 expect_failure("--width" reference --scene spheres --width 0 --out ${WORK_DIR}/bad_width)
 expect_failure("--height" reference --scene spheres --height 0 --out ${WORK_DIR}/bad_height)
+
+# --target-noise: rounds of two halves until the noise the reference adds is at most the target; the
+# halves are written for `softgi diff --halves`, and their pair recovers the recorded noise.
+set(conv_dir ${WORK_DIR}/converged)
+execute_process(COMMAND ${SOFTGI} reference --scene spheres --width 32 --height 24 --spp 4 --target-noise 0.004
+  --out ${conv_dir} OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0 OR NOT out MATCHES "noise .* target 0.004" OR NOT err MATCHES "round 1 \\(4 spp\\)")
+  message(FATAL_ERROR "softgi reference --target-noise (${rc}):\n${out}${err}")
+endif()
+file(READ ${conv_dir}/reference.json json)
+string(JSON converged GET "${json}" converge converged)
+string(JSON noise GET "${json}" converge noise)
+string(JSON rounds LENGTH "${json}" converge rounds)
+string(JSON spp GET "${json}" options spp)
+if(NOT converged OR noise GREATER 0.004 OR NOT noise GREATER 0 OR rounds LESS 2 OR NOT spp GREATER 4)
+  message(FATAL_ERROR "reference.json converge: converged ${converged}, noise ${noise}, ${rounds} rounds, spp ${spp}:\n${json}")
+endif()
+execute_process(COMMAND ${SOFTGI} diff ${conv_dir}/final.exr ${conv_dir}/final.exr --halves ${conv_dir}/half_a.exr
+  ${conv_dir}/half_b.exr --metric relmse --json OUTPUT_VARIABLE d ERROR_VARIABLE err RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "diff --halves on the written halves failed (${rc}): ${err}")
+endif()
+string(JSON diff_noise GET "${d}" relmse_noise_corrected reference_noise)
+# diff counts every pixel, the reference only the lit ones, so diff's mean is at most the recorded noise.
+if(NOT diff_noise GREATER 0 OR diff_noise GREATER noise)
+  message(FATAL_ERROR "the halves' noise per diff (${diff_noise}) against the recorded ${noise}")
+endif()
+# The cap is reported, not silently exceeded: a target far below reach stops at --max-spp with a warning.
+execute_process(COMMAND ${SOFTGI} reference --scene spheres --width 16 --height 12 --spp 2 --target-noise 1e-12 --max-spp 8 -q
+  --out ${WORK_DIR}/capped OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
+file(READ ${WORK_DIR}/capped/reference.json json)
+string(JSON converged GET "${json}" converge converged)
+string(JSON spp GET "${json}" options spp)
+if(NOT rc EQUAL 0 OR converged OR NOT spp EQUAL 8 OR NOT err MATCHES "warning: the noise target 1e-12 was not reached at --max-spp 8")
+  message(FATAL_ERROR "capped --target-noise (${rc}): converged ${converged}, spp ${spp}:\n${out}${err}")
+endif()
+expect_failure("--target-noise must be a finite number > 0" reference --scene spheres --target-noise 0 --out ${WORK_DIR}/x ${args})
+expect_failure("even and >= 2" reference --scene spheres --target-noise 0.01 --spp 3 --out ${WORK_DIR}/x -q)
+expect_failure("--max-spp must be even" reference --scene spheres --target-noise 0.01 --spp 16 --max-spp 8 --out ${WORK_DIR}/x -q)
+expect_failure("do not combine" reference --scene spheres --target-noise 0.01 --convergence --out ${WORK_DIR}/x ${args})
