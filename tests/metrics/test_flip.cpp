@@ -16,6 +16,8 @@
 
 #include "softgi/metrics/flip.hpp"
 
+#include "../support/thrown_message.hpp"
+
 namespace softgi::metrics {
 namespace {
 
@@ -173,15 +175,7 @@ Image checkerboard(int w, int h, int square, float a, float b) {
   return img;
 }
 
-template <class F>
-std::string thrown_message(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "(nothing thrown)";
-}
+using test::thrown_message;
 
 // ---------------------------------------------------------------------------------------------------
 // LDR-FLIP.

@@ -13,6 +13,8 @@
 #include "softgi/reference/converge.hpp"
 #include "softgi/scene/builtin.hpp"
 
+#include "../support/thrown_message.hpp"
+
 namespace softgi::reference {
 namespace {
 
@@ -24,15 +26,7 @@ scene::Scene small_spheres() {
   return s;
 }
 
-template <class F>
-std::string thrown_message(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "(nothing thrown)";
-}
+using test::thrown_message;
 
 TEST(Converge, MeetsTheTargetAndItsHalvesAreTheSeededRenders) {
   const scene::Scene s = small_spheres();

@@ -590,6 +590,16 @@ double exposed_value_for(const ToneCurve& c, double t) {
   return (-qb + std::sqrt(qb * qb - 4.0 * qa * qc)) / (2.0 * qa);
 }
 
+// The median as the authors take it (numpy's 50th percentile): the mean of the two middle values for an
+// even count. `v` is reordered; it must not be empty.
+double median_of(std::vector<double>& v) {
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  const double upper = v[mid];
+  if (v.size() % 2 != 0) return upper;
+  return 0.5 * (upper + *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid)));
+}
+
 void check_exposure(double e, const char* what) {
   if (!std::isfinite(e) || std::abs(e) > kFlipMaxAbsExposure) {
     std::ostringstream os;
@@ -652,12 +662,7 @@ FlipResult flip_hdr(const Image& test, const Image& reference, const FlipOptions
     std::vector<double> lum(reference.rgb.size());
     for (std::size_t i = 0; i < lum.size(); ++i) lum[i] = luma(glm::max(glm::dvec3(reference.rgb[i]), glm::dvec3(0.0)));
     const double ymax = *std::max_element(lum.begin(), lum.end());
-    // The median as the authors take it (numpy's 50th percentile): the mean of the two middle values for
-    // an even count.
-    const std::size_t mid = lum.size() / 2;
-    std::nth_element(lum.begin(), lum.begin() + static_cast<std::ptrdiff_t>(mid), lum.end());
-    double median = lum[mid];
-    if (lum.size() % 2 == 0) median = 0.5 * (median + *std::max_element(lum.begin(), lum.begin() + static_cast<std::ptrdiff_t>(mid)));
+    double median = median_of(lum);
     const double x = exposed_value_for(curve, kExposureTarget);
     // A black reference has no range; the authors' implementation uses exposure 0 for both ends.
     if (ymax > 0.0) {
@@ -667,11 +672,7 @@ FlipResult flip_hdr(const Image& test, const Image& reference, const FlipOptions
           std::vector<double> positive;
           for (double v : lum)
             if (v > 0.0) positive.push_back(v);
-          const std::size_t pm = positive.size() / 2;
-          std::nth_element(positive.begin(), positive.begin() + static_cast<std::ptrdiff_t>(pm), positive.end());
-          median = positive[pm];
-          if (positive.size() % 2 == 0)
-            median = 0.5 * (median + *std::max_element(positive.begin(), positive.begin() + static_cast<std::ptrdiff_t>(pm)));
+          median = median_of(positive);
           res_stop_from_positive = true;
         }
         if (median <= 0.0)
