@@ -17,7 +17,7 @@ namespace softgi {
 ProgressBar::ProgressBar(std::string label, bool enabled, clock::time_point start)
     : label_(std::move(label)), enabled_(enabled), tty_(isatty(fileno(stderr)) != 0), start_(start) {}
 
-void ProgressBar::update(double f) {
+void ProgressBar::update(double f, std::string_view detail) {
   if (!enabled_) return;
   f = std::clamp(std::isfinite(f) ? f : 0.0, 0.0, 1.0);
   const double t = std::chrono::duration<double>(clock::now() - start_).count();
@@ -28,7 +28,9 @@ void ProgressBar::update(double f) {
     const int filled = static_cast<int>(f * kWidth);
     std::ostringstream os;
     os << "\r" << label_ << " [" << std::string(filled, '#') << std::string(kWidth - filled, '-') << "] " << std::setw(3)
-       << static_cast<int>(100.0 * f) << "%  " << std::fixed << std::setprecision(1) << t << " s";
+       << static_cast<int>(100.0 * f) << "%  ";
+    if (!detail.empty()) os << detail << "  ";
+    os << std::fixed << std::setprecision(1) << t << " s";
     if (f > 0.0 && f < 1.0) os << "  eta " << t * (1.0 - f) / f << " s";
     os << "   ";
     std::cerr << os.str() << std::flush;
@@ -38,7 +40,12 @@ void ProgressBar::update(double f) {
     const int decile = static_cast<int>(f * 10.0 + 1e-9);
     if (decile <= last_decile_) return;
     last_decile_ = decile;
-    std::cerr << label_ << " " << decile * 10 << "% (" << std::fixed << std::setprecision(1) << t << " s)\n";
+    // Formatted apart: the stream's flags (fixed, precision) stay as the caller had them.
+    std::ostringstream os;
+    os << label_ << " " << decile * 10 << "%";
+    if (!detail.empty()) os << " " << detail;
+    os << " (" << std::fixed << std::setprecision(1) << t << " s)\n";
+    std::cerr << os.str();
   }
 }
 

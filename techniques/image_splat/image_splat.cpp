@@ -38,14 +38,17 @@ using common::KernelIsa;
 
 std::vector<ParamDesc> param_descs() {
   std::vector<ParamDesc> d;
-  d.push_back(common::params::order(4, "shadows (log occlusion, O_p, L)"));
+  // Quality ladder (softgi report): the receiver buffer's scale is the paper's main cost knob
+  // (section 4: cost per coarse pixel and proxy), the SH order the shadows' sharpness.
+  d.push_back(common::params::order(4, "shadows (log occlusion, O_p, L)").with_ladder({"3", "4", "4", "5"}));
   d.push_back(ParamDesc::boolean("indirect", true, "accumulate indirect light re-radiated by the proxies (section 5)"));
   d.push_back(ParamDesc::integer("indirect_order", 3, common::kMinOrder, common::kMaxOrder, "SH order of indirect accumulation (paper: 3)"));
   d.push_back(ParamDesc::choice("indirect_operator", "averaged_poly", {"averaged_poly", "averaged", "point", "exact"},
                                 "indirect operator: averaged eq. 15 with the polynomial D (paper, order 3) or with D by "
                                 "quadrature, point-sampled eq. 13, exact eqs. 16-17"));
   d.push_back(ParamDesc::boolean("normalize_indirect", true, "normalise the indirect sum by xi_p (eq. 12); off: the plain sum"));
-  d.push_back(ParamDesc::integer("receiver_scale", 2, 1, 8, "receiver buffer at 1/s of display resolution, s in {1, 2, 4, 8} (section 4)"));
+  d.push_back(ParamDesc::integer("receiver_scale", 2, 1, 8, "receiver buffer at 1/s of display resolution, s in {1, 2, 4, 8} (section 4)")
+                  .with_ladder({"8", "4", "2", "1"}));
   d.push_back(ParamDesc::choice("coverage", "derived", {"derived", "environment", "paper", "off"},
                                 "sphere of influence (section 4.1): eta derived for the worst-case delta light, for the "
                                 "scene's environment, the paper's 15 / 10, or none"));

@@ -621,7 +621,9 @@ class Shexp final : public render::Technique {
   }
   std::vector<ParamDesc> params() const override {
     std::vector<ParamDesc> d;
-    d.push_back(common::params::order(4, "lighting, visibility and shading"));
+    // Quality ladder (softgi report): the SH order bounds the shadows' sharpness (paper 004 section 7),
+    // theta_max_deg how far the hierarchy cut coarsens distant blockers (eq. 36).
+    d.push_back(common::params::order(4, "lighting, visibility and shading").with_ladder({"3", "4", "5", "6"}));
     d.push_back(ParamDesc::integer("accumulation_order", 0, 0, kMaxAccOrder,
                                    "order at which blockers are accumulated and exponentiated before truncation to "
                                    "`order` (0 = order; Figure 7e: 6 with order 4)"));
@@ -631,7 +633,7 @@ class Shexp final : public render::Technique {
                                     "projection of the exact sphere visibility (quadrature, for error analysis)"));
     d.push_back(ParamDesc::integer("ps_degree", 2, 1, 30, "series degree p of ps* and ps (PS*-2, PS-21 in Figure 9)"));
     d.push_back(common::params::hierarchy("sphere hierarchy cuts per receiver cluster (section 6.3); product ignores it"));
-    d.push_back(common::params::theta_max_deg());
+    d.push_back(common::params::theta_max_deg().with_ladder({"40", "30", "25", "15"}));
     d.push_back(ParamDesc::real("theta_min_deg", 0.0, 0.0, 30.0,
                                 "detail pruning: f_d stops at nodes subtending less than this at p* (0 = every leaf)"));
     d.push_back(ParamDesc::boolean("ratio_vectors", true, "eq. 37 ratio vectors on cut nodes (off: Figure 6b)"));

@@ -764,16 +764,21 @@ class SphericalLights final : public render::Technique {
   }
   std::vector<ParamDesc> params() const override {
     std::vector<ParamDesc> d;
-    d.push_back(common::params::order(4, "lighting, visibility, SL intensities and shading (section 7.4: 4)"));
+    // Quality ladder (softgi report): the SH order of every SL quantity, and how finely each SL's
+    // emission is sampled (geodesic directions, section 4.2) and projected (strata, section 5.2).
+    d.push_back(common::params::order(4, "lighting, visibility, SL intensities and shading (section 7.4: 4)")
+                    .with_ladder({"3", "4", "4", "5"}));
     d.push_back(common::params::exp({"hyb", "ol"}, "SH exponential of the visibilities (paper 004 section 4.3)"));
     d.push_back(ParamDesc::choice("blocking", "per_sphere", {"per_sphere", "per_object"},
                                   "order in which SLs block SLs (section 7.2): every SL by distance, or objects by centre distance"));
     d.push_back(ParamDesc::boolean("indirect", true, "one-bounce indirect light from the SLs (off: soft shadows only)"));
     d.push_back(ParamDesc::integer("geodesic_frequency", 3, 1, 16,
-                                   "sample directions per SL: geodesic sphere of frequency f, 10 f^2 + 2 vertices (section 4.2: 92, f = 3)"));
+                                   "sample directions per SL: geodesic sphere of frequency f, 10 f^2 + 2 vertices (section 4.2: 92, f = 3)")
+                    .with_ladder({"1", "2", "3", "4"}));
     d.push_back(ParamDesc::integer("cubemap_resolution", 16, 2, 256, "texels per cube-map face edge of the SL albedo (section 4.2)"));
     d.push_back(ParamDesc::integer("projection_strata", 64, 2, 1024,
-                                   "jittered stratified directions of the intensity projection, strata^2 in all (section 5.2, eqs. 9-10)"));
+                                   "jittered stratified directions of the intensity projection, strata^2 in all (section 5.2, eqs. 9-10)")
+                    .with_ladder({"16", "32", "64", "96"}));
     d.push_back(common::params::hierarchy("SL hierarchies cut per receiver cluster with reflection ratios (section 7.3, eqs. 25-26)"));
     d.push_back(common::params::theta_max_deg());
     d.push_back(ParamDesc::boolean("reflection_ratios", true, "eq. 25 reflection ratios on the parents of a cut (off: t = 1)"));

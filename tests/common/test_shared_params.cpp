@@ -68,3 +68,19 @@ TEST(SharedParams, ReadersResolveAndRejectWithTheParameterNamed) {
   p.set("kernel", "auto");
   EXPECT_EQ(cp::read_kernel(p), techniques::common::best_kernel_isa());
 }
+
+// softgi report sweeps each technique over the quality ladder its descriptions declare: every
+// registered technique has one of at least two rungs, and every rung is a setting the technique
+// accepts (ParamSet's constructor has checked each value against its description already).
+TEST(SharedParams, EveryTechniqueDeclaresAQualityLadder) {
+  for (const auto& name : render::technique_names()) {
+    const auto t = render::create_technique(name);
+    render::ParamSet p = render::default_params(*t);
+    const auto rungs = p.ladder();
+    EXPECT_GE(rungs.size(), 2u) << name << " declares no quality ladder";
+    for (const auto& rung : rungs) {
+      EXPECT_FALSE(rung.empty()) << name;
+      for (const auto& [param, value] : rung) EXPECT_NO_THROW(p.set(param, value)) << name << ": " << param << "=" << value;
+    }
+  }
+}

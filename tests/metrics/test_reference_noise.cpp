@@ -110,6 +110,29 @@ TEST(ReferenceNoise, NoiseEstimateMatchesTheSpreadOfIndependentReferences) {
   EXPECT_NEAR(e.raw, 2.0 * e.noise, 0.4 * e.noise);
 }
 
+// Two noisy images of one converged image m + delta and m: with both sides' halves, the noise of both
+// is taken out and the known error is recovered; the one-sided estimate, which treats the test's
+// noise as error, is far above it. Tolerance: the 95 % interval, as above.
+TEST(ReferenceNoise, BothSidesNoisyRecoversTheKnownError) {
+  Synthetic s = synthetic(128, 128, 0.02, 0.03, 11);
+  const Synthetic other = synthetic(128, 128, 0.02, 0.03, 11);  // same m and delta
+  std::mt19937 rng(99);
+  std::normal_distribution<float> nrm(0.0f, 1.0f);
+  const float half_sigma = static_cast<float>(0.03 * std::sqrt(2.0));
+  Image ta(128, 128), tb(128, 128);
+  for (std::size_t i = 0; i < s.t.rgb.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      ta.rgb[i][c] = other.t.rgb[i][c] + half_sigma * nrm(rng);
+      tb.rgb[i][c] = other.t.rgb[i][c] + half_sigma * nrm(rng);
+    }
+  const metrics::NoiseCorrectedError both = metrics::noise_corrected_relmse_between(ta, tb, s.a, s.b);
+  EXPECT_LE(both.ci_low, s.true_relmse);
+  EXPECT_GE(both.ci_high, s.true_relmse);
+  const metrics::NoiseCorrectedError one = metrics::noise_corrected_relmse(metrics::mean_of_halves(ta, tb), s.a, s.b);
+  EXPECT_GT(one.ci_low, s.true_relmse) << "the test's own noise should show as error when only the reference's is removed";
+  EXPECT_NEAR(both.noise - one.noise, one.corrected - s.true_relmse, 0.2 * (one.corrected - s.true_relmse));
+}
+
 TEST(ReferenceNoise, BadInputNamesTheImage) {
   const Image ok(4, 4, glm::vec3(1.0f)), small(3, 4, glm::vec3(1.0f));
   Image nan = ok;

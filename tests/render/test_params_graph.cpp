@@ -20,6 +20,42 @@ std::vector<ParamDesc> sample_params() {
 bool contains(const std::vector<std::string>& v, const std::string& s) { return std::find(v.begin(), v.end(), s) != v.end(); }
 }  // namespace
 
+TEST(Params, QualityLadderComesFromTheDescriptions) {
+  ParamSet plain(sample_params());
+  ASSERT_EQ(plain.ladder().size(), 1u);  // no ladder: one rung, the defaults
+  EXPECT_TRUE(plain.ladder()[0].empty());
+
+  std::vector<ParamDesc> d = sample_params();
+  d[0] = d[0].with_ladder({"3", "4", "6"});
+  d[1] = d[1].with_ladder({"40", "25.0", "1e1"});
+  ParamSet p(d);
+  const auto rungs = p.ladder();
+  ASSERT_EQ(rungs.size(), 3u);
+  using A = std::pair<std::string, std::string>;
+  EXPECT_EQ(rungs[0], (ParamSet::Rung{A{"order", "3"}, A{"theta_max_deg", "40"}}));
+  EXPECT_EQ(rungs[1], (ParamSet::Rung{A{"order", "4"}, A{"theta_max_deg", "25"}}));  // canonical text
+  EXPECT_EQ(rungs[2], (ParamSet::Rung{A{"order", "6"}, A{"theta_max_deg", "10"}}));
+  for (const auto& rung : rungs)
+    for (const auto& [name, value] : rung) EXPECT_NO_THROW(p.set(name, value));
+
+  // A ladder that breaks its own description, or rungs that do not line up, is the describer's bug.
+  auto expect_logic = [](std::vector<ParamDesc> bad, const std::string& needle) {
+    try {
+      ParamSet q(std::move(bad));
+      ADD_FAILURE() << "accepted a ladder that should fail with '" << needle << "'";
+    } catch (const std::logic_error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  std::vector<ParamDesc> out_of_range = sample_params();
+  out_of_range[0] = out_of_range[0].with_ladder({"3", "9"});
+  expect_logic(out_of_range, "quality ladder of 'order'");
+  std::vector<ParamDesc> ragged = sample_params();
+  ragged[0] = ragged[0].with_ladder({"3", "4"});
+  ragged[3] = ragged[3].with_ladder({"ol", "hyb", "ps*"});
+  expect_logic(ragged, "'exp' has 3 rungs, 'order' has 2");
+}
+
 TEST(Params, DefaultsParseAndValidate) {
   ParamSet p(sample_params());
   EXPECT_EQ(p.get_int("order"), 4);

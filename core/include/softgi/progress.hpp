@@ -18,8 +18,9 @@ class ProgressBar {
   using clock = std::chrono::steady_clock;
   // `start`: when the work began (elapsed times count from there, also when the bar appears late).
   ProgressBar(std::string label, bool enabled, clock::time_point start = clock::now());
-  // fraction in [0, 1]; 1 draws the last state and ends the line.
-  void update(double fraction);
+  // fraction in [0, 1]; 1 draws the last state and ends the line. `detail` ("12/40 jobs") follows the
+  // percentage.
+  void update(double fraction, std::string_view detail = {});
   // Ends a partly drawn terminal line without claiming completion (the work stopped early).
   void abandon();
 

@@ -42,10 +42,12 @@ Image mean_of_halves(const Image& a, const Image& b) {
   return r;
 }
 
-NoiseCorrectedError noise_corrected_relmse(const Image& t, const Image& a, const Image& b, const Mask& mask, double epsilon) {
-  check(t, t, "test");
-  check(a, t, "first half");
-  check(b, t, "second half");
+namespace {
+
+// The estimate of noise_corrected_relmse, and of noise_corrected_relmse_between when the test's halves
+// ta and tb are given (t is then their mean, and their noise is taken out as the reference's is).
+NoiseCorrectedError corrected_relmse(const Image& t, const Image* ta, const Image* tb, const Image& a, const Image& b,
+                                     const Mask& mask, double epsilon) {
   if (!(epsilon > 0.0) || !std::isfinite(epsilon))
     throw std::invalid_argument("relMSE epsilon must be finite and > 0, got " + std::to_string(epsilon));
   const std::size_t n = t.rgb.size();
@@ -66,6 +68,10 @@ NoiseCorrectedError noise_corrected_relmse(const Image& t, const Image& a, const
       const double d = t.rgb[i][c] - r, half = 0.5 * (static_cast<double>(a.rgb[i][c]) - b.rgb[i][c]);
       e += d * d * w / 3.0;
       s += half * half * w / 3.0;
+      if (ta) {
+        const double test_half = 0.5 * (static_cast<double>(ta->rgb[i][c]) - tb->rgb[i][c]);
+        s += test_half * test_half * w / 3.0;
+      }
     }
     raw += e;
     noise += s;
@@ -83,6 +89,24 @@ NoiseCorrectedError noise_corrected_relmse(const Image& t, const Image& a, const
   out.ci_low = out.corrected - half_width;
   out.ci_high = out.corrected + half_width;
   return out;
+}
+
+}  // namespace
+
+NoiseCorrectedError noise_corrected_relmse(const Image& t, const Image& a, const Image& b, const Mask& mask, double epsilon) {
+  check(t, t, "test");
+  check(a, t, "first half");
+  check(b, t, "second half");
+  return corrected_relmse(t, nullptr, nullptr, a, b, mask, epsilon);
+}
+
+NoiseCorrectedError noise_corrected_relmse_between(const Image& ta, const Image& tb, const Image& a, const Image& b,
+                                                   const Mask& mask, double epsilon) {
+  check(ta, ta, "test's first half");
+  check(tb, ta, "test's second half");
+  check(a, ta, "first half");
+  check(b, ta, "second half");
+  return corrected_relmse(mean_of_halves(ta, tb), &ta, &tb, a, b, mask, epsilon);
 }
 
 }  // namespace softgi::metrics

@@ -77,11 +77,48 @@ std::string range_text(const ParamDesc& d) {
 }
 }  // namespace
 
+ParamDesc ParamDesc::with_ladder(std::vector<std::string> values) const {
+  ParamDesc d = *this;
+  d.ladder = std::move(values);
+  return d;
+}
+
 ParamSet::ParamSet(std::vector<ParamDesc> descs) : descs_(std::move(descs)) {
   for (const auto& d : descs_) {
     if (values_.count(d.name)) throw std::logic_error("parameter '" + d.name + "' described twice");
     values_[d.name] = canonical(d, d.default_value);  // defaults must satisfy their own description
   }
+  // A ladder is part of the description: a bad one is the technique's bug, found as soon as its
+  // parameters are first made rather than in the middle of a report.
+  std::size_t rungs = 0;
+  std::string first;
+  for (auto& d : descs_) {
+    if (d.ladder.empty()) continue;
+    for (auto& v : d.ladder) {
+      try {
+        v = canonical(d, v);
+      } catch (const std::invalid_argument& e) {
+        throw std::logic_error("quality ladder of '" + d.name + "': " + e.what());
+      }
+    }
+    if (rungs == 0) {
+      rungs = d.ladder.size();
+      first = d.name;
+    } else if (d.ladder.size() != rungs) {
+      throw std::logic_error("quality ladder: '" + d.name + "' has " + std::to_string(d.ladder.size()) + " rungs, '" + first +
+                             "' has " + std::to_string(rungs));
+    }
+  }
+}
+
+std::vector<ParamSet::Rung> ParamSet::ladder() const {
+  std::size_t rungs = 0;
+  for (const auto& d : descs_) rungs = std::max(rungs, d.ladder.size());
+  if (rungs == 0) return {Rung{}};
+  std::vector<Rung> out(rungs);
+  for (const auto& d : descs_)
+    for (std::size_t k = 0; k < d.ladder.size(); ++k) out[k].emplace_back(d.name, d.ladder[k]);
+  return out;
 }
 
 std::string ParamSet::canonical(const ParamDesc& d, const std::string& value) const {

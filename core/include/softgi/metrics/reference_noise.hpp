@@ -29,6 +29,13 @@ struct NoiseCorrectedError {
 NoiseCorrectedError noise_corrected_relmse(const Image& test, const Image& half_a, const Image& half_b, const Mask& mask = {},
                                            double epsilon = 1e-2);
 
+// Both images noisy: the test is the mean t = (ta + tb) / 2 of two independent halves as well (one
+// reference against another, as an error budget compares them). Its noise adds to raw as the
+// reference's does, and is taken out the same way: noise = mean ((a - b)^2 / 4 + (ta - tb)^2 / 4) /
+// (r^2 + eps), corrected = raw - noise. Errors name the image as noise_corrected_relmse's do.
+NoiseCorrectedError noise_corrected_relmse_between(const Image& test_a, const Image& test_b, const Image& half_a,
+                                                   const Image& half_b, const Mask& mask = {}, double epsilon = 1e-2);
+
 // The two halves' mean, the reference they stand for.
 Image mean_of_halves(const Image& half_a, const Image& half_b);
 

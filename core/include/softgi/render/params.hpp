@@ -22,6 +22,13 @@ struct ParamDesc {
   std::string help;
   // Sweeps (ParamSet::sweep_values): Int/Float values span [min, max], log-spaced when set.
   bool sweep_log = false;
+  // The quality ladder (softgi report): this parameter's value on each rung, from the cheapest
+  // setting to the most accurate; empty when the ladder leaves it at its default. Every laddered
+  // parameter of a technique has the same number of rungs (ParamSet checks it).
+  std::vector<std::string> ladder;
+
+  // This description with `values` as its ladder.
+  ParamDesc with_ladder(std::vector<std::string> values) const;
 
   static ParamDesc integer(std::string name, int def, int lo, int hi, std::string help);
   static ParamDesc real(std::string name, double def, double lo, double hi, std::string help);
@@ -54,6 +61,11 @@ class ParamSet {
   // `steps` values spanning the parameter's range (linear or log), or every choice of an Enum,
   // or {false, true}; canonical text, ready for set().
   std::vector<std::string> sweep_values(const std::string& name, int steps) const;
+  // The quality ladder declared by the descriptions (ParamDesc::ladder): rung k assigns every laddered
+  // parameter its k-th value (canonical text, ready for set()); the others keep their values. One
+  // empty rung (the defaults) when no parameter is laddered.
+  using Rung = std::vector<std::pair<std::string, std::string>>;
+  std::vector<Rung> ladder() const;
   // One line per parameter: "name (type, range, default): help" for --help texts.
   std::string describe() const;
 
