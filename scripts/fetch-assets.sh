@@ -40,8 +40,7 @@ for f in "${FILES[@]}"; do
 done
 if [ ${#missing[@]} -eq 0 ]; then
   echo "fetch-assets: all ${#FILES[@]} files present in $ASSETS, checksums match"
-  exit 0
-fi
+else
 echo "fetch-assets: ${#missing[@]} of ${#FILES[@]} files missing or changed in $ASSETS: ${missing[*]}"
 
 # npm: present on most developer machines; on a bare Debian 12 install it the way install-deps.sh does.
@@ -91,3 +90,39 @@ for f in "${missing[@]}"; do
 done
 (cd "$ASSETS" && sha256sum --quiet -c "$SUMS") || die "checksum verification of $ASSETS failed"
 echo "fetch-assets: done; ${#FILES[@]} files in $ASSETS (CC0 1.0, $PACKAGE@$VERSION)"
+fi
+
+# The charting library `softgi report` copies into every report so that its page works offline:
+# Vega, Vega-Lite and vega-embed (BSD-3-Clause), their minified browser builds and licences, into
+# assets/web/. Pinned versions; checked against scripts/web.sha256.
+WEB_SUMS="$ROOT/scripts/web.sha256"
+WEB_PACKAGES=("vega@5.33.0:build/vega.min.js" "vega-lite@5.23.0:build/vega-lite.min.js" "vega-embed@6.29.0:build/vega-embed.min.js")
+[ -f "$WEB_SUMS" ] || die "checksum list $WEB_SUMS is missing"
+if (cd "$ASSETS" 2>/dev/null && sha256sum --quiet -c "$WEB_SUMS" >/dev/null 2>&1); then
+  echo "fetch-assets: charting library present in $ASSETS/web, checksums match"
+  exit 0
+fi
+command -v npm >/dev/null || die "npm not found (Debian packages nodejs npm), needed for the charting library"
+WEB_TMP="$(mktemp -d "${TMPDIR:-/tmp}/softgi-web.XXXXXX")"
+trap 'rm -rf "${TMP:-}" "$WEB_TMP"' EXIT
+mkdir -p "$ASSETS/web"
+for entry in "${WEB_PACKAGES[@]}"; do
+  spec="${entry%%:*}"
+  file="${entry#*:}"
+  name="${spec%@*}"
+  echo "fetch-assets: downloading $spec with npm pack"
+  mkdir -p "$WEB_TMP/$name"
+  if ! (cd "$WEB_TMP/$name" && npm pack --silent "$spec" >"$WEB_TMP/$name/pack.log" 2>&1); then
+    cat "$WEB_TMP/$name/pack.log" >&2
+    die "npm pack $spec failed (no network or no access to the npm registry?)"
+  fi
+  tarball="$(find "$WEB_TMP/$name" -maxdepth 1 -name "*.tgz" | head -n 1)"
+  [ -n "$tarball" ] || die "npm pack $spec produced no tarball"
+  tar -xzf "$tarball" -C "$WEB_TMP/$name" "package/$file" package/LICENSE || die "$spec lacks package/$file or package/LICENSE"
+  cp "$WEB_TMP/$name/package/$file" "$ASSETS/web/$(basename "$file").tmp"
+  cp "$WEB_TMP/$name/package/LICENSE" "$ASSETS/web/$name.LICENSE.tmp"
+  mv "$ASSETS/web/$(basename "$file").tmp" "$ASSETS/web/$(basename "$file")"
+  mv "$ASSETS/web/$name.LICENSE.tmp" "$ASSETS/web/$name.LICENSE"
+done
+(cd "$ASSETS" && sha256sum --quiet -c "$WEB_SUMS") || die "checksum verification of $ASSETS/web failed"
+echo "fetch-assets: charting library in $ASSETS/web (BSD-3-Clause: ${WEB_PACKAGES[*]%%:*})"

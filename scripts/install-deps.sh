@@ -15,6 +15,8 @@ PACKAGES=(
   # (libclang_rt.fuzzer-x86_64.a, ...: libclang-rt-14-dev), nor llvm-symbolizer (llvm-14), which
   # turns sanitizer reports into file:line stacks.
   clang libclang-rt-14-dev llvm-14
+  # The report page's test loads DIR/index.html in a headless browser (console errors, charts drawn).
+  chromium-headless-shell
 )
 
 missing=()

@@ -5,6 +5,7 @@
 #include <functional>
 #include <string>
 
+#include "softgi/reference/converge.hpp"
 #include "softgi/reference/reference.hpp"
 
 namespace softgi::app {
@@ -18,5 +19,13 @@ inline constexpr int kReferenceRendererVersion = 1;
 // again, with a line on stderr saying why.
 reference::ReferenceResult cached_reference(const scene::Scene& scene, const reference::ReferenceOptions& opt,
                                             const std::function<void(double)>& progress, bool& cached);
+
+// render_converged_reference through the same cache: its two halves are entries of their own, keyed by
+// the options and the convergence settings (target, first round, cap, epsilon; not the mask, which
+// must be empty). A hit returns the halves, their mean and the noise recomputed from them (rounds
+// empty; result.seconds is the original render's, all rounds).
+reference::ConvergedReference cached_converged_reference(
+    const scene::Scene& scene, const reference::ReferenceOptions& opt, const reference::ConvergeOptions& converge,
+    const std::function<void(int round, int spp, double fraction)>& progress, bool& cached);
 
 }  // namespace softgi::app
