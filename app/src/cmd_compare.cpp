@@ -48,17 +48,6 @@ struct CompareArgs {
   unsigned seed = 1;
 };
 
-std::vector<std::string> split_list(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  for (std::string item; std::getline(ss, item, ',');) {
-    item.erase(0, item.find_first_not_of(" \t"));
-    item.erase(item.find_last_not_of(" \t") + 1);
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
-
 int sh_order_of(const render::ParamSet& p) {
   if (p.has("order") && p.desc("order").type == render::ParamType::Int) return p.get_int("order");
   return kDefaultShOrder;

@@ -51,17 +51,6 @@ struct ReportArgs {
   std::vector<std::string> shard_dirs;
 };
 
-std::vector<std::string> split(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  for (std::string item; std::getline(ss, item, ',');) {
-    item.erase(0, item.find_first_not_of(" \t"));
-    item.erase(item.find_last_not_of(" \t") + 1);
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
-
 // --scenes, --techniques, --backend, --budget and its overrides, checked before anything renders.
 report::Settings read_settings(const ReportArgs& a) {
   register_builtin();
@@ -69,10 +58,10 @@ report::Settings read_settings(const ReportArgs& a) {
   if (a.scenes == "all") {
     for (const auto& b : scene::builtin_scenes()) s.scenes.push_back(b.name);
   } else {
-    s.scenes = split(a.scenes);
+    s.scenes = split_list(a.scenes);
   }
   if (s.scenes.empty()) throw std::invalid_argument("--scenes: no scene named");
-  s.techniques = a.techniques == "all" ? render::technique_names() : split(a.techniques);
+  s.techniques = a.techniques == "all" ? render::technique_names() : split_list(a.techniques);
   if (s.techniques.empty()) throw std::invalid_argument("--techniques: no technique named");
   for (const auto& t : s.techniques) render::create_technique(t);  // unknown names fail here
   s.backends = parse_backends(a.backends.empty() ? render::reference_backend_name() : a.backends);
@@ -82,7 +71,7 @@ report::Settings read_settings(const ReportArgs& a) {
   if (a.height > 0) b.height = a.height;
   if (!a.frames.empty()) {
     b.frame_times.clear();
-    for (const auto& f : split(a.frames)) {
+    for (const auto& f : split_list(a.frames)) {
       std::size_t used = 0;
       double t = 0.0;
       try {

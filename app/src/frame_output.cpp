@@ -51,13 +51,20 @@ std::string check_backend(const std::string& name) {
   return name;
 }
 
-std::vector<std::string> parse_backends(const std::string& list) {
+std::vector<std::string> split_list(const std::string& s) {
   std::vector<std::string> out;
-  std::stringstream ss(list);
+  std::stringstream ss(s);
   for (std::string item; std::getline(ss, item, ',');) {
     item.erase(0, item.find_first_not_of(" \t"));
     item.erase(item.find_last_not_of(" \t") + 1);
-    if (item.empty()) continue;
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+std::vector<std::string> parse_backends(const std::string& list) {
+  std::vector<std::string> out;
+  for (const std::string& item : split_list(list)) {
     check_backend(item);
     if (std::find(out.begin(), out.end(), item) != out.end()) throw std::invalid_argument("--backend: '" + item + "' listed twice");
     out.push_back(item);

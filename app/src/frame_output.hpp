@@ -28,6 +28,8 @@ void register_builtin();
 std::string check_backend(const std::string& name);
 // "cpu (description), vulkan (description); default: cpu" for --help texts.
 std::string backends_help();
+// The items of a comma-separated list, trimmed of blanks; empty items are dropped.
+std::vector<std::string> split_list(const std::string& s);
 // A comma-separated list of backends ("cpu,vulkan"), each checked, without duplicates.
 std::vector<std::string> parse_backends(const std::string& list);
 // The backend `name`; `device` (--device NAME|INDEX) selects the device of a backend that has one
