@@ -8,16 +8,17 @@ namespace softgi::app::report {
 
 namespace {
 
-// The data goes into a <script type="application/json"> element: "</" would end it early and
-// U+2028/U+2029 break older parsers, so they are escaped (JSON.parse reads them back unchanged).
+// The data goes into a <script type="application/json"> element, which "</script" would end early and
+// "<!--" followed by "<script" would keep open past its end tag. JSON has '<' only inside strings,
+// where \u003c means the same, so every '<' is written that way; U+2028/U+2029 likewise (older
+// parsers). JSON.parse reads the text back unchanged.
 std::string embeddable(const Json& results) {
-  const std::string text = results.dump();
+  const std::string text = results.dump(-1, ' ', false, Json::error_handler_t::replace);
   std::string out;
   out.reserve(text.size() + 64);
   for (std::size_t i = 0; i < text.size(); ++i) {
-    if (text[i] == '<' && i + 1 < text.size() && text[i + 1] == '/') {
-      out += "<\\/";
-      ++i;
+    if (text[i] == '<') {
+      out += "\\u003c";
     } else if (text.compare(i, 3, "\xE2\x80\xA8") == 0) {
       out += "\\u2028";
       i += 2;
@@ -78,7 +79,13 @@ const char* const kScript = R"HTML(</script>
     box.textContent = errors.join('\n');
     document.body.dataset.errors = String(errors.length);
   }
-  window.addEventListener('error', function (ev) { fail(ev.message || ev); });
+  // Capture phase: an image or script that fails to load reports here (it does not bubble), and
+  // Chromium logs nothing for a missing file:// resource.
+  window.addEventListener('error', function (ev) {
+    const t = ev.target;
+    if (t && (t.tagName === 'IMG' || t.tagName === 'SCRIPT')) fail('could not load ' + (t.src || t.getAttribute('src')));
+    else fail(ev.message || ev);
+  }, true);
   window.addEventListener('unhandledrejection', function (ev) { fail('unhandled rejection: ' + (ev.reason && ev.reason.message || ev.reason)); });
 
   const pending = [];
@@ -255,7 +262,7 @@ const char* const kScript = R"HTML(</script>
         const p = withImages.find(function (x) { return x.id === select.value; });
         base.src = p.images.final;
         top.src = p.images.reference || p.images.final;
-        flip.src = p.images.flip_map || '';
+        if (p.images.flip_map) flip.src = p.images.flip_map; else flip.removeAttribute('src');
         caption.textContent = 'left of the line: ' + p.id + ' (' + settingsText(p) + '); right: the reference. FLIP ' +
           num(p.errors.final.flip) + ', relMSE ' + num(p.errors.final.relmse);
         apply();
