@@ -1,6 +1,7 @@
 // Reference renders through the disk cache (cached_reference.hpp).
 #include "cached_reference.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <iostream>
 #include <optional>
@@ -90,16 +91,13 @@ reference::ConvergedReference cached_converged_reference(
     c.result.seconds = c.half_a.seconds;  // written as the whole render's time (below)
     c.result.rays = c.half_a.rays + c.half_b.rays;
     // The noise over the pixels the convergence measured it on: those lit in either half.
-    Mask lit{c.result.final_image.width, c.result.final_image.height, std::vector<std::uint8_t>(c.result.final_image.rgb.size(), 0)};
-    for (std::size_t i = 0; i < lit.on.size(); ++i) {
-      const glm::vec3 pa = c.half_a.final_image.rgb[i], pb = c.half_b.final_image.rgb[i];
-      lit.on[i] = (pa.x + pa.y + pa.z > 0.0f || pb.x + pb.y + pb.z > 0.0f) ? 1 : 0;
-      c.pixels += lit.on[i];
+    const Mask lit = reference::lit_pixels(c.half_a.final_image, c.half_b.final_image);
+    if (std::any_of(lit.on.begin(), lit.on.end(), [](std::uint8_t v) { return v != 0; })) {
+      const metrics::NoiseCorrectedError e = metrics::noise_corrected_relmse(
+          c.result.final_image, c.half_a.final_image, c.half_b.final_image, lit, converge.relmse_epsilon);
+      c.noise = e.noise;
+      c.pixels = e.pixels;
     }
-    if (c.pixels > 0)
-      c.noise = metrics::noise_corrected_relmse(c.result.final_image, c.half_a.final_image, c.half_b.final_image, lit,
-                                                converge.relmse_epsilon)
-                    .noise;
     c.converged = c.noise <= converge.target_noise;
     return c;
   }

@@ -33,9 +33,6 @@ namespace softgi::app {
 
 namespace {
 
-// SH order of the lighting a technique is compared against when it has no "order" parameter: the
-// order paper 004's Figure 7 uses.
-constexpr int kDefaultShOrder = 4;
 // The untimed first frame is rendered this long before the timed one (one frame at 30 Hz).
 constexpr double kWarmupFrameSeconds = 1.0 / 30.0;
 
@@ -47,11 +44,6 @@ struct CompareArgs {
   int width = 0, height = 0;
   unsigned seed = 1;
 };
-
-int sh_order_of(const render::ParamSet& p) {
-  if (p.has("order") && p.desc("order").type == render::ParamType::Int) return p.get_int("order");
-  return kDefaultShOrder;
-}
 
 std::string fmt(double v, int precision = 4) {
   if (!std::isfinite(v)) return "-";

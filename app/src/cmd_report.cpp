@@ -155,17 +155,9 @@ std::vector<std::string> settings_arguments(const ReportArgs& a) {
   return v;
 }
 
-std::string shell_quote(const std::string& s) {
-  if (!s.empty() && s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-./,=:") == std::string::npos)
-    return s;
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 std::string command_line(const std::vector<std::string>& args) {
   std::string c = "softgi";
-  for (const auto& a : args) c += " " + shell_quote(a);
+  for (const auto& a : args) c += " " + report::shell_quote(a);
   return c;
 }
 
@@ -265,12 +257,6 @@ void run_processes(const ReportArgs& a, int n, const fs::path& logs, const std::
   if (!failed.empty()) throw std::runtime_error("report: worker process(es) failed; see" + failed);
 }
 
-int count_finished(report::Runner& runner, const std::vector<report::Job>& jobs) {
-  int k = 0;
-  for (const auto& j : jobs) k += runner.finished(j) ? 1 : 0;
-  return k;
-}
-
 void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
   const report::Settings s = read_settings(a);
   if (a.jobs < 1 || a.jobs > 256) throw std::invalid_argument("--jobs " + std::to_string(a.jobs) + ": expected 1 to 256");
@@ -292,7 +278,7 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
     std::vector<std::string> shard_args = args;
     shard_args.insert(shard_args.end(), {"--shard", "${SLURM_ARRAY_TASK_ID}/" + std::to_string(n), "--no-page", "--quiet-progress"});
     std::string shard_cmd = "softgi";
-    for (const auto& x : shard_args) shard_cmd += " " + (x.rfind("${", 0) == 0 ? "\"" + x + "\"" : shell_quote(x));
+    for (const auto& x : shard_args) shard_cmd += " " + (x.rfind("${", 0) == 0 ? "\"" + x + "\"" : report::shell_quote(x));
     std::ostringstream sb;
     sb << "#!/bin/bash\n"
        << "# softgi report as a Slurm job array: " << plan.size() << " jobs in " << n << " shards, written by\n#   " << command
@@ -302,7 +288,7 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
        << "#SBATCH --array=0-" << n - 1 << "\n"
        << "#SBATCH --ntasks=1\n"
        << "#SBATCH --cpus-per-task=${SOFTGI_SLURM_CPUS:-4}\n"
-       << "#SBATCH --output=" << shell_quote((fs::path(a.out) / "logs" / "slurm-%A_%a.out").string()) << "\n"
+       << "#SBATCH --output=" << report::shell_quote((fs::path(a.out) / "logs" / "slurm-%A_%a.out").string()) << "\n"
        << "set -euo pipefail\n"
        << shard_cmd << "\n";
     std::ostringstream sub;
@@ -310,11 +296,11 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
         << "# Submits the shards of slurm/report.sbatch, then `softgi report merge` once all have succeeded.\n"
         << "set -euo pipefail\n"
         << "here=\"$(cd \"$(dirname \"${BASH_SOURCE[0]}\")\" && pwd)\"\n"
-        << "mkdir -p " << shell_quote((fs::path(a.out) / "logs").string()) << "\n"
+        << "mkdir -p " << report::shell_quote((fs::path(a.out) / "logs").string()) << "\n"
         << "array=$(sbatch --parsable \"$here/report.sbatch\")\n"
         << "sbatch --dependency=afterok:\"$array\" --job-name=softgi-report-merge --output="
-        << shell_quote((fs::path(a.out) / "logs" / "merge-%j.out").string()) << " --wrap="
-        << shell_quote("softgi report merge --out " + shell_quote(a.out)) << "\n"
+        << report::shell_quote((fs::path(a.out) / "logs" / "merge-%j.out").string()) << " --wrap="
+        << report::shell_quote("softgi report merge --out " + report::shell_quote(a.out)) << "\n"
         << "echo \"submitted array $array and its merge\"\n";
     out.write_text("slurm/report.sbatch", sb.str());
     out.write_text("slurm/submit.sh", sub.str());
@@ -352,10 +338,13 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
   int failures = 0;
   if (a.jobs > 1 && todo.size() > 1) {
     ProgressBar bar("report: jobs", !quiet);
-    const int before = static_cast<int>(mine.size() - todo.size());
     const int n = std::min<int>(a.jobs, static_cast<int>(todo.size()));
+    // Only the jobs not seen finished yet are read again on each tick.
+    std::vector<const report::Job*> pending;
+    for (const auto& j : todo) pending.push_back(&j);
     run_processes(a, n, fs::path(a.out) / "logs", [&] {
-      const int k = count_finished(runner, mine) - before;
+      std::erase_if(pending, [&](const report::Job* j) { return runner.finished(*j); });
+      const int k = static_cast<int>(todo.size() - pending.size());
       bar.update(static_cast<double>(k) / todo.size(), std::to_string(k) + "/" + std::to_string(todo.size()) + " jobs");
     });
     bar.update(1.0, std::to_string(todo.size()) + "/" + std::to_string(todo.size()) + " jobs");

@@ -123,6 +123,11 @@ render::ParamSet technique_params(const render::Technique& t, const std::vector<
   return p;
 }
 
+int sh_order_of(const render::ParamSet& p) {
+  if (p.has("order") && p.desc("order").type == render::ParamType::Int) return p.get_int("order");
+  return kDefaultShOrder;
+}
+
 Json params_json(const render::ParamSet& params) {
   Json j = Json::object();
   for (const auto& [name, text] : params.values()) {

@@ -46,6 +46,11 @@ void check_distinct_params(const std::vector<std::string>& assignments);
 // technique and the parameter).
 render::ParamSet technique_params(const render::Technique& t, const std::vector<std::string>& assignments);
 
+// The SH order a technique's image is compared against: its "order" parameter, or paper 004's
+// Figure 7 order for a technique that has none.
+inline constexpr int kDefaultShOrder = 4;
+int sh_order_of(const render::ParamSet& p);
+
 // Parameter values typed by their descriptions (int, float, bool, enum as string), in description order.
 Json params_json(const render::ParamSet& params);
 // passes, pruned, total_seconds, bytes, transfer_bytes, peak_rss_bytes, warnings of a frame.

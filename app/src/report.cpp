@@ -32,8 +32,6 @@ namespace softgi::app::report {
 
 namespace {
 
-// The SH order a technique without an "order" parameter is compared against (paper 004's Figure 7).
-constexpr int kDefaultShOrder = 4;
 // Successive frames of the timed run are this far apart in animation time (a 30 Hz animation), so
 // that every timed frame pays the per-frame updates (refits) of a running animation.
 constexpr double kFrameStep = 1.0 / 30.0;
@@ -235,15 +233,14 @@ std::string scene_label(const std::string& spec) {
   return out.empty() ? "scene" : out;
 }
 
-std::string frame_label(double t) {
-  std::ostringstream os;
-  os << "t" << std::setprecision(6) << t;
-  return os.str();
-}
+std::string frame_label(double t) { return fmt_time(t).insert(0, 1, 't'); }
 
-int sh_order_of(const render::ParamSet& p) {
-  if (p.has("order") && p.desc("order").type == render::ParamType::Int) return p.get_int("order");
-  return kDefaultShOrder;
+std::string shell_quote(const std::string& s) {
+  if (!s.empty() && s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-./,=:") == std::string::npos)
+    return s;
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
 }
 
 std::vector<Job> plan_jobs(const Settings& s) {
@@ -381,8 +378,7 @@ struct Runner::Impl {
       write_exr_atomic(rdir / (std::string("b_") + kComponents[comp] + ".exr"), r.b[comp]);
     }
     write_png_atomic(rdir / "final.png", c.result.final_image);
-    static const std::map<std::string, std::string> kinds = {{"full", "real geometry, full environment"}};
-    std::string label_text = key == "full" ? kinds.at("full")
+    const std::string label_text = key == "full" ? std::string("real geometry, full environment")
                              : opt.blockers == reference::ReferenceOptions::Blockers::Proxies
                                  ? "proxy spheres as blockers, order-" + std::to_string(opt.light_sh_order) + " SH light"
                                  : "real geometry, order-" + std::to_string(opt.light_sh_order) + " SH light";
@@ -508,14 +504,14 @@ Json Runner::Impl::run(const Job& job) {
     const render::ParamSet defaults = params;
     for (const auto& [n, v] : job.assignments) params.set(n, v);
     Json all = Json::object(), changed = Json::object();
-    std::string command = "softgi render --scene " + job.scene + " --technique " + job.technique + " --backend " + job.backend +
+    std::string command = "softgi render --scene " + shell_quote(job.scene) + " --technique " + job.technique + " --backend " + job.backend +
                           " --frame " + fmt_time(job.frame_time) + " --width " + std::to_string(surf.width) + " --height " +
                           std::to_string(surf.height);
     for (const auto& [n, v] : params.values()) {
       all[n] = v;
       if (defaults.get_text(n) != v) {
         changed[n] = v;
-        command += " --param " + n + "=" + v;
+        command += " --param " + shell_quote(n + "=" + v);
       }
     }
     command += " --out OUT";

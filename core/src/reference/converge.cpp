@@ -34,6 +34,8 @@ void check(const ConvergeOptions& c) {
   if (!std::isfinite(c.relmse_epsilon) || c.relmse_epsilon <= 0.0) fail("relMSE epsilon must be finite and > 0");
 }
 
+}  // namespace
+
 Mask lit_pixels(const Image& a, const Image& b) {
   Mask m{a.width, a.height, std::vector<std::uint8_t>(a.rgb.size(), 0)};
   for (std::size_t i = 0; i < a.rgb.size(); ++i) {
@@ -42,8 +44,6 @@ Mask lit_pixels(const Image& a, const Image& b) {
   }
   return m;
 }
-
-}  // namespace
 
 unsigned half_b_seed(unsigned seed) { return seed ^ 0x9E3779B9u; }
 

@@ -39,6 +39,10 @@ struct ConvergedReference {
   std::vector<ConvergeRound> rounds;
 };
 
+// The pixels that received light in either half: what the noise is averaged over when
+// ConvergeOptions::mask is empty.
+Mask lit_pixels(const Image& half_a, const Image& half_b);
+
 // The second half's seed: far from the first's, so that references with seeds 1, 2, 3, ... do not share
 // halves.
 unsigned half_b_seed(unsigned seed);
