@@ -215,12 +215,18 @@ const char* const kScript = R"HTML(</script>
 
     // (b) Per-pass time, stacked.
     sec.appendChild(el('h3', {text: 'Time per pass'}));
-    const passRows = [];
-    for (const p of good) for (const ps of (p.passes || [])) passRows.push({point: p.id, pass: ps.name, ms: ps.seconds * 1e3});
-    if (passRows.length)
-      chart(sec, {width: 640, height: {step: 16}, data: {values: passRows}, mark: 'bar',
-        encoding: {y: {field: 'point', type: 'nominal', sort: null, title: null}, x: {field: 'ms', type: 'quantitative', stack: 'zero', title: 'median ms per pass'},
-                   color: {field: 'pass', type: 'nominal'}, tooltip: [{field: 'point'}, {field: 'pass'}, {field: 'ms', format: '.3f'}]}});
+    // One chart per technique: each has its own passes, and one legend of every technique's passes
+    // would be too long to read (and longer than Vega draws).
+    const passTechniques = [];
+    for (const p of good) if (passTechniques.indexOf(p.technique) < 0) passTechniques.push(p.technique);
+    for (const t of passTechniques) {
+      const passRows = [];
+      for (const p of good) if (p.technique === t) for (const ps of (p.passes || [])) passRows.push({point: p.id, pass: ps.name, ms: ps.seconds * 1e3});
+      if (passRows.length)
+        chart(sec, {title: t, width: 640, height: {step: 16}, data: {values: passRows}, mark: 'bar',
+          encoding: {y: {field: 'point', type: 'nominal', sort: null, title: null}, x: {field: 'ms', type: 'quantitative', stack: 'zero', title: 'median ms per pass'},
+                     color: {field: 'pass', type: 'nominal', sort: null}, tooltip: [{field: 'point'}, {field: 'pass'}, {field: 'ms', format: '.3f'}]}});
+    }
 
     // (c) Equal time.
     sec.appendChild(el('h3', {text: 'Against the path tracer at equal time'}));

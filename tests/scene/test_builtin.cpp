@@ -55,7 +55,11 @@ float max_excess(const std::vector<vec3>& points, const std::vector<scene::Spher
 }
 
 // The static built-ins (no clip): the paper 001 validation cases of figures 8 and 10.
-bool is_static(const std::string& name) { return name == "sphere_plane" || name == "box1" || name == "box8"; }
+bool is_static(const std::string& name) {
+  for (const char* n : {"sphere_plane", "box1", "box8", "cornell_glossy", "glossy_sweep", "atrium", "thin_wall"})
+    if (name == n) return true;
+  return false;
+}
 
 // Volume enclosed by a closed, outward-wound triangle mesh (divergence theorem).
 double closed_volume_of(const std::vector<vec3>& p, const std::vector<glm::uvec3>& tris) {
@@ -101,7 +105,7 @@ TEST(Builtin, ListsTheScenes) {
     EXPECT_EQ(i.needs_assets, i.name == "bunny");
   }
   EXPECT_EQ(names, (std::vector<std::string>{"spheres", "cornell", "character", "crowd", "sphere_plane", "box1", "box8", "bend",
-                                             "assembly", "bunny"}));
+                                             "assembly", "cornell_glossy", "glossy_sweep", "atrium", "thin_wall", "bunny"}));
 }
 
 TEST(Builtin, EveryProceduralSceneBuildsValidatesAndPoses) {

@@ -557,6 +557,12 @@ TEST(SlFrame, EveryBuiltinSceneRenders) {
     render::RenderRequest req;
     req.time = 0.5;
     const render::FrameResult f = render_sl(s, {}, req);
+    bool proxies = false;
+    for (const auto& p : s.proxies) proxies = proxies || !p.spheres.empty();
+    if (!proxies) {  // no SL to re-radiate: the indirect passes are left out
+      EXPECT_TRUE(f.indirect.empty());
+      continue;
+    }
     ASSERT_EQ(f.indirect.rgb.size(), 24u * 24u);
     for (const auto& c : f.indirect.rgb) {
       ASSERT_TRUE(std::isfinite(c.x) && std::isfinite(c.y) && std::isfinite(c.z));

@@ -1113,6 +1113,268 @@ Scene make_bunny() {
   return s;
 }
 
+// --- scenes of paper 002 (point-proxy voxels, Chen et al. 2014: Figures 1, 5 and 6) -------------------
+
+// An environment that emits nothing: the scene's local lights are its only light (the paper's
+// setting; the background renders black).
+Environment dark_environment() {
+  Environment e;
+  e.zenith = e.horizon = e.ground = glm::vec3(0.0f);
+  e.sun_radiance = glm::vec3(0.0f);
+  return e;
+}
+
+int add_glossy_material(Scene& s, const std::string& name, glm::vec3 albedo, float ns, float glossy) {
+  const int m = add_material(s, name, albedo);
+  s.materials[m].phong_ns = ns;
+  s.materials[m].glossy = glossy;
+  return m;
+}
+
+// A checkerboard of `checks` x `checks` squares in two colours (linear RGB), 8 texels per square.
+int add_checker_texture(Scene& s, const std::string& name, int checks, glm::vec3 a, glm::vec3 b) {
+  Texture t;
+  t.name = name;
+  t.width = t.height = 8 * checks;
+  t.texels.resize(static_cast<std::size_t>(t.width) * t.height);
+  for (int y = 0; y < t.height; ++y)
+    for (int x = 0; x < t.width; ++x) t.texels[static_cast<std::size_t>(y) * t.width + x] = ((x / 8 + y / 8) % 2) ? a : b;
+  s.textures.push_back(std::move(t));
+  return static_cast<int>(s.textures.size()) - 1;
+}
+
+// A spherical light fixed in world space.
+void add_point_light(Scene& s, const std::string& name, glm::vec3 position, float radius, glm::vec3 radiance) {
+  SphericalLight l;
+  l.name = name;
+  l.position = position;
+  l.radius = radius;
+  l.radiance = radiance;
+  s.lights.push_back(l);
+}
+
+// A vertical cylinder (axis +y from y = 0 to height), open at both ends: the columns of `atrium`.
+Mesh cylinder_mesh(const std::string& name, float radius, float height, int segments, int rings, int material) {
+  Mesh m;
+  m.name = name;
+  m.material = material;
+  for (int i = 0; i <= rings; ++i)
+    for (int j = 0; j <= segments; ++j) {
+      const float a = 2.0f * kPi * j / segments;
+      const glm::vec3 n(std::cos(a), 0.0f, std::sin(a));
+      m.positions.push_back(radius * n + glm::vec3(0.0f, height * i / rings, 0.0f));
+      m.normals.push_back(n);
+      m.uvs.push_back({static_cast<float>(j) / segments, static_cast<float>(i) / rings});
+    }
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const unsigned a = i * (segments + 1) + j, b = a + 1, c = a + (segments + 1), d = c + 1;
+      add_tri(m, a, b, d);
+      add_tri(m, a, d, c);
+    }
+  return m;
+}
+
+// An arch between two columns: the lower (intrados) surface of a half ring of radius `radius` in the
+// xy plane centred at the origin, `depth` deep along z, facing its centre, plus the flat wall above
+// it up to y = top (the spandrel), facing +z and -z. Built in the arch's own frame.
+Mesh arch_mesh(const std::string& name, float radius, float depth, float top, int segments, int material) {
+  Mesh m;
+  m.name = name;
+  m.material = material;
+  // Intrados: points (r cos a, r sin a, z), normal towards the centre.
+  for (int j = 0; j <= segments; ++j) {
+    const float a = kPi * j / segments;
+    const glm::vec3 d(std::cos(a), std::sin(a), 0.0f);
+    for (float z : {-0.5f * depth, 0.5f * depth}) {
+      m.positions.push_back(radius * d + glm::vec3(0.0f, 0.0f, z));
+      m.normals.push_back(-d);
+    }
+  }
+  for (int j = 0; j < segments; ++j) {
+    const unsigned a = 2 * j, b = a + 1, c = a + 2, d = a + 3;
+    add_tri(m, a, c, d);
+    add_tri(m, a, d, b);
+  }
+  // Spandrels on both faces: each ring point joined to the point straight above it at y = top.
+  for (float side : {-1.0f, 1.0f}) {
+    const unsigned base = static_cast<unsigned>(m.positions.size());
+    const glm::vec3 n(0.0f, 0.0f, side);
+    for (int j = 0; j <= segments; ++j) {
+      const float a = kPi * j / segments;
+      const glm::vec3 p(radius * std::cos(a), radius * std::sin(a), side * 0.5f * depth);
+      m.positions.push_back(p);
+      m.normals.push_back(n);
+      m.positions.push_back({p.x, top, p.z});
+      m.normals.push_back(n);
+    }
+    for (int j = 0; j < segments; ++j) {
+      const unsigned a = base + 2 * j, b = a + 1, c = a + 2, d = a + 3;
+      add_tri(m, a, c, d);
+      add_tri(m, a, d, b);
+    }
+  }
+  return m;
+}
+
+// Figures 1a and 5: the Cornell box of `cornell`, static, lit only by a small spherical light under
+// the ceiling, with a glossy floor (Phong exponent Ns = 50, the paper's).
+Scene make_cornell_glossy() {
+  Scene s = make_cornell();
+  s.name = "cornell_glossy";
+  s.source = "builtin:cornell_glossy";
+  s.clips.clear();
+  s.active_clip = -1;
+  const int floor_mat = add_glossy_material(s, "glossy_floor", {0.73f, 0.73f, 0.73f}, 50.0f, 0.5f);
+  for (auto& n : s.nodes)
+    if (n.name == "floor") s.meshes[n.mesh].material = floor_mat;
+  // The light hangs at the ceiling's centre; its node keeps the rest pose.
+  s.lights[0].radius = 0.06f;
+  s.lights[0].radiance = glm::vec3(520.0f, 470.0f, 400.0f);  // ~2 W/m^2 on the floor below
+  for (auto& n : s.nodes)
+    if (n.name == "ceiling_light") n.translation = {0.0f, 1.7f, 0.0f};
+  s.environment = dark_environment();
+  return s;
+}
+
+// Figure 6: five glossy floor strips with Ns = 10, 20, 30, 40, 50 (left to right) under a local light,
+// reflecting a textured back wall, an orange sphere and a blue box standing on them.
+Scene make_glossy_sweep() {
+  Scene s;
+  s.name = "glossy_sweep";
+  s.source = "builtin:glossy_sweep";
+  for (int k = 0; k < 5; ++k) {
+    const float ns = 10.0f * (k + 1);
+    const int mat = add_glossy_material(s, "strip_ns" + std::to_string(static_cast<int>(ns)), glm::vec3(0.7f), ns, 0.6f);
+    Mesh m;
+    m.name = "strip" + std::to_string(k);
+    m.material = mat;
+    append_grid(m, {-2.0f + 0.8f * k, 0.0f, -1.2f}, {0.8f, 0.0f, 0.0f}, {0.0f, 0.0f, 2.4f}, 9, 25, {0.0f, 1.0f, 0.0f});
+    add_node(s, k == 2 ? "ground" : m.name, -1, glm::vec3(0.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f), add_mesh(s, std::move(m)));
+  }
+  const int wall_mat = add_material(s, "checker_wall", glm::vec3(1.0f));
+  s.materials[wall_mat].albedo_texture = add_checker_texture(s, "checker", 8, {0.75f, 0.7f, 0.6f}, {0.15f, 0.2f, 0.45f});
+  Mesh wall;
+  wall.name = "back_wall";
+  wall.material = wall_mat;
+  append_grid(wall, {-2.0f, 0.0f, -1.2f}, {4.0f, 0.0f, 0.0f}, {0.0f, 2.0f, 0.0f}, 33, 17, {0.0f, 0.0f, 1.0f});
+  add_node(s, "back_wall", -1, glm::vec3(0.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f), add_mesh(s, std::move(wall)));
+  constexpr float kR = 0.35f;
+  add_rigid(s, "sphere", {0.9f, 0.45f, 0.1f}, uv_sphere("sphere", kR, 48, 24, 0), {-0.6f, kR, -0.4f}, glm::quat(1.0f, 0.0f, 0.0f, 0.0f),
+            {{glm::vec3(0.0f), kR}});
+  const glm::vec3 half(0.25f, 0.4f, 0.25f);
+  add_rigid(s, "box", {0.15f, 0.3f, 0.8f}, box_mesh("box", half, 9, 0), {0.8f, half.y, -0.5f}, yaw(25.0f * kDeg), box_cell_spheres(half));
+  add_point_light(s, "light", {0.0f, 2.2f, 0.9f}, 0.08f, glm::vec3(400.0f));
+  s.camera.position = {0.0f, 1.3f, 3.4f};
+  s.camera.target = {0.0f, 0.35f, -0.3f};
+  s.camera.fov_y_deg = 50.0f;
+  s.environment = dark_environment();
+  return s;
+}
+
+// Figure 1c's stand-in for Crytek Sponza (which cannot be shipped): a 16 m x 6 m roofless court with a
+// glossy floor (Ns = 50), two colonnades of six columns joined by arches carrying an upper wall, a
+// textured back wall, lit by the sky and a sun that reaches the floor between the colonnades. The
+// paper's setting for Sponza is 170k point proxies on a 20^3 grid.
+Scene make_atrium() {
+  Scene s;
+  s.name = "atrium";
+  s.source = "builtin:atrium";
+  const float len = 16.0f, half_w = 3.0f, col_r = 0.22f, col_h = 3.0f, spacing = len / 6.0f;
+  const int floor_mat = add_glossy_material(s, "marble", {0.6f, 0.58f, 0.55f}, 50.0f, 0.35f);
+  Mesh floor;
+  floor.name = "ground";
+  floor.material = floor_mat;
+  append_grid(floor, {-0.5f * len, 0.0f, -half_w - 1.5f}, {len, 0.0f, 0.0f}, {0.0f, 0.0f, 2.0f * half_w + 3.0f}, 65, 37, {0.0f, 1.0f, 0.0f});
+  add_node(s, "ground", -1, glm::vec3(0.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f), add_mesh(s, std::move(floor)));
+  const int stone = add_material(s, "stone", {0.7f, 0.62f, 0.5f});
+  const int red_stone = add_material(s, "red_stone", {0.65f, 0.25f, 0.18f});
+  // Side walls behind the colonnades (the aisles' outer walls), facing the court.
+  for (float side : {-1.0f, 1.0f}) {
+    Mesh w;
+    w.name = side < 0 ? "wall_north" : "wall_south";
+    w.material = side < 0 ? red_stone : stone;
+    const float z = side * (half_w + 1.5f);
+    append_grid(w, {-0.5f * len, 0.0f, z}, {len, 0.0f, 0.0f}, {0.0f, 5.5f, 0.0f}, 65, 23, {0.0f, 0.0f, -side});
+    add_node(s, w.name, -1, glm::vec3(0.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f), add_mesh(s, std::move(w)));
+  }
+  const int wall_mat = add_material(s, "tapestry", glm::vec3(1.0f));
+  s.materials[wall_mat].albedo_texture = add_checker_texture(s, "tapestry", 12, {0.7f, 0.6f, 0.35f}, {0.25f, 0.1f, 0.1f});
+  Mesh back;
+  back.name = "back_wall";
+  back.material = wall_mat;
+  append_grid(back, {-0.5f * len, 0.0f, -half_w - 1.5f}, {0.0f, 0.0f, 2.0f * half_w + 3.0f}, {0.0f, 5.5f, 0.0f}, 37, 23, {1.0f, 0.0f, 0.0f});
+  add_node(s, "back_wall", -1, glm::vec3(0.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f), add_mesh(s, std::move(back)));
+  // Colonnades: columns with stacked-sphere proxies (each sphere bounds a slice of the column) and
+  // arches between neighbours, under an upper wall band (the arches' spandrels reach y = 4.2).
+  const float arch_r = 0.5f * spacing - col_r;
+  for (float side : {-1.0f, 1.0f}) {
+    const float z = side * half_w;
+    for (int c = 0; c <= 6; ++c) {
+      const float x = -0.5f * len + spacing * c;
+      const std::string name = std::string(side < 0 ? "col_n" : "col_s") + std::to_string(c);
+      std::vector<Sphere> slices;
+      for (int k = 0; k < 6; ++k) {
+        const float h = col_h / 6.0f;
+        slices.push_back({{0.0f, h * (k + 0.5f), 0.0f}, std::sqrt(col_r * col_r + 0.25f * h * h)});
+      }
+      add_rigid(s, name, {0.75f, 0.72f, 0.66f}, cylinder_mesh(name, col_r, col_h, 20, 6, 0), {x, 0.0f, z},
+                glm::quat(1.0f, 0.0f, 0.0f, 0.0f), std::move(slices));
+      if (c == 6) continue;
+      const std::string an = std::string(side < 0 ? "arch_n" : "arch_s") + std::to_string(c);
+      add_node(s, an, -1, {x + 0.5f * spacing, col_h, z}, glm::quat(1.0f, 0.0f, 0.0f, 0.0f),
+               add_mesh(s, arch_mesh(an, arch_r, 2.0f * col_r, arch_r + 1.2f, 16, stone)));
+    }
+  }
+  s.camera.position = {7.2f, 1.7f, 0.0f};
+  s.camera.target = {-2.0f, 1.6f, 0.0f};
+  s.camera.fov_y_deg = 60.0f;
+  s.environment = default_sky();
+  s.environment.sun_direction = glm::normalize(glm::vec3(-0.35f, 0.75f, 0.35f));
+  return s;
+}
+
+// Light leaking, the best-known failure of voxel GI: a room open at the front, split by a 2 cm wall
+// from floor to ceiling and from the back to the opening, lit by a spherical light in its left half
+// only. No path of one bounce reaches the right half (every segment between the halves crosses the
+// wall), so whatever indirect light a technique puts there leaked. The right half's floor is the
+// node named `ground` (the region experiments measure); the environment is dark.
+Scene make_thin_wall() {
+  Scene s;
+  s.name = "thin_wall";
+  s.source = "builtin:thin_wall";
+  const int white = add_material(s, "white", glm::vec3(0.75f));
+  const int warm = add_material(s, "warm", {0.8f, 0.55f, 0.3f});
+  struct Quad {
+    const char* name;
+    glm::vec3 origin, du, dv, normal;
+    int material, nu, nv;
+  };
+  const Quad quads[] = {
+      {"floor_left", {-2.0f, 0.0f, -1.5f}, {1.99f, 0.0f, 0.0f}, {0.0f, 0.0f, 3.0f}, {0, 1, 0}, warm, 17, 25},
+      {"ground", {0.01f, 0.0f, -1.5f}, {1.99f, 0.0f, 0.0f}, {0.0f, 0.0f, 3.0f}, {0, 1, 0}, white, 17, 25},
+      {"ceiling", {-2.0f, 2.5f, -1.5f}, {4.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 3.0f}, {0, -1, 0}, white, 33, 25},
+      {"back_wall", {-2.0f, 0.0f, -1.5f}, {4.0f, 0.0f, 0.0f}, {0.0f, 2.5f, 0.0f}, {0, 0, 1}, white, 33, 21},
+      {"left_wall", {-2.0f, 0.0f, -1.5f}, {0.0f, 2.5f, 0.0f}, {0.0f, 0.0f, 3.0f}, {1, 0, 0}, white, 21, 25},
+      {"right_wall", {2.0f, 0.0f, -1.5f}, {0.0f, 2.5f, 0.0f}, {0.0f, 0.0f, 3.0f}, {-1, 0, 0}, white, 21, 25},
+  };
+  for (const auto& q : quads) {
+    Mesh m;
+    m.name = q.name;
+    m.material = q.material;
+    append_grid(m, q.origin, q.du, q.dv, q.nu, q.nv, q.normal);
+    add_node(s, q.name, -1, glm::vec3(0.0f), glm::quat(1.0f, 0.0f, 0.0f, 0.0f), add_mesh(s, std::move(m)));
+  }
+  add_node(s, "divider", -1, {0.0f, 1.25f, 0.0f}, glm::quat(1.0f, 0.0f, 0.0f, 0.0f),
+           add_mesh(s, box_mesh("divider", {0.01f, 1.25f, 1.5f}, 13, white)));
+  add_point_light(s, "light", {-1.0f, 2.1f, 0.0f}, 0.06f, glm::vec3(450.0f, 420.0f, 380.0f));
+  s.camera.position = {0.0f, 1.25f, 5.2f};
+  s.camera.target = {0.0f, 1.0f, 0.0f};
+  s.camera.fov_y_deg = 50.0f;
+  s.environment = dark_environment();
+  return s;
+}
+
 struct Entry {
   BuiltinInfo info;
   Scene (*make)();
@@ -1128,6 +1390,10 @@ const std::vector<Entry>& registry() {
       {{"box8", "the box1 cube bounded by its 8 octant spheres, static", false}, make_box8},
       {{"bend", "skinned cylinder (7 bones) bending from straight (t = 0) to 90 (t = 1 s) and 180 degrees (t = 2 s); 8 bone-bound proxy spheres", false}, make_bend},
       {{"assembly", "six moving objects (rolling, sliding, hopping balls, a crate, a turning pillar, a bending cylinder) that never touch", false}, make_assembly},
+      {{"cornell_glossy", "the Cornell box, static, lit only by a small light under the ceiling, glossy floor (Ns = 50; paper 002 Figures 1a and 5)", false}, make_cornell_glossy},
+      {{"glossy_sweep", "five glossy floor strips, Ns = 10 to 50, reflecting a textured wall, a sphere and a box under a local light (paper 002 Figure 6)", false}, make_glossy_sweep},
+      {{"atrium", "roofless 16 m court with two colonnades, arches, a textured wall and a glossy floor under sky and sun (stand-in for Crytek Sponza, paper 002 Figure 1c)", false}, make_atrium},
+      {{"thin_wall", "room split by a 2 cm wall, lit in its left half only: indirect light in the right half is leaked light", false}, make_thin_wall},
       {{"bunny", "Stanford bunny (asset set, Draco GLB) turning on a ground plane; 32-sphere proxy fit", true}, make_bunny},
   };
   return entries;

@@ -1,0 +1,579 @@
+// Point-proxy voxels: proxies, voxels, marching, the visibility filter, gathering and the lights'
+// depth maps (paper 002, Chen et al. 2014, sections 3.1-3.3).
+#include "pv_core.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace softgi::techniques::point_voxels {
+
+namespace {
+
+constexpr float kPi = 3.14159265358979323846f;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+std::uint64_t mix64(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+std::uint32_t float_bits(float f) {
+  if (f == 0.0f) f = 0.0f;  // -0 and +0 hash alike
+  std::uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  return u;
+}
+
+double to_unit(std::uint64_t h) { return static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0); }
+
+std::uint64_t position_hash(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
+  const glm::vec3 m = (a + b + c) / 3.0f;
+  std::uint64_t h = 0x9e3779b97f4a7c15ULL;
+  for (float f : {m.x, m.y, m.z}) h = mix64(h ^ float_bits(f));
+  return h;
+}
+
+// The order-2 real SH basis (l <= 1) at unit w; projection and reconstruction both use it, so only
+// its orthonormality matters.
+std::array<float, 4> basis2(const glm::vec3& w) {
+  constexpr float y0 = 0.28209479177387814f, y1 = 0.4886025119029199f;
+  return {y0, y1 * w.y, y1 * w.z, y1 * w.x};
+}
+
+}  // namespace
+
+double radical_inverse(std::uint32_t i, std::uint32_t base) {
+  double inv = 1.0 / base, f = inv, r = 0.0;
+  while (i > 0) {
+    r += f * (i % base);
+    i /= base;
+    f *= inv;
+  }
+  return r;
+}
+
+double position_hash01(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) { return to_unit(position_hash(a, b, c)); }
+
+ProxySampling sample_point_proxies(const scene::PosedScene& geometry, double target_count) {
+  if (!(target_count > 0.0) || !std::isfinite(target_count))
+    throw std::invalid_argument("point proxies: target count " + std::to_string(target_count) + " must be positive and finite");
+  ProxySampling out;
+  for (const auto& obj : geometry.objects) {
+    for (const auto& t : obj.source->triangles) {
+      const double a = 0.5 * glm::length(glm::cross(obj.positions[t.y] - obj.positions[t.x], obj.positions[t.z] - obj.positions[t.x]));
+      if (std::isfinite(a)) out.total_area += a;
+    }
+  }
+  if (!(out.total_area > 0.0)) throw std::invalid_argument("point proxies: the scene has no triangle of positive area to sample");
+  out.density = target_count / out.total_area;
+  out.samples.reserve(static_cast<std::size_t>(target_count * 1.01) + 16);
+  for (std::size_t o = 0; o < geometry.objects.size(); ++o) {
+    const auto& obj = geometry.objects[o];
+    const auto& tris = obj.source->triangles;
+    for (std::size_t k = 0; k < tris.size(); ++k) {
+      const glm::vec3 &a = obj.positions[tris[k].x], &b = obj.positions[tris[k].y], &c = obj.positions[tris[k].z];
+      const double area = 0.5 * glm::length(glm::cross(b - a, c - a));
+      if (!(area > 0.0) || !std::isfinite(area)) continue;
+      const double n = area * out.density;
+      const std::uint64_t h = position_hash(a, b, c);
+      double whole = std::floor(n);
+      const double frac = n - whole;
+      if (frac > 0.0) {
+        ++out.roulette_triangles;
+        // Russian roulette (section 3.1): one more proxy when the triangle's hash is below frac(n).
+        if (to_unit(h) < frac) whole += 1.0;
+      }
+      const auto count = static_cast<std::uint32_t>(whole);
+      // Cranley-Patterson rotation of the Halton points per triangle, so that neighbouring
+      // triangles' samples do not line up.
+      const double r1 = to_unit(mix64(h + 1)), r2 = to_unit(mix64(h + 2));
+      for (std::uint32_t j = 0; j < count; ++j) {
+        double u = radical_inverse(j + 1, 2) + r1, v = radical_inverse(j + 1, 3) + r2;
+        u -= std::floor(u);
+        v -= std::floor(v);
+        const double su = std::sqrt(u);
+        ProxySample s;
+        s.object = static_cast<std::int32_t>(o);
+        s.prim = static_cast<std::int32_t>(k);
+        s.b1 = static_cast<float>(su * (1.0 - v));
+        s.b2 = static_cast<float>(su * v);
+        out.samples.push_back(s);
+      }
+    }
+  }
+  return out;
+}
+
+float PosedProxies::area() const { return kPi * radius * radius; }
+
+PosedProxies pose_proxies(const scene::Scene& scene, const scene::PosedScene& posed, const ProxySampling& s,
+                          double disc_scale) {
+  PosedProxies p;
+  const std::size_t n = s.samples.size();
+  p.position.resize(n);
+  p.normal.resize(n);
+  p.albedo.resize(n);
+  p.radiance.assign(n, glm::vec3(0.0f));
+  p.radius = static_cast<float>(disc_scale / std::sqrt(static_cast<double>(kPi) * s.density));
+  for (std::size_t i = 0; i < n; ++i) {
+    const ProxySample& q = s.samples[i];
+    const auto& obj = posed.objects.at(static_cast<std::size_t>(q.object));
+    const glm::uvec3 t = obj.source->triangles.at(static_cast<std::size_t>(q.prim));
+    const float b0 = 1.0f - q.b1 - q.b2;
+    p.position[i] = b0 * obj.positions[t.x] + q.b1 * obj.positions[t.y] + q.b2 * obj.positions[t.z];
+    glm::vec3 nn = b0 * obj.normals[t.x] + q.b1 * obj.normals[t.y] + q.b2 * obj.normals[t.z];
+    const float len = glm::length(nn);
+    if (!(len > 1e-12f)) {
+      nn = glm::cross(obj.positions[t.y] - obj.positions[t.x], obj.positions[t.z] - obj.positions[t.x]);
+      const float gl = glm::length(nn);
+      nn = gl > 0.0f ? nn / gl : glm::vec3(0.0f, 1.0f, 0.0f);
+    } else {
+      nn /= len;
+    }
+    p.normal[i] = nn;
+    p.albedo[i] = scene::surface_albedo(scene, obj, static_cast<std::size_t>(q.prim), q.b1, q.b2);
+  }
+  return p;
+}
+
+glm::ivec3 VoxelGrid::cell_of(const glm::vec3& p) const {
+  glm::ivec3 v(glm::floor((p - lo) / cell));
+  return glm::clamp(v, glm::ivec3(0), dims - 1);
+}
+
+std::size_t VoxelGrid::bytes() const {
+  return start.size() * sizeof(std::uint32_t) + key.size() * sizeof(std::uint32_t) + centroid.size() * sizeof(glm::vec3) +
+         sh.size() * sizeof(sh[0]);
+}
+
+VoxelGrid build_voxel_grid(PosedProxies& proxies, glm::ivec3 dims, std::vector<std::uint32_t>* permutation) {
+  if (dims.x < 1 || dims.y < 1 || dims.z < 1 || static_cast<double>(dims.x) * dims.y * dims.z > 1 << 24)
+    throw std::invalid_argument("voxel grid: " + std::to_string(dims.x) + "x" + std::to_string(dims.y) + "x" +
+                                std::to_string(dims.z) + " cells (expected 1 to 2^24 cells)");
+  VoxelGrid g;
+  g.dims = dims;
+  glm::vec3 lo(kInf), hi(-kInf);
+  for (const auto& p : proxies.position) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  if (proxies.size() == 0) lo = hi = glm::vec3(0.0f);
+  const glm::vec3 pad(std::max(proxies.radius, 1e-4f));
+  g.lo = lo - pad;
+  g.cell = glm::max((hi + pad - g.lo) / glm::vec3(dims), glm::vec3(1e-6f));
+  const std::size_t n = proxies.size();
+  std::vector<std::uint32_t> keys(n), order(n);
+  for (std::size_t i = 0; i < n; ++i) keys[i] = g.hash(g.cell_of(proxies.position[i]));
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+  auto permute = [&](std::vector<glm::vec3>& v) {
+    std::vector<glm::vec3> out(n);
+    for (std::size_t i = 0; i < n; ++i) out[i] = v[order[i]];
+    v.swap(out);
+  };
+  permute(proxies.position);
+  permute(proxies.normal);
+  permute(proxies.albedo);
+  permute(proxies.radiance);
+  g.key.resize(n);
+  for (std::size_t i = 0; i < n; ++i) g.key[i] = keys[order[i]];
+  g.start.assign(g.cells() + 1, 0);
+  for (std::uint32_t k : g.key) ++g.start[k + 1];
+  for (std::size_t k = 0; k < g.cells(); ++k) g.start[k + 1] += g.start[k];
+  if (permutation) *permutation = std::move(order);
+  return g;
+}
+
+void accumulate_voxel_sh(VoxelGrid& grid, const PosedProxies& proxies) {
+  const std::size_t cells = grid.cells();
+  grid.centroid.assign(cells, glm::vec3(0.0f));
+  grid.sh.assign(cells, {glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(0.0f)});
+  // ZH of max(0, cos) times sqrt(4 pi / (2l + 1)): pi for l = 0, 2 pi / 3 for l = 1.
+  constexpr float k0 = kPi, k1 = 2.0f * kPi / 3.0f;
+  const float area = proxies.area();
+  for (std::size_t k = 0; k < cells; ++k) {
+    const std::uint32_t b = grid.start[k], e = grid.start[k + 1];
+    if (b == e) continue;
+    glm::vec3 c(0.0f);
+    auto& s = grid.sh[k];
+    for (std::uint32_t i = b; i < e; ++i) {
+      c += proxies.position[i];
+      const auto y = basis2(proxies.normal[i]);
+      const glm::vec3 la = proxies.radiance[i] * area;
+      s[0] += la * (k0 * y[0]);
+      for (int m = 1; m < 4; ++m) s[m] += la * (k1 * y[m]);
+    }
+    grid.centroid[k] = c / static_cast<float>(e - b);
+  }
+}
+
+float ray_disc(const glm::vec3& o, const glm::vec3& d, const glm::vec3& c, const glm::vec3& n, float r) {
+  const float dn = glm::dot(d, n);
+  if (std::abs(dn) < 1e-8f) return -1.0f;
+  const float t = glm::dot(c - o, n) / dn;
+  if (!(t >= 0.0f)) return -1.0f;
+  const glm::vec3 q = o + t * d - c;
+  return glm::dot(q, q) <= r * r ? t : -1.0f;
+}
+
+glm::vec3 cosine_direction(const glm::vec3& n, float u, float v) {
+  const float a = 2.0f * u - 1.0f, b = 2.0f * v - 1.0f;
+  float r, phi;
+  if (a == 0.0f && b == 0.0f) {
+    r = 0.0f;
+    phi = 0.0f;
+  } else if (std::abs(a) > std::abs(b)) {
+    r = a;
+    phi = (kPi / 4.0f) * (b / a);
+  } else {
+    r = b;
+    phi = (kPi / 2.0f) - (kPi / 4.0f) * (a / b);
+  }
+  const float x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0f, 1.0f - x * x - y * y));
+  const glm::vec3 t = std::abs(n.x) > 0.9f ? glm::vec3(0.0f, 1.0f, 0.0f) : glm::vec3(1.0f, 0.0f, 0.0f);
+  const glm::vec3 tu = glm::normalize(glm::cross(t, n)), tv = glm::cross(n, tu);
+  return glm::normalize(x * tu + y * tv + z * n);
+}
+
+std::int32_t march_ray(const VoxelGrid& grid, const PosedProxies& proxies, const glm::vec3& o, const glm::vec3& d,
+                       float t_min, float t_max) {
+  if (grid.key.empty()) return -1;
+  const glm::vec3 hi = grid.lo + grid.cell * glm::vec3(grid.dims);
+  float t0 = t_min, t1 = t_max;
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(d[a]) < 1e-12f) {
+      if (o[a] < grid.lo[a] || o[a] > hi[a]) return -1;
+      continue;
+    }
+    float ta = (grid.lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  if (!(t0 <= t1)) return -1;
+  glm::ivec3 v = grid.cell_of(o + d * t0);
+  glm::ivec3 step;
+  glm::vec3 t_next, t_delta;
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(d[a]) < 1e-12f) {
+      step[a] = 0;
+      t_next[a] = kInf;
+      t_delta[a] = kInf;
+      continue;
+    }
+    step[a] = d[a] > 0.0f ? 1 : -1;
+    const float boundary = grid.lo[a] + static_cast<float>(v[a] + (step[a] > 0 ? 1 : 0)) * grid.cell[a];
+    t_next[a] = (boundary - o[a]) / d[a];
+    t_delta[a] = grid.cell[a] / std::abs(d[a]);
+  }
+  const float r = proxies.radius;
+  for (;;) {
+    const std::uint32_t k = grid.hash(v);
+    for (std::uint32_t i = grid.start[k]; i < grid.start[k + 1]; ++i) {
+      const float t = ray_disc(o, d, proxies.position[i], proxies.normal[i], r);
+      if (t >= t_min && t <= t_max) return static_cast<std::int32_t>(k);
+    }
+    int a = 0;
+    if (t_next[1] < t_next[a]) a = 1;
+    if (t_next[2] < t_next[a]) a = 2;
+    if (t_next[a] > t1) return -1;
+    v[a] += step[a];
+    if (v[a] < 0 || v[a] >= grid.dims[a]) return -1;
+    t_next[a] += t_delta[a];
+  }
+}
+
+namespace {
+
+// Delta_d delta_n of eq. 4.
+bool same_surface(float zp, float zq, const glm::vec3& np, const glm::vec3& nq, const FilterOptions& opt) {
+  if (!std::isfinite(zq)) return false;
+  return std::abs(zq - zp) <= opt.depth_threshold * zp && glm::dot(np, nq) >= opt.normal_threshold;
+}
+
+void check_filter(const FilterOptions& opt) {
+  if (opt.radius_x < 0 || opt.radius_y < 0 || opt.radius_x > 64 || opt.radius_y > 64)
+    throw std::invalid_argument("visibility filter: radius " + std::to_string(opt.radius_x) + "x" + std::to_string(opt.radius_y) +
+                                " (expected 0 to 64)");
+}
+
+}  // namespace
+
+PixelLists visibility_filter(const PixelLists& in, const float* depth, const glm::vec3* normal, const FilterOptions& opt) {
+  check_filter(opt);
+  PixelLists out;
+  out.width = in.width;
+  out.height = in.height;
+  const std::size_t np = static_cast<std::size_t>(in.width) * in.height;
+  out.offset.assign(np + 1, 0);
+  std::vector<std::int32_t> scratch;
+  for (int y = 0; y < in.height; ++y) {
+    for (int x = 0; x < in.width; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * in.width + x;
+      scratch.clear();
+      const float zp = depth[p];
+      if (std::isfinite(zp)) {
+        for (int j = std::max(0, y - opt.radius_y); j <= std::min(in.height - 1, y + opt.radius_y); ++j)
+          for (int i = std::max(0, x - opt.radius_x); i <= std::min(in.width - 1, x + opt.radius_x); ++i) {
+            const std::size_t q = static_cast<std::size_t>(j) * in.width + i;
+            if (q != p && !same_surface(zp, depth[q], normal[p], normal[q], opt)) continue;
+            scratch.insert(scratch.end(), in.voxel.begin() + in.offset[q], in.voxel.begin() + in.offset[q + 1]);
+          }
+        std::sort(scratch.begin(), scratch.end());
+        scratch.erase(std::unique(scratch.begin(), scratch.end()), scratch.end());
+      }
+      out.voxel.insert(out.voxel.end(), scratch.begin(), scratch.end());
+      out.offset[p + 1] = static_cast<std::uint32_t>(out.voxel.size());
+    }
+  }
+  return out;
+}
+
+void filter_field(const std::vector<glm::vec3>& in, int width, int height, const float* depth, const glm::vec3* normal,
+                  const FilterOptions& opt, std::vector<glm::vec3>& out) {
+  check_filter(opt);
+  out.assign(in.size(), glm::vec3(0.0f));
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * width + x;
+      if (!std::isfinite(depth[p])) continue;
+      glm::vec3 sum(0.0f);
+      int n = 0;
+      for (int j = std::max(0, y - opt.radius_y); j <= std::min(height - 1, y + opt.radius_y); ++j)
+        for (int i = std::max(0, x - opt.radius_x); i <= std::min(width - 1, x + opt.radius_x); ++i) {
+          const std::size_t q = static_cast<std::size_t>(j) * width + i;
+          if (q != p && !same_surface(depth[p], depth[q], normal[p], normal[q], opt)) continue;
+          sum += in[q];
+          ++n;
+        }
+      out[p] = sum / static_cast<float>(n);
+    }
+}
+
+float eq7_weight(float cos_theta, float ns, float sigma) {
+  const float x = std::abs(1.0f - std::pow(std::max(0.0f, cos_theta), ns)) / sigma;
+  return std::exp(-0.5f * x * x) / (sigma * std::sqrt(2.0f * kPi));
+}
+
+float eq7_sigma(float ns, float scale) { return scale * std::sqrt(2.0f / (ns + 2.0f)); }
+
+glm::vec3 Gathered::glossy_term() const {
+  if (!(weight_sum > 0.0f)) return glossy;
+  return weighted * (light_sum / weight_sum);
+}
+
+namespace {
+
+// One light's glossy term (E times the normalised lobe), and eq. 7's sums.
+inline void add_glossy(const Receiver& r, const glm::vec3& e, const glm::vec3& wn, float lobe_norm, float weight, Gathered& out) {
+  const float ca = glm::dot(r.reflect, wn);
+  if (ca <= 0.0f) return;
+  const glm::vec3 g = e * (lobe_norm * std::pow(ca, r.ns));
+  out.glossy += weight * g;
+  if (r.eq7_sigma > 0.0f) {
+    const float w = eq7_weight(ca, r.ns, r.eq7_sigma), lum = weight * (e.x + e.y + e.z);
+    out.weighted += weight * w * g;
+    out.weight_sum += w * lum;
+    out.light_sum += lum;
+  }
+}
+
+}  // namespace
+
+void gather_voxel(const VoxelGrid& grid, const PosedProxies& proxies, std::int32_t voxel, const Receiver& r,
+                  float near_range, float weight, Gathered& out) {
+  const auto k = static_cast<std::size_t>(voxel);
+  const std::uint32_t b = grid.start[k], e = grid.start[k + 1];
+  if (b == e) return;
+  const bool glossy = r.glossy > 0.0f;
+  const float lobe_norm = (r.ns + 2.0f) / (2.0f * kPi);
+  const glm::vec3 to_c = grid.centroid[k] - r.position;
+  const float dc2 = glm::dot(to_c, to_c);
+  if (dc2 < near_range * near_range) {
+    // Near: each VPL a disc (eq. 6, first case).
+    const float area = proxies.area(), reg = area / kPi;
+    glm::vec3 e_sum(0.0f);
+    for (std::uint32_t i = b; i < e; ++i) {
+      const glm::vec3 w = proxies.position[i] - r.position;
+      const float d2 = glm::dot(w, w);
+      if (!(d2 > 0.0f)) continue;
+      const glm::vec3 wn = w / std::sqrt(d2);
+      const float cos_r = glm::dot(r.normal, wn), cos_v = -glm::dot(proxies.normal[i], wn);
+      if (cos_r <= 0.0f || cos_v <= 0.0f) continue;
+      const glm::vec3 ei = proxies.radiance[i] * (area * cos_v * cos_r / (d2 + reg));
+      e_sum += ei;
+      if (glossy) add_glossy(r, ei, wn, lobe_norm, weight, out);
+    }
+    out.irradiance += weight * e_sum;
+    return;
+  }
+  // Far: the voxel's SH intensity from its centroid (eq. 6, second case; eqs. 2-3).
+  const float dc = std::sqrt(dc2);
+  const glm::vec3 wn = to_c / dc;  // receiver -> voxel
+  const float cos_r = glm::dot(r.normal, wn);
+  if (cos_r <= 0.0f) return;
+  const auto y = basis2(-wn);
+  const auto& c = grid.sh[k];
+  const glm::vec3 intensity = glm::max(glm::vec3(0.0f), c[0] * y[0] + c[1] * y[1] + c[2] * y[2] + c[3] * y[3]);
+  const glm::vec3 ei = intensity * (cos_r / dc2);
+  out.irradiance += weight * ei;
+  if (glossy) add_glossy(r, ei, wn, lobe_norm, weight, out);
+}
+
+// --- Depth maps ------------------------------------------------------------------------------------
+
+namespace {
+
+struct ScreenVertex {
+  float x, y, w;  // texel coordinates and the attribute interpolated linearly on screen
+};
+
+// Fills every texel whose centre the triangle covers with the interpolated w, keeping the smallest
+// (keep_max: the largest) per texel.
+void raster_triangle(const ScreenVertex& a, const ScreenVertex& b, const ScreenVertex& c, int size, float* texels, bool keep_max) {
+  const float area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+  if (!(std::abs(area) > 1e-12f) || !std::isfinite(area)) return;
+  const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a.x, b.x, c.x}))));
+  const int x1 = std::min(size - 1, static_cast<int>(std::ceil(std::max({a.x, b.x, c.x}))));
+  const int y0 = std::max(0, static_cast<int>(std::floor(std::min({a.y, b.y, c.y}))));
+  const int y1 = std::min(size - 1, static_cast<int>(std::ceil(std::max({a.y, b.y, c.y}))));
+  const float inv = 1.0f / area;
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) {
+      const float px = x + 0.5f, py = y + 0.5f;
+      const float w0 = ((b.x - px) * (c.y - py) - (b.y - py) * (c.x - px)) * inv;
+      const float w1 = ((c.x - px) * (a.y - py) - (c.y - py) * (a.x - px)) * inv;
+      const float w2 = 1.0f - w0 - w1;
+      if (w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) continue;
+      const float v = w0 * a.w + w1 * b.w + w2 * c.w;
+      float& t = texels[static_cast<std::size_t>(y) * size + x];
+      if (keep_max ? v > t : v < t) t = v;
+    }
+}
+
+void check_size(int size, const char* what) {
+  if (size < 1 || size > 8192) throw std::invalid_argument(std::string(what) + ": size " + std::to_string(size) + " (expected 1 to 8192)");
+}
+
+}  // namespace
+
+CubeDepthMap rasterize_cube_depth(const scene::PosedScene& posed, const glm::vec3& center, int size) {
+  check_size(size, "cube depth map");
+  CubeDepthMap m;
+  m.center = center;
+  m.size = size;
+  // Rasterised as 1/z (affine on screen under a perspective projection), the largest kept.
+  std::vector<float> inv(static_cast<std::size_t>(6) * size * size, 0.0f);
+  const float near = 1e-4f;
+  for (const auto& obj : posed.objects)
+    for (const auto& t : obj.source->triangles) {
+      const glm::vec3 d[3] = {obj.positions[t.x] - center, obj.positions[t.y] - center, obj.positions[t.z] - center};
+      for (int face = 0; face < 6; ++face) {
+        const int a = face / 2, ua = (a + 1) % 3, va = (a + 2) % 3;
+        const float s = face % 2 == 0 ? 1.0f : -1.0f;
+        // Clip against z > near (Sutherland-Hodgman), then fan.
+        glm::vec3 poly[4];
+        int n = 0;
+        for (int i = 0; i < 3; ++i) {
+          const glm::vec3 p(d[i][ua], d[i][va], s * d[i][a]), q(d[(i + 1) % 3][ua], d[(i + 1) % 3][va], s * d[(i + 1) % 3][a]);
+          const bool pin = p.z > near, qin = q.z > near;
+          if (pin) poly[n++] = p;
+          if (pin != qin) poly[n++] = p + (q - p) * ((near - p.z) / (q.z - p.z));
+        }
+        if (n < 3) continue;
+        ScreenVertex sv[4];
+        for (int i = 0; i < n; ++i) {
+          const float x = poly[i].x / poly[i].z, y = poly[i].y / poly[i].z;
+          sv[i] = {(x + 1.0f) * 0.5f * size, (y + 1.0f) * 0.5f * size, 1.0f / poly[i].z};
+        }
+        float* texels = inv.data() + static_cast<std::size_t>(face) * size * size;
+        for (int i = 1; i + 1 < n; ++i) raster_triangle(sv[0], sv[i], sv[i + 1], size, texels, true);
+      }
+    }
+  m.depth.resize(inv.size());
+  for (std::size_t i = 0; i < inv.size(); ++i) m.depth[i] = inv[i] > 0.0f ? 1.0f / inv[i] : kInf;
+  return m;
+}
+
+float CubeDepthMap::visibility(const glm::vec3& p, const glm::vec3& p_normal) const {
+  glm::vec3 d = p - center;
+  const float dist = glm::length(d);
+  if (!(dist > 0.0f)) return 1.0f;
+  // Offset along the normal by two texels' footprint at this distance (90-degree faces: 2 / size).
+  d += p_normal * (2.0f * 2.0f * dist / static_cast<float>(size));
+  int a = 0;
+  if (std::abs(d.y) > std::abs(d[a])) a = 1;
+  if (std::abs(d.z) > std::abs(d[a])) a = 2;
+  const int face = 2 * a + (d[a] < 0.0f ? 1 : 0), ua = (a + 1) % 3, va = (a + 2) % 3;
+  const float z = std::abs(d[a]);
+  const float fx = (d[ua] / z + 1.0f) * 0.5f * size, fy = (d[va] / z + 1.0f) * 0.5f * size;
+  const int cx = std::clamp(static_cast<int>(fx), 0, size - 1), cy = std::clamp(static_cast<int>(fy), 0, size - 1);
+  const float bias = z * (1e-3f + 2.0f / static_cast<float>(size));
+  int lit = 0, n = 0;
+  for (int j = cy - 1; j <= cy + 1; ++j)
+    for (int i = cx - 1; i <= cx + 1; ++i) {
+      if (i < 0 || j < 0 || i >= size || j >= size) continue;
+      ++n;
+      lit += z <= depth[(static_cast<std::size_t>(face) * size + j) * size + i] + bias;
+    }
+  return n ? static_cast<float>(lit) / static_cast<float>(n) : 1.0f;
+}
+
+OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::vec3& towards_light, int size) {
+  check_size(size, "directional depth map");
+  OrthoDepthMap m;
+  m.size = size;
+  m.dir = glm::normalize(towards_light);
+  const glm::vec3 t = std::abs(m.dir.y) > 0.9f ? glm::vec3(1.0f, 0.0f, 0.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
+  m.u = glm::normalize(glm::cross(t, m.dir));
+  m.v = glm::cross(m.dir, m.u);
+  glm::vec2 lo(kInf), hi(-kInf);
+  for (const auto& obj : posed.objects)
+    for (const auto& p : obj.positions) {
+      const glm::vec2 q(glm::dot(p, m.u), glm::dot(p, m.v));
+      lo = glm::min(lo, q);
+      hi = glm::max(hi, q);
+    }
+  if (!(lo.x <= hi.x)) lo = hi = glm::vec2(0.0f);
+  const glm::vec2 pad = glm::max((hi - lo) * 0.01f, glm::vec2(1e-4f));
+  m.lo = lo - pad;
+  m.extent = hi + pad - m.lo;
+  m.depth.assign(static_cast<std::size_t>(size) * size, kInf);
+  for (const auto& obj : posed.objects)
+    for (const auto& tri : obj.source->triangles) {
+      ScreenVertex sv[3];
+      for (int i = 0; i < 3; ++i) {
+        const glm::vec3& p = obj.positions[tri[i]];
+        sv[i] = {(glm::dot(p, m.u) - m.lo.x) / m.extent.x * size, (glm::dot(p, m.v) - m.lo.y) / m.extent.y * size, -glm::dot(p, m.dir)};
+      }
+      raster_triangle(sv[0], sv[1], sv[2], size, m.depth.data(), false);
+    }
+  return m;
+}
+
+float OrthoDepthMap::visibility(const glm::vec3& p, const glm::vec3& p_normal) const {
+  const float texel = std::max(extent.x, extent.y) / static_cast<float>(size);
+  const glm::vec3 q = p + p_normal * (2.0f * texel);
+  const float fx = (glm::dot(q, u) - lo.x) / extent.x * size, fy = (glm::dot(q, v) - lo.y) / extent.y * size;
+  const int cx = static_cast<int>(std::floor(fx)), cy = static_cast<int>(std::floor(fy));
+  const float z = -glm::dot(q, dir), bias = 2.0f * texel;
+  int lit = 0, n = 0;
+  for (int j = cy - 1; j <= cy + 1; ++j)
+    for (int i = cx - 1; i <= cx + 1; ++i) {
+      ++n;
+      if (i < 0 || j < 0 || i >= size || j >= size) {
+        ++lit;  // outside the scene's footprint: nothing in front
+        continue;
+      }
+      lit += z <= depth[static_cast<std::size_t>(j) * size + i] + bias;
+    }
+  return static_cast<float>(lit) / static_cast<float>(n);
+}
+
+}  // namespace softgi::techniques::point_voxels
