@@ -3,6 +3,8 @@
 // (the paper's Figure 7).
 #include "upsample.hpp"
 
+#include "softgi/render/gbuffer.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -43,6 +45,16 @@ UpsampleFallback parse_upsample_fallback(const std::string& s) {
   if (s == "shaded") return UpsampleFallback::Shaded;
   if (s == "none") return UpsampleFallback::None;
   throw std::invalid_argument("unknown upsample fallback '" + s + "' (expected robust, shaded or none)");
+}
+
+PlaneView plane_view(const render::GBuffer& g) {
+  PlaneView v;
+  v.width = g.width;
+  v.height = g.height;
+  v.scale = g.scale;
+  v.depth = g.depth.data();
+  v.normal = g.normal.data();
+  return v;
 }
 
 std::size_t UpsampleWeights::bytes() const {

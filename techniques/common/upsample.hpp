@@ -14,6 +14,7 @@
 
 namespace softgi::render {
 class FrameContext;
+struct GBuffer;
 }
 
 namespace softgi::techniques::common {
@@ -39,6 +40,9 @@ struct PlaneView {
   const float* depth = nullptr;  // eye-space depth z = (p - e) . E; +inf where nothing was hit
   const glm::vec3* normal = nullptr;
 };
+
+// The receiver plane of a G-buffer (display or a receiver buffer at its scale); it points into g.
+PlaneView plane_view(const render::GBuffer& g);
 
 struct UpsampleOptions {
   UpsampleMode mode = UpsampleMode::Bilateral;

@@ -466,15 +466,7 @@ void pass_normalize_indirect(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const Field>>(kIndirectNorm, out);
 }
 
-PlaneView plane(const render::GBuffer& gb) {
-  PlaneView v;
-  v.width = gb.width;
-  v.height = gb.height;
-  v.scale = gb.scale;
-  v.depth = gb.depth.data();
-  v.normal = gb.normal.data();
-  return v;
-}
+PlaneView plane(const render::GBuffer& gb) { return common::plane_view(gb); }
 
 // A receiver-order field scattered to coarse-pixel order (background pixels 0), for upsampling.
 std::vector<float> to_pixels(const ReceiverBuffer& r, const float* v, int channels) {

@@ -53,7 +53,7 @@ constexpr const char* kIndirectEnabled = "point_voxels.indirect_enabled";  // in
 
 struct Settings {
   double proxy_count = 24000.0, disc_scale = 1.5;
-  int grid = 12, march_scale = 8, gather_scale = 2, rays = 32;
+  int grid = 8, march_scale = 8, gather_scale = 2, rays = 64;
   FilterOptions filter;
   double near_range = 0.25, sigma_depth = 0.05, sigma_normal = 0.1;
   int shadow_map_size = 512, vpl_env_rays = 16;
@@ -70,13 +70,17 @@ std::vector<ParamDesc> params() {
   d.push_back(ParamDesc::real("disc_scale", 1.5, 0.25, 8.0,
                               "disc radius of a proxy in units of sqrt(area per proxy / pi): 1 covers the surface on average, "
                               "more closes the gaps rays would leak through"));
-  d.push_back(ParamDesc::integer("grid", 12, 1, 128, "voxels per axis over the proxies' bounds (eq. 1; paper: 6 Cornell box, 20 Sponza)"));
+  // Visibility is per voxel and found by sparse rays: the finer the grid, the more voxels a receiver
+  // sees and the more rays it takes to find them (light is lost where rays miss a visible voxel;
+  // docs/techniques/point_voxels.md measures it). 8 and 64 rays lose about 13 % on the glossy Cornell
+  // box; the paper's 6^3 there.
+  d.push_back(ParamDesc::integer("grid", 8, 1, 128, "voxels per axis over the proxies' bounds (eq. 1; paper: 6 Cornell box, 20 Sponza)"));
   // Quality ladder (softgi report): the marching resolution and the ray count are the paper's
   // cost knobs (Table 1; section 4, Discussion).
   d.push_back(ParamDesc::integer("march_scale", 8, 1, 64, "marching G-buffer at 1/s of display resolution (paper: 512 / 64 = 8 and 512 / 128 = 4)")
                   .with_ladder({"16", "8", "8", "4"}));
-  d.push_back(ParamDesc::integer("rays", 32, 1, 1024, "sparse shadow rays per marching pixel, cosine-distributed (section 3.1)")
-                  .with_ladder({"8", "16", "32", "64"}));
+  d.push_back(ParamDesc::integer("rays", 64, 1, 1024, "sparse shadow rays per marching pixel, cosine-distributed (section 3.1)")
+                  .with_ladder({"16", "32", "64", "128"}));
   d.push_back(ParamDesc::integer("gather_scale", 2, 1, 16, "gathering at 1/s of display resolution (paper: 512 / 256 = 2), at most march_scale"));
   d.push_back(ParamDesc::integer("filter_radius", 3, 0, 16, "visibility filter window (2m + 1)^2 (eq. 4; paper: 3, a 7 x 7 window; 0 = no filter)"));
   d.push_back(ParamDesc::real("depth_threshold", 0.05, 0.0, 10.0, "delta_d of eq. 4: neighbours within this relative depth difference"));
@@ -185,21 +189,6 @@ GBuffer subsample(const GBuffer& full, int s) {
   return g;
 }
 
-common::PlaneView plane(const GBuffer& g) {
-  common::PlaneView v;
-  v.width = g.width;
-  v.height = g.height;
-  v.scale = g.scale;
-  v.depth = g.depth.data();
-  v.normal = g.normal.data();
-  return v;
-}
-
-std::uint64_t pixel_hash(std::uint64_t i) {
-  i = (i ^ (i >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  i = (i ^ (i >> 27)) * 0x94d049bb133111ebULL;
-  return i ^ (i >> 31);
-}
 
 // Ray k of n of a stratified (Hammersley) set rotated per pixel (Cranley-Patterson with `h`).
 glm::vec2 ray_sample(int k, int n, std::uint64_t h) {
@@ -304,7 +293,7 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
         if (c > 0.0f) e += L.sun_irradiance * (c * L.sun_map.visibility(p, nn));
       }
       if (k_rays > 0) {
-        const std::uint64_t h = pixel_hash(i * 0x9e3779b97f4a7c15ULL + 17);
+        const std::uint64_t h = mix_hash(i * 0x9e3779b97f4a7c15ULL + 17);
         const glm::vec3 o = p + nn * (0.25f * P.radius);
         glm::vec3 sky(0.0f);
         for (int k = 0; k < k_rays; ++k) {
@@ -341,7 +330,7 @@ void pass_march(const Settings& s, FrameContext& ctx) {
     for (std::size_t i = br.begin(); i < br.end(); ++i) {
       if (!g.hit(i)) continue;
       const glm::vec3 nn = g.normal[i], o = g.position[i] + nn * (0.25f * r);
-      const std::uint64_t h = pixel_hash(i + 1);
+      const std::uint64_t h = mix_hash(i + 1);
       auto& list = lists[i];
       glm::vec3 e(0.0f);
       int escaped = 0;
@@ -499,7 +488,7 @@ void pass_gather(const Settings& s, FrameContext& ctx) {
 // Bilateral upsampling of a coarse per-pixel field to display resolution (paper 000 eq. 11, the
 // shared kernel; paper 002 section 3.3 asks for a geometry-aware bilateral filter).
 std::vector<glm::vec3> upsample_field(const GBuffer& coarse, const GBuffer& fine, const std::vector<glm::vec3>& in) {
-  const common::UpsampleWeights w = common::upsample_weights(plane(coarse), plane(fine), common::UpsampleOptions{});
+  const common::UpsampleWeights w = common::upsample_weights(common::plane_view(coarse), common::plane_view(fine), common::UpsampleOptions{});
   std::vector<glm::vec3> out(static_cast<std::size_t>(fine.width) * fine.height, glm::vec3(0.0f));
   common::upsample_apply(w, &in[0].x, 3, &out[0].x);
   return out;

@@ -17,12 +17,6 @@ namespace {
 constexpr float kPi = 3.14159265358979323846f;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-std::uint64_t mix64(std::uint64_t z) {
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-
 std::uint32_t float_bits(float f) {
   if (f == 0.0f) f = 0.0f;  // -0 and +0 hash alike
   std::uint32_t u;
@@ -35,7 +29,7 @@ double to_unit(std::uint64_t h) { return static_cast<double>(h >> 11) * (1.0 / 9
 std::uint64_t position_hash(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
   const glm::vec3 m = (a + b + c) / 3.0f;
   std::uint64_t h = 0x9e3779b97f4a7c15ULL;
-  for (float f : {m.x, m.y, m.z}) h = mix64(h ^ float_bits(f));
+  for (float f : {m.x, m.y, m.z}) h = mix_hash(h ^ float_bits(f));
   return h;
 }
 
@@ -47,6 +41,12 @@ std::array<float, 4> basis2(const glm::vec3& w) {
 }
 
 }  // namespace
+
+std::uint64_t mix_hash(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
 
 double radical_inverse(std::uint32_t i, std::uint32_t base) {
   double inv = 1.0 / base, f = inv, r = 0.0;
@@ -92,7 +92,7 @@ ProxySampling sample_point_proxies(const scene::PosedScene& geometry, double tar
       const auto count = static_cast<std::uint32_t>(whole);
       // Cranley-Patterson rotation of the Halton points per triangle, so that neighbouring
       // triangles' samples do not line up.
-      const double r1 = to_unit(mix64(h + 1)), r2 = to_unit(mix64(h + 2));
+      const double r1 = to_unit(mix_hash(h + 1)), r2 = to_unit(mix_hash(h + 2));
       for (std::uint32_t j = 0; j < count; ++j) {
         double u = radical_inverse(j + 1, 2) + r1, v = radical_inverse(j + 1, 3) + r2;
         u -= std::floor(u);
@@ -110,8 +110,6 @@ ProxySampling sample_point_proxies(const scene::PosedScene& geometry, double tar
   return out;
 }
 
-float PosedProxies::area() const { return kPi * radius * radius; }
-
 PosedProxies pose_proxies(const scene::Scene& scene, const scene::PosedScene& posed, const ProxySampling& s,
                           double disc_scale) {
   PosedProxies p;
@@ -121,6 +119,7 @@ PosedProxies pose_proxies(const scene::Scene& scene, const scene::PosedScene& po
   p.albedo.resize(n);
   p.radiance.assign(n, glm::vec3(0.0f));
   p.radius = static_cast<float>(disc_scale / std::sqrt(static_cast<double>(kPi) * s.density));
+  p.patch_area = static_cast<float>(1.0 / s.density);
   for (std::size_t i = 0; i < n; ++i) {
     const ProxySample& q = s.samples[i];
     const auto& obj = posed.objects.at(static_cast<std::size_t>(q.object));
@@ -196,7 +195,7 @@ void accumulate_voxel_sh(VoxelGrid& grid, const PosedProxies& proxies) {
   grid.sh.assign(cells, {glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(0.0f)});
   // ZH of max(0, cos) times sqrt(4 pi / (2l + 1)): pi for l = 0, 2 pi / 3 for l = 1.
   constexpr float k0 = kPi, k1 = 2.0f * kPi / 3.0f;
-  const float area = proxies.area();
+  const float area = proxies.patch_area;
   for (std::size_t k = 0; k < cells; ++k) {
     const std::uint32_t b = grid.start[k], e = grid.start[k + 1];
     if (b == e) continue;
@@ -363,11 +362,6 @@ float eq7_weight(float cos_theta, float ns, float sigma) {
 
 float eq7_sigma(float ns, float scale) { return scale * std::sqrt(2.0f / (ns + 2.0f)); }
 
-glm::vec3 Gathered::glossy_term() const {
-  if (!(weight_sum > 0.0f)) return glossy;
-  return weighted * (light_sum / weight_sum);
-}
-
 namespace {
 
 // One light's glossy term (E times the normalised lobe), and eq. 7's sums.
@@ -377,10 +371,10 @@ inline void add_glossy(const Receiver& r, const glm::vec3& e, const glm::vec3& w
   const glm::vec3 g = e * (lobe_norm * std::pow(ca, r.ns));
   out.glossy += weight * g;
   if (r.eq7_sigma > 0.0f) {
-    const float w = eq7_weight(ca, r.ns, r.eq7_sigma), lum = weight * (e.x + e.y + e.z);
-    out.weighted += weight * w * g;
-    out.weight_sum += w * lum;
-    out.light_sum += lum;
+    // w / w_max = the Gaussian without its normalisation: 1 at the reflection vector.
+    const float rel = eq7_weight(ca, r.ns, r.eq7_sigma) * (r.eq7_sigma * std::sqrt(2.0f * kPi));
+    out.weighted += weight * rel * g;
+    out.eq7 = true;
   }
 }
 
@@ -397,7 +391,7 @@ void gather_voxel(const VoxelGrid& grid, const PosedProxies& proxies, std::int32
   const float dc2 = glm::dot(to_c, to_c);
   if (dc2 < near_range * near_range) {
     // Near: each VPL a disc (eq. 6, first case).
-    const float area = proxies.area(), reg = area / kPi;
+    const float area = proxies.patch_area, reg = area / kPi;
     glm::vec3 e_sum(0.0f);
     for (std::uint32_t i = b; i < e; ++i) {
       const glm::vec3 w = proxies.position[i] - r.position;

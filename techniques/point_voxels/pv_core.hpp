@@ -27,6 +27,8 @@ struct ProxySampling {
   double total_area = 0.0;   // of every triangle, square metres
   std::size_t roulette_triangles = 0;  // triangles whose expected count had a fractional part drawn by the hash
 };
+// A 64-bit finaliser (splitmix64's): the per-triangle and per-pixel sample rotations hash with it.
+std::uint64_t mix_hash(std::uint64_t z);
 // Halton radical inverse in `base` of index i (i >= 1).
 double radical_inverse(std::uint32_t i, std::uint32_t base);
 // A pseudo-random number in [0, 1) from a triangle's position (its centroid's float bits): the same
@@ -44,12 +46,15 @@ ProxySampling sample_point_proxies(const scene::PosedScene& geometry, double tar
 struct PosedProxies {
   std::vector<glm::vec3> position, normal, albedo;
   std::vector<glm::vec3> radiance;  // outgoing (diffuse) radiance as a VPL, W / (m^2 sr)
-  float radius = 0.0f;              // disc radius (every proxy stands for the same area 1 / density)
-  float area() const;               // pi r^2: the area each disc stands for
+  // Disc radius for the ray-disc tests, and the surface area each proxy stands for (1 / density):
+  // the VPL's emitting area. The disc is larger than that area by disc_scale^2, so that discs overlap
+  // and rays do not slip between them; the energy must not grow with it.
+  float radius = 0.0f;
+  float patch_area = 0.0f;
   std::size_t size() const { return position.size(); }
 };
 // Positions and normals interpolated on the posed meshes, albedo by scene::surface_albedo; radius
-// disc_scale * sqrt(1 / (pi density)).
+// disc_scale * sqrt(1 / (pi density)), patch_area 1 / density.
 PosedProxies pose_proxies(const scene::Scene& scene, const scene::PosedScene& posed, const ProxySampling& s,
                           double disc_scale);
 
@@ -136,13 +141,11 @@ float eq7_sigma(float ns, float scale);
 // albedo ((1 - g) E / pi + g S).
 struct Gathered {
   glm::vec3 irradiance{0.0f}, glossy{0.0f};
-  // With eq. 7 (Receiver::eq7_sigma > 0): sum_i w_i G_i (the glossy terms weighted by eq. 7), and the
-  // sums of w_i |E_i| and |E_i| over the same lights, so that the glossy term is
-  // weighted * (sum |E|) / (sum w |E|): the importance redistributes the glossy light towards the
-  // reflection vector while the effective number of lights (the normaliser) is weighted alike.
+  // With eq. 7 (Receiver::eq7_sigma > 0): sum_i (w_i / w_max) G_i, each light's glossy term times its
+  // eq. 7 importance relative to the peak w_max = 1 / (sigma sqrt(2 pi)) at the reflection vector.
   glm::vec3 weighted{0.0f};
-  float weight_sum = 0.0f, light_sum = 0.0f;
-  glm::vec3 glossy_term() const;  // glossy, or the eq. 7 form when weights were gathered
+  bool eq7 = false;
+  glm::vec3 glossy_term() const { return eq7 ? weighted : glossy; }
 };
 // f(v_l) of eq. 6 for one voxel: its VPLs one by one when the receiver is within `near_range` of
 // the voxel's centroid, else its SH intensity from the centroid. A VPL is a disc of area A: the

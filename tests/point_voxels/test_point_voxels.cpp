@@ -17,6 +17,7 @@
 #include "../../techniques/point_voxels/pv_core.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/backend.hpp"
+#include "softgi/reference/reference.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/scene/builtin.hpp"
 #include "softgi/techniques/registry.hpp"
@@ -131,8 +132,13 @@ TEST(PointProxies, LargeTrianglesAreSampledUniformly) {
   mean /= static_cast<double>(p.size());
   EXPECT_NEAR(mean.x, 0.5, 5e-3);
   EXPECT_NEAR(mean.z, 0.5, 5e-3);
-  // Disc area = the area each proxy stands for (disc_scale 1).
-  EXPECT_NEAR(p.area() * ps.density, 1.0, 1e-5);
+  // The VPL area is the area each proxy stands for whatever the disc's size; at disc_scale 1 the disc
+  // has exactly that area.
+  EXPECT_NEAR(p.patch_area * ps.density, 1.0, 1e-5);
+  EXPECT_NEAR(3.14159265f * p.radius * p.radius * ps.density, 1.0, 1e-5);
+  const PosedProxies wide = pose_proxies(s, posed, ps, 1.5);
+  EXPECT_EQ(wide.patch_area, p.patch_area);
+  EXPECT_NEAR(wide.radius, 1.5f * p.radius, 1e-6f);
   for (const auto& n : p.normal) ASSERT_NEAR(n.y, 1.0f, 1e-6f);
 }
 
@@ -349,6 +355,7 @@ RadiantDisc radiant_disc(float a, float h, int n, float radiance) {
     d.p.radiance.push_back(glm::vec3(radiance));
   }
   d.p.radius = a / std::sqrt(static_cast<float>(n));  // n discs of this radius have the disc's area
+  d.p.patch_area = 3.14159265f * d.p.radius * d.p.radius;
   d.g = build_voxel_grid(d.p, glm::ivec3(1));
   accumulate_voxel_sh(d.g, d.p);
   return d;
@@ -477,42 +484,59 @@ TEST(PointVoxelsFrame, BadParametersNameWhatIsWrong) {
 }
 
 // Eq. 7: the Gaussian peaks at the reflection vector (1 / (sigma sqrt(2 pi))) and falls off away from
-// it; with one light the weighted glossy term is the Phong term (the weight cancels against the
-// weighted count of lights), and with a light near the reflection vector beside one far from it the
-// weighting moves glossy light towards the near one.
+// it. softgi applies it relative to that peak: a light at the reflection vector keeps its Phong
+// term, one away from it is suppressed further, so the weighted glossy term never exceeds the Phong
+// one and the near light's share grows.
 TEST(Gathering, Eq7WeightsTheGlossyTermTowardsTheReflectionVector) {
   const float ns = 30.0f, sigma = eq7_sigma(ns, 1.0f);
   EXPECT_NEAR(eq7_weight(1.0f, ns, sigma), 1.0 / (sigma * std::sqrt(2.0 * kPi)), 1e-5);
   EXPECT_LT(eq7_weight(std::cos(0.4f), ns, sigma), 0.5f * eq7_weight(1.0f, ns, sigma));
-  RadiantDisc one = radiant_disc(0.05f, 1.0f, 50, 1.0f);
   Receiver r;
   r.normal = r.reflect = {0.0f, 1.0f, 0.0f};
   r.glossy = 1.0f;
   r.ns = ns;
   r.eq7_sigma = sigma;
-  Gathered g;
-  gather_voxel(one.g, one.p, 0, r, 0.0f, 1.0f, g);  // far: one SH light
-  EXPECT_GT(g.weight_sum, 0.0f);
-  EXPECT_NEAR(g.glossy_term().x, g.glossy.x, 1e-5f * g.glossy.x);
-  // Two VPLs: one straight above, one 35 degrees off the reflection vector.
+  // Two VPLs: one straight above (on the reflection vector), one 20 degrees off it.
   PosedProxies p;
-  for (const glm::vec3 pos : {glm::vec3(0.0f, 1.0f, 0.0f), glm::vec3(std::sin(0.61f), std::cos(0.61f), 0.0f)}) {
+  for (const glm::vec3 pos : {glm::vec3(0.0f, 1.0f, 0.0f), glm::vec3(std::sin(0.35f), std::cos(0.35f), 0.0f)}) {
     p.position.push_back(pos);
     p.normal.push_back(-pos);
     p.albedo.push_back(glm::vec3(1.0f));
     p.radiance.push_back(glm::vec3(1.0f));
   }
   p.radius = 0.01f;
+  p.patch_area = 3.14159265f * p.radius * p.radius;
   VoxelGrid grid = build_voxel_grid(p, glm::ivec3(1));
   accumulate_voxel_sh(grid, p);
-  Gathered two;
-  gather_voxel(grid, p, 0, r, 1e6f, 1.0f, two);
-  EXPECT_GT(two.glossy_term().x, 1.01f * two.glossy.x);
+  Gathered both;
+  gather_voxel(grid, p, 0, r, 1e6f, 1.0f, both);
+  ASSERT_TRUE(both.eq7);
+  // Each light alone: the one on the reflection vector keeps its term exactly.
+  PosedProxies on = p, off = p;
+  for (PosedProxies* q : {&on, &off}) {
+    const std::size_t keep = q == &on ? 0 : 1;
+    q->position = {p.position[keep]};
+    q->normal = {p.normal[keep]};
+    q->albedo = {p.albedo[keep]};
+    q->radiance = {p.radiance[keep]};
+  }
+  VoxelGrid g_on = build_voxel_grid(on, glm::ivec3(1)), g_off = build_voxel_grid(off, glm::ivec3(1));
+  accumulate_voxel_sh(g_on, on);
+  accumulate_voxel_sh(g_off, off);
+  Gathered a, b;
+  gather_voxel(g_on, on, 0, r, 1e6f, 1.0f, a);
+  gather_voxel(g_off, off, 0, r, 1e6f, 1.0f, b);
+  EXPECT_NEAR(a.glossy_term().x, a.glossy.x, 1e-6f * a.glossy.x);
+  EXPECT_GT(b.glossy.x, 0.0f);
+  EXPECT_LT(b.glossy_term().x, 0.5f * b.glossy.x);
+  EXPECT_LE(both.glossy_term().x, both.glossy.x);
+  EXPECT_GT(a.glossy_term().x / both.glossy_term().x, a.glossy.x / both.glossy.x);
+  // Without eq. 7 the glossy term is the Phong sum.
   r.eq7_sigma = 0.0f;
   Gathered plain;
   gather_voxel(grid, p, 0, r, 1e6f, 1.0f, plain);
+  EXPECT_FALSE(plain.eq7);
   EXPECT_EQ(plain.glossy_term(), plain.glossy);
-  EXPECT_EQ(plain.weight_sum, 0.0f);
 }
 
 // Every built-in scene renders with finite, non-negative images and indirect light somewhere (each
@@ -538,4 +562,34 @@ TEST(PointVoxelsFrame, EveryBuiltinSceneRenders) {
     for (const auto& c : f.indirect.rgb) indirect += c.x + c.y + c.z;
     EXPECT_GT(indirect, 0.0f);
   }
+}
+
+// The whole method against the path tracer (real geometry, one-bounce indirect, samples through the
+// pixel centres as the G-buffer sees them) on the glossy Cornell box lit by its local light, the light
+// summed over the image. Direct: the depth-map shadows of the same light, within 2 % (measured
+// 0.9995). Indirect: the method's visibility is per voxel and found by sparse rays, so light is
+// lost where rays miss visible voxels (measured ratios at 6^3 voxels: 0.86 with 32 rays, 0.95 with
+// 64); with 256 rays on the paper's 6^3 grid every visible voxel is found and the estimate converges
+// (measured 1.02): within 10 %, which the VPL energy, the far-field SH and the upsampling must keep.
+// A VPL emitting from its disc's area instead of the area it stands for (x 2.25) fails both bounds.
+TEST(PointVoxelsFrame, LightMatchesTheRayTracedReference) {
+  const scene::Scene s = scene::make_builtin("cornell_glossy");
+  const int w = 48, h = 48;
+  reference::ReferenceOptions ro;
+  ro.spp = 256;
+  ro.width = w;
+  ro.height = h;
+  ro.jitter = false;
+  const reference::ReferenceResult ref = reference::render_reference(s, ro);
+  auto sum = [](const Image& img) {
+    double t = 0.0;
+    for (const auto& c : img.rgb) t += c.x + c.y + c.z;
+    return t;
+  };
+  const auto f = render_pv(s, {"grid=6", "rays=256", "march_scale=4"}, w, h);
+  EXPECT_NEAR(sum(f.direct) / sum(ref.direct), 1.0, 0.02);
+  EXPECT_NEAR(sum(f.indirect) / sum(ref.indirect), 1.0, 0.1);
+  // Fewer rays lose light, never add it.
+  const auto sparse = render_pv(s, {"grid=6", "rays=16", "march_scale=4"}, w, h);
+  EXPECT_LT(sum(sparse.indirect), sum(f.indirect));
 }
