@@ -91,8 +91,8 @@ std::vector<ParamDesc> params() {
   d.push_back(ParamDesc::real("sigma_depth", 0.05, 1e-4, 10.0, "w_G of eq. 5: Gaussian of the relative depth difference"));
   d.push_back(ParamDesc::real("sigma_normal", 0.1, 1e-4, 10.0, "w_G of eq. 5: Gaussian of 1 - N . N'"));
   d.push_back(ParamDesc::choice("glossy_weight", "phong", {"phong", "eq7"},
-                                "glossy indirect: the Phong BRDF per light, or weighted by eq. 7's Gaussian of |1 - cos^ns theta| "
-                                "with the effective number of lights weighted alike (the paper's glossy importance)"));
+                                "glossy indirect: the Phong BRDF per light, or each light's term times eq. 7's Gaussian of "
+                                "|1 - cos^ns theta| relative to its peak (the paper's glossy importance)"));
   d.push_back(ParamDesc::real("eq7_sigma", 1.0, 1e-3, 100.0, "sigma_theta of eq. 7 in units of sqrt(2 / (ns + 2)), the Phong lobe's width"));
   d.push_back(ParamDesc::integer("shadow_map_size", 512, 16, 8192, "texels per edge of each light's depth map (Figure 2a)"));
   d.push_back(ParamDesc::integer("vpl_env_rays", 16, 0, 1024,
