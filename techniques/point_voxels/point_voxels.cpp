@@ -56,7 +56,7 @@ struct Settings {
   int grid = 8, march_scale = 8, gather_scale = 2, rays = 64;
   FilterOptions filter;
   double near_range = 0.25, sigma_depth = 0.05, sigma_normal = 0.1;
-  int shadow_map_size = 512, vpl_env_rays = 16;
+  int shadow_map_size = 512, vpl_env_rays = 4;
   bool environment = true, indirect = true;
   bool eq7 = false;
   double eq7_sigma_scale = 1.0;
@@ -71,9 +71,8 @@ std::vector<ParamDesc> params() {
                               "disc radius of a proxy in units of sqrt(area per proxy / pi): 1 covers the surface on average, "
                               "more closes the gaps rays would leak through"));
   // Visibility is per voxel and found by sparse rays: the finer the grid, the more voxels a receiver
-  // sees and the more rays it takes to find them (light is lost where rays miss a visible voxel;
-  // docs/techniques/point_voxels.md measures it). 8 and 64 rays lose about 13 % on the glossy Cornell
-  // box; the paper's 6^3 there.
+  // sees and the more rays it takes to find them (light is lost where rays miss a visible voxel:
+  // experiment pv_rays, docs/techniques/point_voxels.md). The paper uses 6^3 on its Cornell box.
   d.push_back(ParamDesc::integer("grid", 8, 1, 128, "voxels per axis over the proxies' bounds (eq. 1; paper: 6 Cornell box, 20 Sponza)"));
   // Quality ladder (softgi report): the marching resolution and the ray count are the paper's
   // cost knobs (Table 1; section 4, Discussion).
@@ -95,7 +94,9 @@ std::vector<ParamDesc> params() {
                                 "|1 - cos^ns theta| relative to its peak (the paper's glossy importance)"));
   d.push_back(ParamDesc::real("eq7_sigma", 1.0, 1e-3, 100.0, "sigma_theta of eq. 7 in units of sqrt(2 / (ns + 2)), the Phong lobe's width"));
   d.push_back(ParamDesc::integer("shadow_map_size", 512, 16, 8192, "texels per edge of each light's depth map (Figure 2a)"));
-  d.push_back(ParamDesc::integer("vpl_env_rays", 16, 0, 1024,
+  // Each VPL's sky light is a few rays' estimate: a receiver sums hundreds of VPLs, so their noise
+  // averages out, while the rays per proxy are most of a sky-lit frame's cost.
+  d.push_back(ParamDesc::integer("vpl_env_rays", 4, 0, 1024,
                                  "rays per proxy marched for the environment's light on the VPLs (0 = local lights and sun only)"));
   d.push_back(ParamDesc::boolean("environment", true, "light by the environment too (sky and sun or map; an extension of the paper)"));
   d.push_back(ParamDesc::boolean("indirect", true, "gather the VPLs' indirect light (off: direct light only)"));
