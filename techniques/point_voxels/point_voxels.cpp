@@ -486,12 +486,17 @@ void pass_gather(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const std::vector<Gathered>>>(kGathered, std::move(out));
 }
 
-// Bilateral upsampling of a coarse per-pixel field to display resolution (paper 000 eq. 11, the
-// shared kernel; paper 002 section 3.3 asks for a geometry-aware bilateral filter).
-std::vector<glm::vec3> upsample_field(const GBuffer& coarse, const GBuffer& fine, const std::vector<glm::vec3>& in) {
+// Bilateral upsampling of coarse per-pixel fields to display resolution (paper 000 eq. 11, the
+// shared kernel; paper 002 section 3.3 asks for a geometry-aware bilateral filter). The weights
+// depend only on the two buffers' geometry, so they are computed once for all the fields.
+std::vector<std::vector<glm::vec3>> upsample_fields(const GBuffer& coarse, const GBuffer& fine,
+                                                    const std::vector<const std::vector<glm::vec3>*>& in) {
   const common::UpsampleWeights w = common::upsample_weights(common::plane_view(coarse), common::plane_view(fine), common::UpsampleOptions{});
-  std::vector<glm::vec3> out(static_cast<std::size_t>(fine.width) * fine.height, glm::vec3(0.0f));
-  common::upsample_apply(w, &in[0].x, 3, &out[0].x);
+  std::vector<std::vector<glm::vec3>> out;
+  for (const auto* field : in) {
+    out.emplace_back(static_cast<std::size_t>(fine.width) * fine.height, glm::vec3(0.0f));
+    common::upsample_apply(w, &(*field)[0].x, 3, &out.back()[0].x);
+  }
   return out;
 }
 
@@ -504,7 +509,8 @@ void pass_indirect(FrameContext& ctx) {
     e[i] = gathered[i].irradiance;
     sp[i] = gathered[i].glossy_term();
   }
-  const auto eu = upsample_field(gg, fine, e), su = upsample_field(gg, fine, sp);
+  const auto up = upsample_fields(gg, fine, {&e, &sp});
+  const auto &eu = up[0], &su = up[1];
   Image img(fine.width, fine.height);
   for (std::size_t i = 0; i < img.rgb.size(); ++i) {
     if (!fine.hit(i)) continue;
@@ -525,8 +531,9 @@ void pass_direct(FrameContext& ctx) {
   if (L.sky && ctx.has(kFiltered)) {
     const auto& F = *ctx.get<std::shared_ptr<const Marched>>(kFiltered);
     const auto& mg = ctx.get<GBuffer>(kMarchGBuffer);
-    sky_e = upsample_field(mg, g, F.sky_irradiance);
-    sky_v = upsample_field(mg, g, F.visible);
+    auto up = upsample_fields(mg, g, {&F.sky_irradiance, &F.visible});
+    sky_e = std::move(up[0]);
+    sky_v = std::move(up[1]);
   }
   Image img(g.width, g.height);
   const std::size_t np = img.rgb.size();
