@@ -1,6 +1,7 @@
 #include <mutex>
 
 #include "image_splat/image_splat_vulkan.hpp"
+#include "point_voxels/pv_passes.hpp"
 #include "shexp/shexp_passes.hpp"
 #include "spherical_lights/sl_passes.hpp"
 #include "softgi/techniques/registry.hpp"
@@ -14,6 +15,7 @@ void register_vulkan_kernels() {
     shexp::register_vulkan_kernels();
     image_splat::register_vulkan_kernels();
     spherical_lights::register_vulkan_kernels();
+    point_voxels::register_vulkan_kernels();
   });
 }
 

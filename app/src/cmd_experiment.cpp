@@ -89,6 +89,7 @@ struct ExperimentArgs {
   int frames = 3, spp = 64;
   unsigned seed = 1;
   std::vector<std::string> overrides;  // --param NAME=VALUE for every variant whose technique has NAME
+  std::string backend, device;         // the variants' backend ("" = the reference backend) and its device
 };
 
 std::string fmt(double v, int precision = 4) {
@@ -297,10 +298,12 @@ class ExperimentRunner {
 
   // The masks errors are taken over.
   void measure_regions() {
-  // The display G-buffer once: the surface, ground and silhouette masks. Experiments time the
-  // techniques on the reference backend.
+  // The display G-buffer once, on the reference backend: the surface, ground and silhouette masks.
+  // The variants are timed on --backend (default: the reference backend).
   backend_ptr = render::create_backend(render::reference_backend_name());
   render::Backend& backend = *backend_ptr;
+  const std::string variants_on = args.backend.empty() ? render::reference_backend_name() : args.backend;
+  if (variants_on != backend.name()) variants_ptr = make_backend(variants_on, args.device, "experiment");
   const scene::PosedScene posed = scene::evaluate(sc, def.time);
   {
     render::RenderRequest greq;
@@ -326,7 +329,7 @@ class ExperimentRunner {
 
   void render_variants() {
   // Variants: a warm-up frame, then `frames` timed frames 1/30 s apart ending at def.time.
-  render::Backend& backend = *backend_ptr;
+  render::Backend& backend = variants_ptr ? *variants_ptr : *backend_ptr;
   for (std::size_t k = 0; k < vars.size(); ++k) {
     Variant& v = vars[k];
     std::cerr << "experiment: [" << k + 1 << "/" << vars.size() << "] " << v.def.label << ": " << v.def.technique << " ("
@@ -431,7 +434,7 @@ class ExperimentRunner {
 
   // results.json, index.md, images; then the failures, if any.
   void write() {
-  render::Backend& backend = *backend_ptr;
+  render::Backend& backend = variants_ptr ? *variants_ptr : *backend_ptr;
   auto find_var = [&](const std::string& label) -> const Variant* {
     for (const auto& v : vars)
       if (v.def.label == label) return v.error.empty() ? &v : nullptr;
@@ -450,6 +453,7 @@ class ExperimentRunner {
             {"frame_time", def.time},
             {"resolution", {w, h}},
             {"backend", backend.name()},
+            {"device", device_json(backend)},
             {"timed_frames", frames},
             {"param_overrides", args.overrides},
             {"frame_step_seconds", kFrameStep},
@@ -655,7 +659,8 @@ class ExperimentRunner {
   std::vector<Variant> vars;
   int baseline = -1;
   scene::Scene sc;
-  std::unique_ptr<render::Backend> backend_ptr;  // the reference backend
+  std::unique_ptr<render::Backend> backend_ptr;   // the reference backend
+  std::unique_ptr<render::Backend> variants_ptr;  // --backend, when it is another
   render::GBuffer gb;
   Mask surface, region;
   std::string region_desc;
@@ -674,6 +679,10 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
   if (args.name.empty()) throw std::invalid_argument("experiment: no experiment named (known: " + experiment_names() + ")");
   if (args.out.empty()) throw std::invalid_argument("experiment: --out is required");
   register_builtin();
+  if (!args.backend.empty()) check_backend(args.backend);
+  if (!args.device.empty() && !render::backend_info(args.backend.empty() ? render::reference_backend_name() : args.backend).selects_device)
+    throw std::invalid_argument("--device '" + args.device + "': the " +
+                                (args.backend.empty() ? render::reference_backend_name() : args.backend) + " backend selects no device");
 
   ExperimentRunner run(args, find_experiment(args.name), spp_given, frames_given);
   run.make_variants();
@@ -700,6 +709,9 @@ void register_experiment(CLI::App& app) {
   sub->add_option("--param", args->overrides,
                   "NAME=VALUE for every variant whose technique has parameter NAME, after the experiment's own (repeatable)");
   sub->add_flag("--list", args->list, "list the experiments");
+  sub->add_option("--backend", args->backend, "backend the variants are timed on (the masks and references use the reference backend): " +
+                                                  backends_help());
+  sub->add_option("--device", args->device, "device of a backend that selects one (name substring or index)");
   sub->callback([args, spp, frames] { run_experiment(*args, spp->count() > 0, frames->count() > 0); });
 }
 const CommandRegistrar registrar(register_experiment);

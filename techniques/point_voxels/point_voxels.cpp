@@ -19,48 +19,26 @@
 #include <vector>
 
 #include "pv_core.hpp"
+#include "pv_passes.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/render/vertex_image.hpp"
 #include "softgi/sh/sh.hpp"
 #include "../common/pass_support.hpp"
+#include "../common/device_kernels.hpp"
 #include "../common/upsample.hpp"
 
 namespace softgi::techniques::point_voxels {
 
 std::vector<render::ExperimentDef> experiments();  // pv_experiments.cpp
 
-namespace {
-
 using render::FrameContext;
 using render::GBuffer;
 using softgi::Image;
 using render::ParamDesc;
 
+namespace {
 constexpr float kPi = 3.14159265358979323846f;
-constexpr int kSkyOrder = 3;
-
-// Resources of the graph.
-constexpr const char* kProxies = "point_voxels.proxies";        // shared_ptr<const Voxels>: sorted proxies and the grid
-constexpr const char* kLightMaps = "point_voxels.light_maps";   // shared_ptr<const Lights>
-constexpr const char* kVpls = "point_voxels.vpls";              // shared_ptr<const Voxels>: lit, with the voxels' SH
-constexpr const char* kMarchGBuffer = "point_voxels.march_gbuffer";
-constexpr const char* kGatherGBuffer = "point_voxels.gather_gbuffer";
-constexpr const char* kLists = "point_voxels.lists";            // shared_ptr<const Marched>
-constexpr const char* kFiltered = "point_voxels.filtered";      // shared_ptr<const Marched>
-constexpr const char* kGathered = "point_voxels.gathered";      // shared_ptr<const std::vector<Gathered>>
-constexpr const char* kIndirectEnabled = "point_voxels.indirect_enabled";  // input; empty when indirect=false
-
-struct Settings {
-  double proxy_count = 24000.0, disc_scale = 1.5;
-  int grid = 8, march_scale = 8, gather_scale = 2, rays = 64;
-  FilterOptions filter;
-  double near_range = 0.25, sigma_depth = 0.05, sigma_normal = 0.1;
-  int shadow_map_size = 512, vpl_env_rays = 4;
-  bool environment = true, indirect = true;
-  bool eq7 = false;
-  double eq7_sigma_scale = 1.0;
-};
 
 std::vector<ParamDesc> params() {
   std::vector<ParamDesc> d;
@@ -103,6 +81,14 @@ std::vector<ParamDesc> params() {
   return d;
 }
 
+
+common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
+  static common::DeviceKernelRegistry<DeviceKernels> r;
+  return r;
+}
+
+}  // namespace
+
 Settings read_settings(const render::ParamSet& p) {
   Settings s;
   s.proxy_count = p.get_float("proxy_count");
@@ -130,44 +116,92 @@ Settings read_settings(const render::ParamSet& p) {
   return s;
 }
 
-struct Voxels {
-  PosedProxies proxies;
-  VoxelGrid grid;
-  double density = 0.0;
-  float diagonal = 0.0f;  // of the grid: the unit of near_range
-};
 
-// Lights seen from the proxies and the receivers: each local light's cube depth map, the sun's
-// directional one, the rest of the environment as SH.
-struct Lights {
-  std::vector<CubeDepthMap> local;
-  std::vector<scene::SphericalLight> local_lights;
-  bool sun = false;
-  OrthoDepthMap sun_map;
-  glm::vec3 sun_irradiance{0.0f};  // at normal incidence: L_sun * solid angle
-  bool sky = false;
-  std::vector<glm::vec3> sky_sh;   // order kSkyOrder, radiance without the sun disk
-  std::size_t bytes() const {
-    std::size_t b = sun_map.depth.size() * sizeof(float) + sky_sh.size() * sizeof(glm::vec3);
-    for (const auto& m : local) b += m.depth.size() * sizeof(float);
-    return b;
-  }
-  glm::vec3 sky_radiance(const glm::vec3& w) const {
-    float y[kSkyOrder * kSkyOrder];
-    sh::eval_basis<float>(kSkyOrder, sh::Vec3<float>{w.x, w.y, w.z}, y);
-    glm::vec3 l(0.0f);
-    for (int i = 0; i < kSkyOrder * kSkyOrder; ++i) l += sky_sh[i] * y[i];
-    return glm::max(l, glm::vec3(0.0f));
-  }
-};
+std::size_t Lights::bytes() const {
+  std::size_t b = sun_map.depth.size() * sizeof(float) + sky_sh.size() * sizeof(glm::vec3);
+  for (const auto& m : local) b += m.depth.size() * sizeof(float);
+  return b;
+}
 
-// What the marching pass found per marching pixel: visible voxels, and the environment seen
-// through the escaped rays (irradiance without the sun; the escaped fraction in visible.x).
-struct Marched {
-  PixelLists lists;
-  std::vector<glm::vec3> sky_irradiance, visible;
-  std::size_t bytes() const { return lists.bytes() + (sky_irradiance.size() + visible.size()) * sizeof(glm::vec3); }
-};
+glm::vec3 Lights::sky_radiance(const glm::vec3& w) const {
+  float y[kSkyOrder * kSkyOrder];
+  sh::eval_basis<float>(kSkyOrder, sh::Vec3<float>{w.x, w.y, w.z}, y);
+  glm::vec3 l(0.0f);
+  for (int i = 0; i < kSkyOrder * kSkyOrder; ++i) l += sky_sh[i] * y[i];
+  return glm::max(l, glm::vec3(0.0f));
+}
+
+std::uint32_t pixel_ray_seed(std::size_t i) { return static_cast<std::uint32_t>(mix_hash(i + 1)); }
+std::uint32_t proxy_ray_seed(std::size_t sample) { return static_cast<std::uint32_t>(mix_hash(sample * 0x9e3779b97f4a7c15ULL + 17)); }
+
+glm::vec2 ray_sample(int k, int n, std::uint32_t seed) {
+  float u = (static_cast<float>(k) + 0.5f) / static_cast<float>(n) + static_cast<float>(seed & 0xffffu) / 65536.0f;
+  float v = static_cast<float>(radical_inverse(static_cast<std::uint32_t>(k) + 1, 2)) + static_cast<float>(seed >> 16) / 65536.0f;
+  return {u - std::floor(u), v - std::floor(v)};
+}
+
+glm::vec3 local_irradiance(const scene::SphericalLight& l, const glm::vec3& p, const glm::vec3& n, glm::vec3& dir) {
+  const glm::vec3 w = l.position - p;
+  const float d2 = std::max(glm::dot(w, w), 1.0001f * l.radius * l.radius);
+  dir = w / std::sqrt(glm::dot(w, w) > 0.0f ? glm::dot(w, w) : 1.0f);
+  const float c = glm::dot(n, dir);
+  if (c <= 0.0f) return glm::vec3(0.0f);
+  return l.radiance * (kPi * l.radius * l.radius / d2 * c);
+}
+
+Receiver receiver_at(const FrameContext& ctx, const GBuffer& g, std::size_t i) {
+  Receiver r;
+  r.position = g.position[i];
+  r.normal = g.normal[i];
+  const glm::vec3 v = g.view_dir[i];
+  r.reflect = 2.0f * glm::dot(r.normal, v) * r.normal - v;
+  const auto& obj = ctx.posed.objects[static_cast<std::size_t>(g.object[i])];
+  const scene::Material& mat = ctx.scene.materials[static_cast<std::size_t>(obj.material)];
+  if (mat.phong_ns > 0.0f) {
+    r.glossy = std::clamp(mat.glossy, 0.0f, 1.0f);
+    r.ns = mat.phong_ns;
+  }
+  return r;
+}
+
+int gather_taps(const Settings& s, const GBuffer& gg, const GBuffer& mg, std::size_t i, GatherTap (&taps)[4], bool& geometric) {
+  const float ratio = static_cast<float>(gg.scale) / static_cast<float>(mg.scale);
+  const int x = static_cast<int>(i % gg.width), y = static_cast<int>(i / gg.width);
+  const float u = (x + 0.5f) * ratio - 0.5f, v = (y + 0.5f) * ratio - 0.5f;
+  const int x0 = static_cast<int>(std::floor(u)), y0 = static_cast<int>(std::floor(v));
+  const float fx = u - x0, fy = v - y0;
+  float wl[4], wg[4];
+  int nt = 0;
+  for (int j = 0; j < 2; ++j)
+    for (int k = 0; k < 2; ++k) {
+      const int qx = std::clamp(x0 + k, 0, mg.width - 1), qy = std::clamp(y0 + j, 0, mg.height - 1);
+      const std::size_t q = static_cast<std::size_t>(qy) * mg.width + qx;
+      if (!mg.hit(q)) continue;
+      wl[nt] = (k ? fx : 1.0f - fx) * (j ? fy : 1.0f - fy);
+      const float dz = (mg.depth[q] - gg.depth[i]) / (static_cast<float>(s.sigma_depth) * gg.depth[i]);
+      const float dn = (1.0f - glm::dot(mg.normal[q], gg.normal[i])) / static_cast<float>(s.sigma_normal);
+      wg[nt] = std::exp(-0.5f * (dz * dz + dn * dn));
+      taps[nt++].q = q;
+    }
+  float nc = 0.0f, nl = 0.0f;
+  for (int k = 0; k < nt; ++k) {
+    nc += wl[k] * wg[k];
+    nl += wl[k];
+  }
+  // No neighbour on this surface (a silhouette the marching buffer does not resolve): the linear
+  // weights alone, so the pixel is not left black.
+  geometric = nc > 1e-4f * nl;
+  const float norm = geometric ? nc : nl;
+  if (!(norm > 0.0f)) return 0;
+  int used = 0;
+  for (int k = 0; k < nt; ++k) {
+    const float w = (geometric ? wl[k] * wg[k] : wl[k]) / norm;
+    if (w > 0.0f) taps[used++] = {taps[k].q, w};
+  }
+  return used;
+}
+
+namespace {
 
 // The marching and gathering buffers: point samples of the display G-buffer, pixel (x, y) at display
 // pixel (x s + s / 2, y s + s / 2) (clamped to the image), so both see exactly the display's surfaces.
@@ -190,23 +224,10 @@ GBuffer subsample(const GBuffer& full, int s) {
   return g;
 }
 
-
-// Ray k of n of a stratified (Hammersley) set rotated per pixel (Cranley-Patterson with `h`).
-glm::vec2 ray_sample(int k, int n, std::uint64_t h) {
-  float u = (static_cast<float>(k) + 0.5f) / static_cast<float>(n) + static_cast<float>(h & 0xffff) / 65536.0f;
-  float v = static_cast<float>(radical_inverse(static_cast<std::uint32_t>(k) + 1, 2)) + static_cast<float>((h >> 16) & 0xffff) / 65536.0f;
-  return {u - std::floor(u), v - std::floor(v)};
-}
-
-// Irradiance of a spherical light (centre c, radius R, radiance L) at p with normal n: L pi R^2 / d^2
-// times the cosine, exact while the sphere is above the horizon.
-glm::vec3 local_irradiance(const scene::SphericalLight& l, const glm::vec3& p, const glm::vec3& n, glm::vec3& dir) {
-  const glm::vec3 w = l.position - p;
-  const float d2 = std::max(glm::dot(w, w), 1.0001f * l.radius * l.radius);
-  dir = w / std::sqrt(glm::dot(w, w) > 0.0f ? glm::dot(w, w) : 1.0f);
-  const float c = glm::dot(n, dir);
-  if (c <= 0.0f) return glm::vec3(0.0f);
-  return l.radiance * (kPi * l.radius * l.radius / d2 * c);
+std::size_t hit_pixels(const GBuffer& g) {
+  std::size_t hits = 0;
+  for (std::size_t i = 0; i < g.depth.size(); ++i) hits += g.hit(i);
+  return hits;
 }
 
 // --- passes ------------------------------------------------------------------------------------------
@@ -215,27 +236,47 @@ void pass_proxies(const Settings& s, FrameContext& ctx) {
   // Sampled once on the scene at t = 0 (triangle and barycentrics), interpolated on this frame's pose.
   const scene::PosedScene rest = ctx.posed.time == 0.0 ? scene::PosedScene{} : scene::evaluate(ctx.scene, 0.0);
   const ProxySampling sampling = sample_point_proxies(ctx.posed.time == 0.0 ? ctx.posed : rest, s.proxy_count);
-  auto v = std::make_shared<Voxels>();
+  auto v = std::make_shared<Posed>();
   v->density = sampling.density;
   v->proxies = pose_proxies(ctx.scene, ctx.posed, sampling, s.disc_scale);
-  v->grid = build_voxel_grid(v->proxies, glm::ivec3(s.grid));
-  v->diagonal = glm::length(v->grid.cell * glm::vec3(v->grid.dims));
-  std::size_t occupied = 0;
-  for (std::size_t k = 0; k < v->grid.cells(); ++k) occupied += v->grid.start[k + 1] > v->grid.start[k];
+  v->ray_seed.resize(v->proxies.size());
+  for (std::size_t i = 0; i < v->ray_seed.size(); ++i) v->ray_seed[i] = proxy_ray_seed(i);
   auto& rec = ctx.record();
   rec.counters["proxies"] = static_cast<double>(v->proxies.size());
   rec.counters["roulette_triangles"] = static_cast<double>(sampling.roulette_triangles);
   rec.counters["disc_radius"] = v->proxies.radius;
-  rec.counters["voxels"] = static_cast<double>(v->grid.cells());
-  rec.counters["voxels_occupied"] = static_cast<double>(occupied);
-  rec.bytes = v->proxies.size() * (4 * sizeof(glm::vec3)) + v->grid.bytes();
-  ctx.put<std::shared_ptr<const Voxels>>(kProxies, std::move(v));
+  rec.bytes = v->proxies.size() * (4 * sizeof(glm::vec3) + sizeof(std::uint32_t));
+  ctx.put<std::shared_ptr<const Posed>>(kProxies, std::move(v));
 }
 
-void pass_light_maps(const Settings& s, FrameContext& ctx, common::SharedCache<std::string, std::vector<glm::vec3>>& sky_cache) {
+// Eq. 1: the proxies hashed into the grid and sorted by key, with each cell's range.
+void pass_voxelize(const Settings& s, FrameContext& ctx) {
+  const auto& in = *ctx.get<std::shared_ptr<const Posed>>(kProxies);
+  auto v = std::make_shared<Voxels>();
+  v->density = in.density;
+  v->proxies = in.proxies;
+  v->grid = build_voxel_grid(v->proxies, glm::ivec3(s.grid), &v->sample);
+  v->ray_seed.resize(v->sample.size());
+  for (std::size_t i = 0; i < v->sample.size(); ++i) v->ray_seed[i] = in.ray_seed[v->sample[i]];
+  v->diagonal = glm::length(v->grid.cell * glm::vec3(v->grid.dims));
+  std::size_t occupied = 0;
+  for (std::size_t k = 0; k < v->grid.cells(); ++k) occupied += v->grid.start[k + 1] > v->grid.start[k];
+  auto& rec = ctx.record();
+  rec.counters["voxels"] = static_cast<double>(v->grid.cells());
+  rec.counters["voxels_occupied"] = static_cast<double>(occupied);
+  rec.bytes = v->proxies.size() * (4 * sizeof(glm::vec3) + 2 * sizeof(std::uint32_t)) + v->grid.bytes();
+  ctx.put<std::shared_ptr<const Voxels>>(kVoxels, std::move(v));
+}
+
+// The lights seen from the proxies and the receivers, their depth maps left for `raster`: each local
+// light and the sun (its map's frame), the rest of the environment as SH.
+std::shared_ptr<Lights> plan_lights(const Settings& s, FrameContext& ctx, SkyCache& sky_cache) {
   auto L = std::make_shared<Lights>();
   for (const auto& l : ctx.posed.lights) {
-    L->local.push_back(rasterize_cube_depth(ctx.posed, l.position, s.shadow_map_size));
+    CubeDepthMap m;
+    m.center = l.position;
+    m.size = s.shadow_map_size;
+    L->local.push_back(std::move(m));
     L->local_lights.push_back(l);
   }
   const scene::Environment& env = ctx.scene.environment;
@@ -251,7 +292,7 @@ void pass_light_maps(const Settings& s, FrameContext& ctx, common::SharedCache<s
       L->sun_irradiance = env.intensity * env.sun_radiance * omega;
       if (glm::dot(L->sun_irradiance, glm::vec3(1.0f)) > 0.0f) {
         L->sun = true;
-        L->sun_map = rasterize_ortho_depth(ctx.posed, sd, s.shadow_map_size);
+        L->sun_map = ortho_frame(ctx.posed, sd, s.shadow_map_size);
       }
       sky.sun_radiance = glm::vec3(0.0f);
     }
@@ -268,14 +309,22 @@ void pass_light_maps(const Settings& s, FrameContext& ctx, common::SharedCache<s
   auto& rec = ctx.record();
   rec.counters["local_lights"] = static_cast<double>(L->local.size());
   rec.counters["sun"] = L->sun ? 1.0 : 0.0;
-  rec.bytes = L->bytes();
-  ctx.put<std::shared_ptr<const Lights>>(kLightMaps, std::move(L));
+  return L;
+}
+
+// Figure 2a's depth maps, rasterised in software from the posed triangles.
+void pass_light_maps(const Settings& s, FrameContext& ctx, SkyCache& sky_cache) {
+  const std::shared_ptr<Lights> L = plan_lights(s, ctx, sky_cache);
+  for (auto& m : L->local) m = rasterize_cube_depth(ctx.posed, m.center, s.shadow_map_size);
+  if (L->sun) L->sun_map = rasterize_ortho_depth(ctx.posed, L->sun_map.dir, s.shadow_map_size);
+  ctx.record().bytes = L->bytes();
+  ctx.put<std::shared_ptr<const Lights>>(kLightMaps, L);
 }
 
 // Figure 2a: the VPLs' energy from the lights (depth maps), the sky through marched rays; then
 // eqs. 2-3 per voxel.
 void pass_light_vpls(const Settings& s, FrameContext& ctx) {
-  const auto& in = *ctx.get<std::shared_ptr<const Voxels>>(kProxies);
+  const auto& in = *ctx.get<std::shared_ptr<const Voxels>>(kVoxels);
   const auto& L = *ctx.get<std::shared_ptr<const Lights>>(kLightMaps);
   auto v = std::make_shared<Voxels>(in);
   PosedProxies& P = v->proxies;
@@ -294,11 +343,10 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
         if (c > 0.0f) e += L.sun_irradiance * (c * L.sun_map.visibility(p, nn));
       }
       if (k_rays > 0) {
-        const std::uint64_t h = mix_hash(i * 0x9e3779b97f4a7c15ULL + 17);
         const glm::vec3 o = p + nn * (0.25f * P.radius);
         glm::vec3 sky(0.0f);
         for (int k = 0; k < k_rays; ++k) {
-          const glm::vec2 u = ray_sample(k, k_rays, h);
+          const glm::vec2 u = ray_sample(k, k_rays, in.ray_seed[i]);
           const glm::vec3 d = cosine_direction(nn, u.x, u.y);
           if (march_ray(in.grid, in.proxies, o, d, 0.5f * P.radius, 1e30f) < 0) sky += L.sky_radiance(d);
         }
@@ -318,25 +366,25 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
 // Section 3.1: per marching pixel, `rays` shadow rays; the first voxel each hits joins the list.
 void pass_march(const Settings& s, FrameContext& ctx) {
   const auto& g = ctx.get<GBuffer>(kMarchGBuffer);
-  const auto& V = *ctx.get<std::shared_ptr<const Voxels>>(kProxies);
+  const auto& V = *ctx.get<std::shared_ptr<const Voxels>>(kVoxels);
   const Lights* L = ctx.has(kLightMaps) ? ctx.get<std::shared_ptr<const Lights>>(kLightMaps).get() : nullptr;
   const bool sky = L && L->sky;
   auto m = std::make_shared<Marched>();
   const std::size_t np = static_cast<std::size_t>(g.width) * g.height;
   std::vector<std::vector<std::int32_t>> lists(np);
   m->sky_irradiance.assign(np, glm::vec3(0.0f));
-  m->visible.assign(np, glm::vec3(0.0f));
+  m->escaped.assign(np, 0.0f);
   const float r = V.proxies.radius;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 64), [&](const tbb::blocked_range<std::size_t>& br) {
     for (std::size_t i = br.begin(); i < br.end(); ++i) {
       if (!g.hit(i)) continue;
       const glm::vec3 nn = g.normal[i], o = g.position[i] + nn * (0.25f * r);
-      const std::uint64_t h = mix_hash(i + 1);
+      const std::uint32_t seed = pixel_ray_seed(i);
       auto& list = lists[i];
       glm::vec3 e(0.0f);
       int escaped = 0;
       for (int k = 0; k < s.rays; ++k) {
-        const glm::vec2 u = ray_sample(k, s.rays, h);
+        const glm::vec2 u = ray_sample(k, s.rays, seed);
         const glm::vec3 d = cosine_direction(nn, u.x, u.y);
         const std::int32_t vox = march_ray(V.grid, V.proxies, o, d, 0.5f * r, 1e30f);
         if (vox >= 0) {
@@ -349,7 +397,7 @@ void pass_march(const Settings& s, FrameContext& ctx) {
       std::sort(list.begin(), list.end());
       list.erase(std::unique(list.begin(), list.end()), list.end());
       m->sky_irradiance[i] = e * (kPi / static_cast<float>(s.rays));
-      m->visible[i] = glm::vec3(static_cast<float>(escaped) / static_cast<float>(s.rays));
+      m->escaped[i] = static_cast<float>(escaped) / static_cast<float>(s.rays);
     }
   });
   m->lists.width = g.width;
@@ -359,8 +407,7 @@ void pass_march(const Settings& s, FrameContext& ctx) {
     m->lists.voxel.insert(m->lists.voxel.end(), lists[i].begin(), lists[i].end());
     m->lists.offset[i + 1] = static_cast<std::uint32_t>(m->lists.voxel.size());
   }
-  std::size_t hits = 0;
-  for (std::size_t i = 0; i < np; ++i) hits += g.hit(i);
+  const std::size_t hits = hit_pixels(g);
   auto& rec = ctx.record();
   rec.counters["pixels"] = static_cast<double>(hits);
   rec.counters["rays"] = static_cast<double>(hits) * s.rays;
@@ -375,30 +422,16 @@ void pass_filter(const Settings& s, FrameContext& ctx) {
   const auto& in = *ctx.get<std::shared_ptr<const Marched>>(kLists);
   auto m = std::make_shared<Marched>();
   m->lists = visibility_filter(in.lists, g.depth.data(), g.normal.data(), s.filter);
-  filter_field(in.sky_irradiance, g.width, g.height, g.depth.data(), g.normal.data(), s.filter, m->sky_irradiance);
-  filter_field(in.visible, g.width, g.height, g.depth.data(), g.normal.data(), s.filter, m->visible);
-  std::size_t hits = 0;
-  for (std::size_t i = 0; i < g.depth.size(); ++i) hits += g.hit(i);
+  m->sky_irradiance.resize(in.sky_irradiance.size());
+  m->escaped.resize(in.escaped.size());
+  filter_field(&in.sky_irradiance[0].x, 3, g.width, g.height, g.depth.data(), g.normal.data(), s.filter, &m->sky_irradiance[0].x);
+  filter_field(in.escaped.data(), 1, g.width, g.height, g.depth.data(), g.normal.data(), s.filter, m->escaped.data());
+  const std::size_t hits = hit_pixels(g);
   auto& rec = ctx.record();
   rec.counters["list_mean_before"] = hits ? static_cast<double>(in.lists.voxel.size()) / hits : 0.0;
   rec.counters["list_mean"] = hits ? static_cast<double>(m->lists.voxel.size()) / hits : 0.0;
   rec.bytes = m->bytes();
   ctx.put<std::shared_ptr<const Marched>>(kFiltered, std::move(m));
-}
-
-Receiver receiver_at(const FrameContext& ctx, const GBuffer& g, std::size_t i) {
-  Receiver r;
-  r.position = g.position[i];
-  r.normal = g.normal[i];
-  const glm::vec3 v = g.view_dir[i];
-  r.reflect = 2.0f * glm::dot(r.normal, v) * r.normal - v;
-  const auto& obj = ctx.posed.objects[static_cast<std::size_t>(g.object[i])];
-  const scene::Material& mat = ctx.scene.materials[static_cast<std::size_t>(obj.material)];
-  if (mat.phong_ns > 0.0f) {
-    r.glossy = std::clamp(mat.glossy, 0.0f, 1.0f);
-    r.ns = mat.phong_ns;
-  }
-  return r;
 }
 
 // Section 3.3, eqs. 5-6: each gathering pixel takes the filtered lists of its four marching
@@ -411,52 +444,19 @@ void pass_gather(const Settings& s, FrameContext& ctx) {
   const std::size_t np = static_cast<std::size_t>(gg.width) * gg.height;
   auto out = std::make_shared<std::vector<Gathered>>(np);
   const float near_range = static_cast<float>(s.near_range) * V.diagonal;
-  const float ratio = static_cast<float>(gg.scale) / static_cast<float>(mg.scale);
   std::atomic<std::size_t> unmatched{0}, voxels_gathered{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 64), [&](const tbb::blocked_range<std::size_t>& br) {
     std::vector<std::pair<std::int32_t, float>> taps;
     for (std::size_t i = br.begin(); i < br.end(); ++i) {
       if (!gg.hit(i)) continue;
-      const int x = static_cast<int>(i % gg.width), y = static_cast<int>(i / gg.width);
-      const float u = (x + 0.5f) * ratio - 0.5f, v = (y + 0.5f) * ratio - 0.5f;
-      const int x0 = static_cast<int>(std::floor(u)), y0 = static_cast<int>(std::floor(v));
-      const float fx = u - x0, fy = v - y0;
-      struct Tap {
-        std::size_t q;
-        float wl, wg;
-      };
-      Tap t[4];
-      int nt = 0;
-      for (int j = 0; j < 2; ++j)
-        for (int k = 0; k < 2; ++k) {
-          const int qx = std::clamp(x0 + k, 0, mg.width - 1), qy = std::clamp(y0 + j, 0, mg.height - 1);
-          const std::size_t q = static_cast<std::size_t>(qy) * mg.width + qx;
-          if (!mg.hit(q)) continue;
-          const float wl = (k ? fx : 1.0f - fx) * (j ? fy : 1.0f - fy);
-          const float dz = (mg.depth[q] - gg.depth[i]) / (static_cast<float>(s.sigma_depth) * gg.depth[i]);
-          const float dn = (1.0f - glm::dot(mg.normal[q], gg.normal[i])) / static_cast<float>(s.sigma_normal);
-          t[nt++] = {q, wl, std::exp(-0.5f * (dz * dz + dn * dn))};
-        }
-      float nc = 0.0f, nl = 0.0f;
-      for (int k = 0; k < nt; ++k) {
-        nc += t[k].wl * t[k].wg;
-        nl += t[k].wl;
-      }
-      // No neighbour on this surface (a silhouette the marching buffer does not resolve): the
-      // linear weights alone, so the pixel is not left black.
-      const bool geometric = nc > 1e-4f * nl;
-      const float norm = geometric ? nc : nl;
-      if (!(norm > 0.0f)) {
-        ++unmatched;
-        continue;
-      }
+      GatherTap t[4];
+      bool geometric = false;
+      const int nt = gather_taps(s, gg, mg, i, t, geometric);
       if (!geometric) ++unmatched;
+      if (nt == 0) continue;
       taps.clear();
-      for (int k = 0; k < nt; ++k) {
-        const float w = (geometric ? t[k].wl * t[k].wg : t[k].wl) / norm;
-        if (!(w > 0.0f)) continue;
-        for (std::uint32_t e = F.lists.offset[t[k].q]; e < F.lists.offset[t[k].q + 1]; ++e) taps.push_back({F.lists.voxel[e], w});
-      }
+      for (int k = 0; k < nt; ++k)
+        for (std::uint32_t e = F.lists.offset[t[k].q]; e < F.lists.offset[t[k].q + 1]; ++e) taps.push_back({F.lists.voxel[e], t[k].weight});
       // A voxel in several neighbours' lists is gathered once with the sum of their weights.
       std::sort(taps.begin(), taps.end());
       Receiver r = receiver_at(ctx, gg, i);
@@ -475,8 +475,7 @@ void pass_gather(const Settings& s, FrameContext& ctx) {
       (*out)[i] = acc;
     }
   });
-  std::size_t hits = 0;
-  for (std::size_t i = 0; i < np; ++i) hits += gg.hit(i);
+  const std::size_t hits = hit_pixels(gg);
   auto& rec = ctx.record();
   rec.counters["pixels"] = static_cast<double>(hits);
   rec.counters["unmatched"] = static_cast<double>(unmatched.load());
@@ -488,17 +487,20 @@ void pass_gather(const Settings& s, FrameContext& ctx) {
 
 // Bilateral upsampling of coarse per-pixel fields to display resolution (paper 000 eq. 11, the
 // shared kernel; paper 002 section 3.3 asks for a geometry-aware bilateral filter). The weights
-// depend only on the two buffers' geometry, so they are computed once for all the fields.
-std::vector<std::vector<glm::vec3>> upsample_fields(const GBuffer& coarse, const GBuffer& fine,
-                                                    const std::vector<const std::vector<glm::vec3>*>& in) {
+// depend only on the two buffers' geometry, so they are computed once for all the fields, each given
+// as (floats, channels).
+std::vector<std::vector<float>> upsample_fields(const GBuffer& coarse, const GBuffer& fine,
+                                                const std::vector<std::pair<const float*, int>>& in) {
   const common::UpsampleWeights w = common::upsample_weights(common::plane_view(coarse), common::plane_view(fine), common::UpsampleOptions{});
-  std::vector<std::vector<glm::vec3>> out;
-  for (const auto* field : in) {
-    out.emplace_back(static_cast<std::size_t>(fine.width) * fine.height, glm::vec3(0.0f));
-    common::upsample_apply(w, &(*field)[0].x, 3, &out.back()[0].x);
+  std::vector<std::vector<float>> out;
+  for (const auto& [field, channels] : in) {
+    out.emplace_back(static_cast<std::size_t>(fine.width) * fine.height * channels, 0.0f);
+    common::upsample_apply(w, field, channels, out.back().data());
   }
   return out;
 }
+
+glm::vec3 at3(const std::vector<float>& v, std::size_t i) { return {v[3 * i], v[3 * i + 1], v[3 * i + 2]}; }
 
 void pass_indirect(FrameContext& ctx) {
   const auto& fine = ctx.get<GBuffer>(render::kGBuffer);
@@ -509,13 +511,12 @@ void pass_indirect(FrameContext& ctx) {
     e[i] = gathered[i].irradiance;
     sp[i] = gathered[i].glossy_term();
   }
-  const auto up = upsample_fields(gg, fine, {&e, &sp});
-  const auto &eu = up[0], &su = up[1];
+  const auto up = upsample_fields(gg, fine, {{&e[0].x, 3}, {&sp[0].x, 3}});
   Image img(fine.width, fine.height);
   for (std::size_t i = 0; i < img.rgb.size(); ++i) {
     if (!fine.hit(i)) continue;
     const Receiver r = receiver_at(ctx, fine, i);
-    img.rgb[i] = fine.albedo[i] * ((1.0f - r.glossy) / kPi * eu[i] + r.glossy * su[i]);
+    img.rgb[i] = fine.albedo[i] * ((1.0f - r.glossy) / kPi * at3(up[0], i) + r.glossy * at3(up[1], i));
   }
   ctx.record().bytes = 2 * img.rgb.size() * sizeof(glm::vec3);
   ctx.put<Image>(render::kIndirect, std::move(img));
@@ -527,13 +528,10 @@ void pass_indirect(FrameContext& ctx) {
 void pass_direct(FrameContext& ctx) {
   const auto& g = ctx.get<GBuffer>(render::kGBuffer);
   const auto& L = *ctx.get<std::shared_ptr<const Lights>>(kLightMaps);
-  std::vector<glm::vec3> sky_e, sky_v;
+  std::vector<std::vector<float>> sky;  // irradiance (3 channels), escaped fraction (1)
   if (L.sky && ctx.has(kFiltered)) {
     const auto& F = *ctx.get<std::shared_ptr<const Marched>>(kFiltered);
-    const auto& mg = ctx.get<GBuffer>(kMarchGBuffer);
-    auto up = upsample_fields(mg, g, {&F.sky_irradiance, &F.visible});
-    sky_e = std::move(up[0]);
-    sky_v = std::move(up[1]);
+    sky = upsample_fields(ctx.get<GBuffer>(kMarchGBuffer), g, {{&F.sky_irradiance[0].x, 3}, {F.escaped.data(), 1}});
   }
   Image img(g.width, g.height);
   const std::size_t np = img.rgb.size();
@@ -544,14 +542,7 @@ void pass_direct(FrameContext& ctx) {
         continue;
       }
       const Receiver r = receiver_at(ctx, g, i);
-      auto brdf = [&](const glm::vec3& w) {
-        float f = (1.0f - r.glossy) / kPi;
-        if (r.glossy > 0.0f) {
-          const float ca = glm::dot(r.reflect, w);
-          if (ca > 0.0f) f += r.glossy * (r.ns + 2.0f) / (2.0f * kPi) * std::pow(ca, r.ns);
-        }
-        return f;
-      };
+      auto brdf = [&](const glm::vec3& w) { return (1.0f - r.glossy) / kPi + glossy_lobe(r, w); };
       glm::vec3 lo(0.0f), dir;
       for (std::size_t l = 0; l < L.local.size(); ++l) {
         const glm::vec3 el = local_irradiance(L.local_lights[l], r.position, r.normal, dir);
@@ -561,9 +552,9 @@ void pass_direct(FrameContext& ctx) {
         const float c = glm::dot(r.normal, L.sun_map.dir);
         if (c > 0.0f) lo += L.sun_irradiance * (c * brdf(L.sun_map.dir) * L.sun_map.visibility(r.position, r.normal));
       }
-      if (!sky_e.empty()) {
-        lo += sky_e[i] * ((1.0f - r.glossy) / kPi);
-        if (r.glossy > 0.0f) lo += r.glossy * L.sky_radiance(r.reflect) * (std::max(0.0f, glm::dot(r.normal, r.reflect)) * sky_v[i].x);
+      if (!sky.empty()) {
+        lo += at3(sky[0], i) * ((1.0f - r.glossy) / kPi);
+        if (r.glossy > 0.0f) lo += r.glossy * L.sky_radiance(r.reflect) * (std::max(0.0f, glm::dot(r.normal, r.reflect)) * sky[1][i]);
       }
       img.rgb[i] = g.albedo[i] * lo;
     }
@@ -575,34 +566,79 @@ void pass_direct(FrameContext& ctx) {
 // The large resources of a frame: proxies and voxels grow with proxy_count and grid, the depth
 // maps with the lights, the lists with the marching pixels (a list holds at most the window's rays
 // and never more than the grid's cells), the gathered light and the images with the resolution.
+// Device items: the buffers of the Vulkan kernels (pv_vulkan.cpp, pv_depth_vulkan.cpp), by the names
+// they allocate them under; the lists there are bitsets over the cells.
 std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const render::ParamSet& params, int w, int h) {
+  using render::MemoryPlace;
   const Settings s = read_settings(params);
   std::vector<render::MemoryItem> m;
-  auto host = [&](std::string name, std::size_t bytes, const char* pass, bool transient = false) {
-    m.push_back({std::move(name), bytes, render::MemoryPlace::Host, pass, transient, false, false});
+  auto host = [&](std::string name, std::size_t bytes, const char* pass, bool transient = false, bool host_only = false) {
+    m.push_back({std::move(name), bytes, MemoryPlace::Host, pass, transient, false, host_only});
+  };
+  auto device = [&](std::string name, std::size_t bytes, const char* pass) {
+    m.push_back({std::move(name), bytes, MemoryPlace::Device, pass, false, true, false});
   };
   const auto n = static_cast<std::size_t>(s.proxy_count * 1.05) + 64;  // the roulette's spread stays far below 5 %
   const std::size_t cells = static_cast<std::size_t>(s.grid) * s.grid * s.grid;
   const std::size_t grid_bytes = (cells + 1) * 4 + n * 4 + cells * (5 * sizeof(glm::vec3));
-  host(kProxies, n * 4 * sizeof(glm::vec3) + grid_bytes, "proxies");
-  host(kVpls, n * 4 * sizeof(glm::vec3) + grid_bytes, "light_vpls");
-  const std::size_t maps = scene.lights.size() + (s.environment ? 1 : 0);
+  host(kProxies, n * (4 * sizeof(glm::vec3) + 4), "proxies");
+  host(kVoxels, n * (4 * sizeof(glm::vec3) + 8) + grid_bytes, "voxelize", false, true);
+  host(kVpls, n * (4 * sizeof(glm::vec3) + 8) + grid_bytes, "light_vpls", false, true);
   const std::size_t face = static_cast<std::size_t>(s.shadow_map_size) * s.shadow_map_size * sizeof(float);
-  host(kLightMaps, scene.lights.size() * 6 * face + (s.environment ? face : 0), "light_maps");
-  if (maps) host("point_voxels depth map scratch", 6 * face, "light_maps", true);
-  const std::size_t mp = render::pixel_count(render::scaled_size(w, s.march_scale), render::scaled_size(h, s.march_scale));
+  const std::size_t maps = scene.lights.size() * 6 * face + (s.environment ? face : 0);
+  host(kLightMaps, maps, "light_maps");
+  if (maps) host("point_voxels depth map scratch", 6 * face, "light_maps", true, true);
+  const int mw = render::scaled_size(w, s.march_scale), mh = render::scaled_size(h, s.march_scale);
+  const std::size_t mp = render::pixel_count(mw, mh);
   const std::size_t window = static_cast<std::size_t>(2 * s.filter.radius_x + 1) * (2 * s.filter.radius_y + 1);
-  host(kMarchGBuffer, render::gbuffer_bytes(render::scaled_size(w, s.march_scale), render::scaled_size(h, s.march_scale)), "march_gbuffer");
-  host(kLists, mp * (static_cast<std::size_t>(s.rays) * 4 + 4 + 2 * sizeof(glm::vec3)), "march");
-  host(kFiltered, mp * (std::min(window * s.rays, cells) * 4 + 4 + 2 * sizeof(glm::vec3)), "filter");
+  host(kMarchGBuffer, render::gbuffer_bytes(mw, mh), "march_gbuffer");
+  host(kLists, mp * (static_cast<std::size_t>(s.rays) * 4 + 4 + 4 * sizeof(float)), "march", false, true);
+  host(kFiltered, mp * (std::min(window * s.rays, cells) * 4 + 4 + 4 * sizeof(float)), "filter", false, true);
+  const int gw = render::scaled_size(w, s.gather_scale), gh = render::scaled_size(h, s.gather_scale);
+  const std::size_t gp = render::pixel_count(gw, gh);
   if (s.indirect) {
-    const int gw = render::scaled_size(w, s.gather_scale), gh = render::scaled_size(h, s.gather_scale);
     host(kGatherGBuffer, render::gbuffer_bytes(gw, gh), "gather_gbuffer");
-    host(kGathered, render::pixel_count(gw, gh) * sizeof(Gathered), "gather");
+    host(kGathered, gp * sizeof(Gathered), "gather");
     host(render::kIndirect, 3 * render::image_bytes(w, h), "indirect");
   }
   host(render::kDirect, 3 * render::image_bytes(w, h), "direct");
+  // The Vulkan kernels' buffers (64-byte proxies, 32-byte march items, a march batch at most 128 MiB).
+  std::size_t triangles = 0;
+  for (const auto& node : scene.nodes)
+    if (node.mesh >= 0 && node.mesh < static_cast<int>(scene.meshes.size())) triangles += scene.meshes[node.mesh].triangles.size();
+  const std::size_t words = (cells + 31) / 32, item = 32, batch = std::size_t{128} << 20;
+  device("point_voxels proxies", n * 64, "voxelize");
+  device("point_voxels sorted proxies", n * 64, "voxelize");
+  device("point_voxels cell ranges", (cells + 1) * 4, "voxelize");
+  device("point_voxels voxel counts", cells * 4, "voxelize");
+  device("point_voxels scatter cursors", cells * 4, "voxelize");
+  device("point_voxels triangle corners", triangles * 3 * 16, "light_maps");
+  device("point_voxels depth map texels", 6 * face, "light_maps");
+  device("point_voxels cube depth maps", scene.lights.size() * 6 * face, "light_maps");
+  device("point_voxels sun depth map", face + 64, "light_maps");
+  device("point_voxels VPLs", n * 64, "light_vpls");
+  device("point_voxels VPL cell ranges", (cells + 1) * 4, "light_vpls");
+  device("point_voxels VPL radiance", n * 16, "light_vpls");
+  device("point_voxels voxel SH", cells * 64, "light_vpls");
+  device("point_voxels march items",
+         std::min(batch, std::max(n * static_cast<std::size_t>(s.vpl_env_rays), mp * static_cast<std::size_t>(s.rays)) * item), "march");
+  device("point_voxels marching pixels", mp * 48, "march");
+  device("point_voxels voxel bitsets", mp * words * 4, "march");
+  device("point_voxels sky fields", mp * 16, "march");
+  device("point_voxels filtered bitsets", mp * words * 4, "filter");
+  device("point_voxels filtered sky fields", mp * 16, "filter");
+  if (s.indirect) {
+    device("point_voxels gathering pixels", gp * 64, "gather");
+    device("point_voxels gathered light", gp * 48, "gather");
+    device("point_voxels gathering state", gp * 32, "gather");
+  }
   return m;
+}
+
+// A device kernel as the pass function of a graph (none when the backend has no such kernel).
+render::PassFn bind(const std::function<void(const Settings&, FrameContext&)>& kernel, const Settings& s) {
+  if (!kernel) return {};
+  return [kernel, s](FrameContext& c) { kernel(s, c); };
 }
 
 class PointVoxels final : public render::Technique {
@@ -625,18 +661,27 @@ class PointVoxels final : public render::Technique {
     if (!s.indirect) empty.insert(kIndirectEnabled);
     auto cache = sky_cache_;
     const auto cpu = render::host_impl;
+    const auto kernels = device_kernels().all();
     render::PassGraph g;
     g.add_input(render::kScene);
     g.add_input(kIndirectEnabled);
     render::add_gbuffer_pass(g);
     g.add({"proxies", {render::kScene}, {}, {kProxies},
-           "point proxies by area with Russian roulette, Halton barycentrics, posed; hashed (eq. 1) and sorted into voxels",
+           "point proxies by area with Russian roulette, Halton barycentrics, posed on this frame's meshes (section 3.1)",
            cpu([s](FrameContext& c) { pass_proxies(s, c); })});
+    g.add({"voxelize", {kProxies}, {}, {kVoxels}, "the proxies hashed into voxels (eq. 1), sorted by key, cell ranges",
+           common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_voxelize(s, c); }), kernels,
+                                               [s](const DeviceKernels& k) { return bind(k.voxelize, s); })});
     g.add({"light_maps", {render::kScene}, {}, {kLightMaps}, "depth maps of the local lights and the sun (Figure 2a); the sky's SH",
-           cpu([s, cache](FrameContext& c) { pass_light_maps(s, c, *cache); })});
-    g.add({"light_vpls", {kProxies, kLightMaps, kIndirectEnabled}, {}, {kVpls},
+           common::with_kernels<DeviceKernels>(cpu([s, cache](FrameContext& c) { pass_light_maps(s, c, *cache); }), kernels,
+                                               [s, cache](const DeviceKernels& k) -> render::PassFn {
+                                                 if (!k.light_maps) return {};
+                                                 return [s, cache, raster = k.light_maps](FrameContext& c) { raster(s, c, plan_lights(s, c, *cache)); };
+                                               })});
+    g.add({"light_vpls", {kVoxels, kLightMaps, kIndirectEnabled}, {}, {kVpls},
            "the proxies' energy as VPLs (Figure 2a) and each voxel's order-2 SH (eqs. 2-3)",
-           cpu([s](FrameContext& c) { pass_light_vpls(s, c); })});
+           common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_light_vpls(s, c); }), kernels,
+                                               [s](const DeviceKernels& k) { return bind(k.light_vpls, s); })});
     g.add({"march_gbuffer", {render::kGBuffer}, {}, {kMarchGBuffer}, "the marching G-buffer (every march_scale-th display pixel)",
            cpu([s](FrameContext& c) {
              c.put<GBuffer>(kMarchGBuffer, subsample(c.get<GBuffer>(render::kGBuffer), s.march_scale));
@@ -647,15 +692,18 @@ class PointVoxels final : public render::Technique {
              c.put<GBuffer>(kGatherGBuffer, subsample(c.get<GBuffer>(render::kGBuffer), s.gather_scale));
              c.record().bytes = render::gbuffer_bytes(c.get<GBuffer>(kGatherGBuffer).width, c.get<GBuffer>(kGatherGBuffer).height);
            })});
-    g.add({"march", {kMarchGBuffer, kProxies}, {kLightMaps}, {kLists},
+    g.add({"march", {kMarchGBuffer, kVoxels}, {kLightMaps}, {kLists},
            "sparse shadow rays march the voxels, ray-disc tests, first hit ends a ray: the visible voxels per pixel (section 3.1)",
-           cpu([s](FrameContext& c) { pass_march(s, c); })});
+           common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_march(s, c); }), kernels,
+                                               [s](const DeviceKernels& k) { return bind(k.march, s); })});
     g.add({"filter", {kMarchGBuffer, kLists}, {}, {kFiltered},
            "visibility filter: union of the neighbours' lists under the depth and normal constraints (eq. 4)",
-           cpu([s](FrameContext& c) { pass_filter(s, c); })});
+           common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_filter(s, c); }), kernels,
+                                               [s](const DeviceKernels& k) { return bind(k.filter, s); })});
     g.add({"gather", {kGatherGBuffer, kMarchGBuffer, kFiltered, kVpls}, {}, {kGathered},
            "diffuse and glossy indirect from the four neighbours' lists, near voxels by VPL, far ones by SH (eqs. 5-6)",
-           cpu([s](FrameContext& c) { pass_gather(s, c); })});
+           common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_gather(s, c); }), kernels,
+                                               [s](const DeviceKernels& k) { return bind(k.gather, s); })});
     g.add({"indirect", {render::kGBuffer, kGatherGBuffer, kGathered}, {}, {render::kIndirect},
            "bilateral upsampling of the gathered light to display resolution, times the Phong terms",
            cpu([](FrameContext& c) { pass_indirect(c); })});
@@ -667,12 +715,13 @@ class PointVoxels final : public render::Technique {
   }
 
  private:
-  std::shared_ptr<common::SharedCache<std::string, std::vector<glm::vec3>>> sky_cache_ =
-      std::make_shared<common::SharedCache<std::string, std::vector<glm::vec3>>>();
+  std::shared_ptr<SkyCache> sky_cache_ = std::make_shared<SkyCache>();
 };
 
 }  // namespace
 
 std::unique_ptr<render::Technique> create() { return std::make_unique<PointVoxels>(); }
+
+void register_device_kernels(const std::string& backend, DeviceKernels kernels) { device_kernels().add(backend, std::move(kernels)); }
 
 }  // namespace softgi::techniques::point_voxels

@@ -142,7 +142,7 @@ PosedProxies pose_proxies(const scene::Scene& scene, const scene::PosedScene& po
 }
 
 glm::ivec3 VoxelGrid::cell_of(const glm::vec3& p) const {
-  glm::ivec3 v(glm::floor((p - lo) / cell));
+  glm::ivec3 v(glm::floor((p - lo) * inv_cell));
   return glm::clamp(v, glm::ivec3(0), dims - 1);
 }
 
@@ -151,7 +151,7 @@ std::size_t VoxelGrid::bytes() const {
          sh.size() * sizeof(sh[0]);
 }
 
-VoxelGrid build_voxel_grid(PosedProxies& proxies, glm::ivec3 dims, std::vector<std::uint32_t>* permutation) {
+VoxelGrid grid_frame(const PosedProxies& proxies, glm::ivec3 dims) {
   if (dims.x < 1 || dims.y < 1 || dims.z < 1 || static_cast<double>(dims.x) * dims.y * dims.z > 1 << 24)
     throw std::invalid_argument("voxel grid: " + std::to_string(dims.x) + "x" + std::to_string(dims.y) + "x" +
                                 std::to_string(dims.z) + " cells (expected 1 to 2^24 cells)");
@@ -166,6 +166,12 @@ VoxelGrid build_voxel_grid(PosedProxies& proxies, glm::ivec3 dims, std::vector<s
   const glm::vec3 pad(std::max(proxies.radius, 1e-4f));
   g.lo = lo - pad;
   g.cell = glm::max((hi + pad - g.lo) / glm::vec3(dims), glm::vec3(1e-6f));
+  g.inv_cell = 1.0f / g.cell;
+  return g;
+}
+
+VoxelGrid build_voxel_grid(PosedProxies& proxies, glm::ivec3 dims, std::vector<std::uint32_t>* permutation) {
+  VoxelGrid g = grid_frame(proxies, dims);
   const std::size_t n = proxies.size();
   std::vector<std::uint32_t> keys(n), order(n);
   for (std::size_t i = 0; i < n; ++i) keys[i] = g.hash(g.cell_of(proxies.position[i]));
@@ -293,7 +299,8 @@ namespace {
 // Delta_d delta_n of eq. 4.
 bool same_surface(float zp, float zq, const glm::vec3& np, const glm::vec3& nq, const FilterOptions& opt) {
   if (!std::isfinite(zq)) return false;
-  return std::abs(zq - zp) <= opt.depth_threshold * zp && glm::dot(np, nq) >= opt.normal_threshold;
+  // In float, as the GPU's filter compares.
+  return std::abs(zq - zp) <= static_cast<float>(opt.depth_threshold) * zp && glm::dot(np, nq) >= static_cast<float>(opt.normal_threshold);
 }
 
 void check_filter(const FilterOptions& opt) {
@@ -334,24 +341,24 @@ PixelLists visibility_filter(const PixelLists& in, const float* depth, const glm
   return out;
 }
 
-void filter_field(const std::vector<glm::vec3>& in, int width, int height, const float* depth, const glm::vec3* normal,
-                  const FilterOptions& opt, std::vector<glm::vec3>& out) {
+void filter_field(const float* in, int channels, int width, int height, const float* depth, const glm::vec3* normal,
+                  const FilterOptions& opt, float* out) {
   check_filter(opt);
-  out.assign(in.size(), glm::vec3(0.0f));
+  const auto c = static_cast<std::size_t>(channels);
   for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x) {
       const std::size_t p = static_cast<std::size_t>(y) * width + x;
+      for (std::size_t k = 0; k < c; ++k) out[p * c + k] = 0.0f;
       if (!std::isfinite(depth[p])) continue;
-      glm::vec3 sum(0.0f);
       int n = 0;
       for (int j = std::max(0, y - opt.radius_y); j <= std::min(height - 1, y + opt.radius_y); ++j)
         for (int i = std::max(0, x - opt.radius_x); i <= std::min(width - 1, x + opt.radius_x); ++i) {
           const std::size_t q = static_cast<std::size_t>(j) * width + i;
           if (q != p && !same_surface(depth[p], depth[q], normal[p], normal[q], opt)) continue;
-          sum += in[q];
+          for (std::size_t k = 0; k < c; ++k) out[p * c + k] += in[q * c + k];
           ++n;
         }
-      out[p] = sum / static_cast<float>(n);
+      for (std::size_t k = 0; k < c; ++k) out[p * c + k] /= static_cast<float>(n);
     }
 }
 
@@ -361,6 +368,12 @@ float eq7_weight(float cos_theta, float ns, float sigma) {
 }
 
 float eq7_sigma(float ns, float scale) { return scale * std::sqrt(2.0f / (ns + 2.0f)); }
+
+float glossy_lobe(const Receiver& r, const glm::vec3& w) {
+  if (!(r.glossy > 0.0f)) return 0.0f;
+  const float ca = glm::dot(r.reflect, w);
+  return ca > 0.0f ? r.glossy * (r.ns + 2.0f) / (2.0f * kPi) * std::pow(ca, r.ns) : 0.0f;
+}
 
 namespace {
 
@@ -464,7 +477,7 @@ CubeDepthMap rasterize_cube_depth(const scene::PosedScene& posed, const glm::vec
   m.size = size;
   // Rasterised as 1/z (affine on screen under a perspective projection), the largest kept.
   std::vector<float> inv(static_cast<std::size_t>(6) * size * size, 0.0f);
-  const float near = 1e-4f;
+  const float near = kCubeNear;
   for (const auto& obj : posed.objects)
     for (const auto& t : obj.source->triangles) {
       const glm::vec3 d[3] = {obj.positions[t.x] - center, obj.positions[t.y] - center, obj.positions[t.z] - center};
@@ -519,7 +532,7 @@ float CubeDepthMap::visibility(const glm::vec3& p, const glm::vec3& p_normal) co
   return n ? static_cast<float>(lit) / static_cast<float>(n) : 1.0f;
 }
 
-OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::vec3& towards_light, int size) {
+OrthoDepthMap ortho_frame(const scene::PosedScene& posed, const glm::vec3& towards_light, int size) {
   check_size(size, "directional depth map");
   OrthoDepthMap m;
   m.size = size;
@@ -538,6 +551,11 @@ OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::v
   const glm::vec2 pad = glm::max((hi - lo) * 0.01f, glm::vec2(1e-4f));
   m.lo = lo - pad;
   m.extent = hi + pad - m.lo;
+  return m;
+}
+
+OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::vec3& towards_light, int size) {
+  OrthoDepthMap m = ortho_frame(posed, towards_light, size);
   m.depth.assign(static_cast<std::size_t>(size) * size, kInf);
   for (const auto& obj : posed.objects)
     for (const auto& tri : obj.source->triangles) {

@@ -61,6 +61,7 @@ PosedProxies pose_proxies(const scene::Scene& scene, const scene::PosedScene& po
 // --- Section 3.1, eqs. 1-3: voxels ----------------------------------------------------------------
 struct VoxelGrid {
   glm::vec3 lo{0.0f}, cell{1.0f};  // world-space origin and cell size
+  glm::vec3 inv_cell{1.0f};        // 1 / cell: cell_of multiplies by it, as the GPU does, so both round alike
   glm::ivec3 dims{1};
   // Proxy indices of cell k are [start[k], start[k + 1]) in the sorted order.
   std::vector<std::uint32_t> start;
@@ -77,11 +78,13 @@ struct VoxelGrid {
   glm::ivec3 cell_of(const glm::vec3& p) const;  // clamped into the grid
   std::size_t bytes() const;
 };
-// The grid over the proxies' bounds (padded by the disc radius) with `dims` cells per axis; sorts
-// the proxies by eq. 1's key (stable: equal keys keep their sampling order) and permutes every
-// array of `proxies` into that order; `permutation` (optional) receives the old index of each
-// sorted proxy. The SH and centroids are left for accumulate_voxel_sh (the VPLs are lit after
-// sorting).
+// The grid over the proxies' bounds (padded by the disc radius) with `dims` cells per axis: lo, cell
+// and dims only (no proxies sorted). Throws std::invalid_argument for dims outside 1 to 2^24 cells.
+VoxelGrid grid_frame(const PosedProxies& proxies, glm::ivec3 dims);
+// The grid of grid_frame; sorts the proxies by eq. 1's key (stable: equal keys keep their sampling
+// order) and permutes every array of `proxies` into that order; `permutation` (optional) receives
+// the old index of each sorted proxy. The SH and centroids are left for accumulate_voxel_sh (the
+// VPLs are lit after sorting).
 VoxelGrid build_voxel_grid(PosedProxies& proxies, glm::ivec3 dims, std::vector<std::uint32_t>* permutation = nullptr);
 // Eqs. 2-3: each VPL's intensity I_p(w) = L_p A max(0, n_p . w) projected to order 2 (ZH of the
 // clamped cosine turned to n_p) and summed per voxel; the centroids.
@@ -116,10 +119,11 @@ struct FilterOptions {
 // V'_p = union of the neighbours' lists V_q over the window where delta_d delta_n = 1 (pixels that
 // hit nothing have no list and take none). depth: eye-space depth, +inf for background.
 PixelLists visibility_filter(const PixelLists& in, const float* depth, const glm::vec3* normal, const FilterOptions& opt);
-// The same window and constraints applied to a per-pixel field (the mean over accepted neighbours):
-// the environment's escaped-ray irradiance is smoothed exactly where the lists are unioned.
-void filter_field(const std::vector<glm::vec3>& in, int width, int height, const float* depth, const glm::vec3* normal,
-                  const FilterOptions& opt, std::vector<glm::vec3>& out);
+// The same window and constraints applied to a per-pixel field of `channels` floats (the mean over
+// accepted neighbours): the environment's escaped-ray irradiance is smoothed exactly where the lists
+// are unioned.
+void filter_field(const float* in, int channels, int width, int height, const float* depth, const glm::vec3* normal,
+                  const FilterOptions& opt, float* out);
 
 // --- Section 3.3, eqs. 5-6: gathering ----------------------------------------------------------------
 // Modified Phong (the measurement function of section 3.3, the reference renderer's BRDF):
@@ -130,6 +134,8 @@ struct Receiver {
   // sigma_theta of eq. 7 (0: the glossy term is the Phong BRDF's alone).
   float eq7_sigma = 0.0f;
 };
+// The glossy part of the Phong BRDF: g (ns + 2) / (2 pi) max(0, R . w)^ns (0 for a diffuse receiver).
+float glossy_lobe(const Receiver& r, const glm::vec3& w);
 // Eq. 7: w_spec = exp(-(|1 - cos^ns theta_i| / sigma)^2 / 2) / (sigma sqrt(2 pi)), theta_i between the
 // light's direction and the reflection vector.
 float eq7_weight(float cos_theta, float ns, float sigma);
@@ -165,6 +171,11 @@ struct CubeDepthMap {
   // lookup by two texels along the surface normal against self-shadowing.
   float visibility(const glm::vec3& p, const glm::vec3& p_normal) const;
 };
+// Faces 2a (+axis a) and 2a + 1 (-axis a), a = x, y, z; texel (i, j) of a face looks along
+// (d[(a + 1) % 3], d[(a + 2) % 3]) / |d[a]| = ((i + 0.5) / size * 2 - 1, (j + 0.5) / size * 2 - 1).
+// Triangles nearer than kCubeNear along the face's axis are clipped. Throws std::invalid_argument
+// for a size outside 1 to 8192.
+inline constexpr float kCubeNear = 1e-4f;
 CubeDepthMap rasterize_cube_depth(const scene::PosedScene& posed, const glm::vec3& center, int size);
 // An orthographic depth map along a distant light's direction, covering the posed scene.
 struct OrthoDepthMap {
@@ -175,6 +186,9 @@ struct OrthoDepthMap {
   std::vector<float> depth;  // size * size: min of -dot(p, dir) over the rasterised triangles
   float visibility(const glm::vec3& p, const glm::vec3& p_normal) const;
 };
+// The map's frame without its depths: dir, u, v, and lo and extent covering every posed vertex
+// (padded by 1 %). Throws std::invalid_argument for a size outside 1 to 8192.
+OrthoDepthMap ortho_frame(const scene::PosedScene& posed, const glm::vec3& towards_light, int size);
 OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::vec3& towards_light, int size);
 
 }  // namespace softgi::techniques::point_voxels

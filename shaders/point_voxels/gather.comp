@@ -1,0 +1,233 @@
+#version 450
+// Indirect light gathering (paper 002 section 3.3, eqs. 5-6) at the gathering resolution: each
+// pixel takes the filtered lists (bitsets) of its four marching neighbours with linear weights w_l
+// times joint bilateral w_G, normalised by their sum N_c (gather_taps); a voxel in several lists is
+// gathered once with the sum of their weights, in increasing voxel order; voxels nearer than R are
+// gathered VPL by VPL as discs, farther ones through their order-2 SH from their centroid
+// (gather_voxel), diffuse and glossy (the Phong lobe, optionally weighted by eq. 7) apart. One
+// invocation per gathering pixel; under a driver's loop-iteration limit an invocation that runs out
+// of budget saves its place and sums and the host dispatches again.
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
+#include "pv_shared.h"
+#include "pv_common.glsl"
+
+layout(local_size_x = kPvGroup) in;
+layout(std430, set = 0, binding = kPvGathBindProxies) readonly buffer Proxies { Proxy prox[]; };
+layout(std430, set = 0, binding = kPvGathBindRadiance) readonly buffer Radiance { vec4 radiance[]; };
+layout(std430, set = 0, binding = kPvGathBindStart) readonly buffer Start { uint cell_start[]; };
+layout(std430, set = 0, binding = kPvGathBindSh) readonly buffer Sh { float vsh[]; };
+layout(std430, set = 0, binding = kPvGathBindMarch) readonly buffer Pixels { MarchPixel pixels[]; };
+layout(std430, set = 0, binding = kPvGathBindBits) readonly buffer Bits { uint bits[]; };
+struct GatherPixel {
+  vec4 pos_depth;
+  vec4 normal_glossy;
+  vec4 reflect_ns;
+  vec4 extra;  // eq. 7 sigma (0: off), hit, (ns + 2) / (2 pi)
+};
+layout(std430, set = 0, binding = kPvGathBindReceivers) readonly buffer Receivers { GatherPixel recv[]; };
+struct Gathered {
+  vec4 irradiance;
+  vec4 glossy;
+  vec4 weighted;  // w: 1 when eq. 7 weighted a term
+};
+layout(std430, set = 0, binding = kPvGathBindOut) buffer Out { Gathered outv[]; };
+struct GatherState {
+  uvec4 s;
+  vec4 esum;
+};
+layout(std430, set = 0, binding = kPvGathBindState) buffer State { GatherState state[]; };
+layout(std430, set = 0, binding = kPvGathBindStatus) buffer Status { uint status[]; };
+layout(push_constant) uniform Push {
+  uint first, end;
+  int gw, mw, mh;
+  uint words;
+  float ratio;          // gathering scale / marching scale
+  float sigma_depth, sigma_normal;
+  float near2;          // R^2
+  float reg;            // A / pi, the VPL disc's regulariser
+  float eq7_norm;       // sigma sqrt(2 pi) / sigma: sqrt(2 pi)
+  uint budget;
+} pc;
+
+Gathered acc;
+GatherPixel rp;
+
+// add_glossy: one light's glossy term E (ns + 2) / (2 pi) max(0, R . w)^ns, and eq. 7's.
+void add_glossy(vec3 e, vec3 wn, float weight) {
+  const float ca = dot(rp.reflect_ns.xyz, wn);
+  if (ca <= 0.0) return;
+  const float ns = rp.reflect_ns.w;
+  const vec3 g = e * (rp.extra.z * pow(ca, ns));
+  acc.glossy.xyz += weight * g;
+  const float sigma = rp.extra.x;
+  if (sigma > 0.0) {
+    // eq7_weight times its peak's inverse sigma sqrt(2 pi): 1 at the reflection vector.
+    const float x = abs(1.0 - pow(max(0.0, ca), ns)) / sigma;
+    const float rel = exp(-0.5 * x * x) / (sigma * pc.eq7_norm) * (sigma * pc.eq7_norm);
+    acc.weighted.xyz += weight * rel * g;
+    acc.weighted.w = 1.0;
+  }
+}
+
+// The voxel's light from its centroid through its SH (eq. 6, second case; eqs. 2-3).
+void gather_far(uint k, float weight, vec3 to_c, float dc2) {
+  const float dc = sqrt(dc2);
+  const vec3 wn = to_c / dc;
+  const float cos_r = dot(rp.normal_glossy.xyz, wn);
+  if (cos_r <= 0.0) return;
+  const vec4 y = pv_basis2(-wn);
+  const uint o = k * kPvVoxelFloats;
+  const vec3 c0 = vec3(vsh[o], vsh[o + 1u], vsh[o + 2u]), c1 = vec3(vsh[o + 3u], vsh[o + 4u], vsh[o + 5u]);
+  const vec3 c2 = vec3(vsh[o + 6u], vsh[o + 7u], vsh[o + 8u]), c3 = vec3(vsh[o + 9u], vsh[o + 10u], vsh[o + 11u]);
+  const vec3 intensity = max(vec3(0.0), c0 * y[0] + c1 * y[1] + c2 * y[2] + c3 * y[3]);
+  const vec3 ei = intensity * (cos_r / dc2);
+  acc.irradiance.xyz += weight * ei;
+  if (rp.normal_glossy.w > 0.0) add_glossy(ei, wn, weight);
+}
+
+// One VPL of a near voxel: a disc of area A (eq. 6, first case).
+void gather_vpl(uint i, float weight, inout vec3 esum) {
+  const vec3 w = prox[i].position.xyz - rp.pos_depth.xyz;
+  const float d2 = dot(w, w);
+  if (!(d2 > 0.0)) return;
+  const vec3 wn = w / sqrt(d2);
+  const float cos_r = dot(rp.normal_glossy.xyz, wn), cos_v = -dot(prox[i].normal.xyz, wn);
+  if (cos_r <= 0.0 || cos_v <= 0.0) return;
+  const vec3 ei = radiance[i].xyz * (g_cell_a.w * cos_v * cos_r / (d2 + pc.reg));
+  esum += ei;
+  if (rp.normal_glossy.w > 0.0) add_glossy(ei, wn, weight);
+}
+
+void main() {
+  const uint i = pc.first + gl_GlobalInvocationID.x;
+  if (i >= pc.end) return;
+  GatherState st = state[i];
+  if (st.s.x == kPvPhaseDone) return;
+  rp = recv[i];
+  if (rp.extra.y == 0.0) {
+    state[i].s = uvec4(kPvPhaseDone, 0u, 0u, 0u);
+    return;
+  }
+  // gather_taps (point_voxels.cpp): eq. 5's weights over the four marching neighbours.
+  const int x = int(i % uint(pc.gw)), y = int(i / uint(pc.gw));
+  const float u = (float(x) + 0.5) * pc.ratio - 0.5, v = (float(y) + 0.5) * pc.ratio - 0.5;
+  const int x0 = int(floor(u)), y0 = int(floor(v));
+  const float fx = u - float(x0), fy = v - float(y0);
+  uint tq[4];
+  float wl[4], wg[4];
+  int nt = 0;
+  for (int j = 0; j < 2; ++j)
+    for (int k = 0; k < 2; ++k) {
+      const int qx = clamp(x0 + k, 0, pc.mw - 1), qy = clamp(y0 + j, 0, pc.mh - 1);
+      const uint q = uint(qy) * uint(pc.mw) + uint(qx);
+      if (pixels[q].pos_hit.w == 0.0) continue;
+      wl[nt] = (k != 0 ? fx : 1.0 - fx) * (j != 0 ? fy : 1.0 - fy);
+      const float dz = (pixels[q].normal_depth.w - rp.pos_depth.w) / (pc.sigma_depth * rp.pos_depth.w);
+      const float dn = (1.0 - dot(pixels[q].normal_depth.xyz, rp.normal_glossy.xyz)) / pc.sigma_normal;
+      wg[nt] = exp(-0.5 * (dz * dz + dn * dn));
+      tq[nt++] = q;
+    }
+  float nc = 0.0, nl = 0.0;
+  for (int k = 0; k < nt; ++k) {
+    nc += wl[k] * wg[k];
+    nl += wl[k];
+  }
+  const bool geometric = nc > 1e-4 * nl;
+  const float norm = geometric ? nc : nl;
+  if (st.s.x == kPvPhaseNew && !geometric) atomicAdd(status[kPvStatusUnmatched], 1u);
+  if (!(norm > 0.0)) {
+    state[i].s = uvec4(kPvPhaseDone, 0u, 0u, 0u);
+    return;
+  }
+  uint used = 0u;
+  float tw[4];
+  uint tb[4];
+  for (int k = 0; k < nt; ++k) {
+    const float w = (geometric ? wl[k] * wg[k] : wl[k]) / norm;
+    if (w > 0.0) {
+      tw[used] = w;
+      tb[used++] = tq[k] * pc.words;
+    }
+  }
+  // A voxel's weights are summed in increasing order, as the CPU's sorted (voxel, weight) pairs.
+  for (uint a = 1u; a < used; ++a)
+    for (uint b = a; b > 0u && tw[b] < tw[b - 1u]; --b) {
+      const float w = tw[b];
+      tw[b] = tw[b - 1u];
+      tw[b - 1u] = w;
+      const uint t = tb[b];
+      tb[b] = tb[b - 1u];
+      tb[b - 1u] = t;
+    }
+
+  // The union of the neighbours' bitset words.
+  uint tbits[4] = uint[4](0u, 0u, 0u, 0u);
+  acc = outv[i];
+  const uint resume_voxel = st.s.y;
+  uint gathered = st.s.w, word = resume_voxel / 32u, m = 0u;
+  if (word < pc.words) {
+    [[unroll]] for (uint t = 0u; t < 4u; ++t) tbits[t] = t < used ? bits[tb[t] + word] : 0u;
+    m = (tbits[0] | tbits[1] | tbits[2] | tbits[3]) & ~((1u << (resume_voxel % 32u)) - 1u);
+  }
+  // One loop whose every iteration is a word, a voxel or a VPL (pv_march says why).
+  uint vox = 0u, cell_b = 0u, vi = 0u, ve = 0u;
+  float weight = 0.0;
+  vec3 esum = vec3(0.0);
+  bool near_voxel = false;
+  uint spent = 0u;
+  for (;;) {
+    if (++spent > pc.budget) {
+      outv[i] = acc;
+      if (near_voxel) state[i] = GatherState(uvec4(kPvPhaseResume, vox, vi - cell_b, gathered), vec4(esum, 0.0));
+      else state[i] = GatherState(uvec4(kPvPhaseResume, m != 0u ? word * 32u + uint(findLSB(m)) : (word + 1u) * 32u, 0u, gathered), vec4(0.0));
+      atomicAdd(status[kPvStatusUnfinished], 1u);
+      return;
+    }
+    if (near_voxel) {
+      if (vi < ve) {
+        gather_vpl(vi, weight, esum);
+        ++vi;
+        continue;
+      }
+      acc.irradiance.xyz += weight * esum;
+      near_voxel = false;
+      ++gathered;
+      continue;
+    }
+    if (m != 0u) {
+      const uint bit = uint(findLSB(m));
+      m &= m - 1u;
+      vox = word * 32u + bit;
+      // A voxel's weights are summed in increasing order (the taps are sorted by weight).
+      weight = 0.0;
+      [[unroll]] for (uint t = 0u; t < 4u; ++t)
+        if (t < used && ((tbits[t] >> bit) & 1u) != 0u) weight += tw[t];
+      cell_b = cell_start[vox];
+      ve = cell_start[vox + 1u];
+      if (cell_b == ve) {
+        ++gathered;
+        continue;
+      }
+      const vec3 cen = vec3(vsh[vox * kPvVoxelFloats + 12u], vsh[vox * kPvVoxelFloats + 13u], vsh[vox * kPvVoxelFloats + 14u]);
+      const vec3 to_c = cen - rp.pos_depth.xyz;
+      const float dc2 = dot(to_c, to_c);
+      if (dc2 < pc.near2) {
+        const bool resumed = st.s.x == kPvPhaseResume && vox == resume_voxel;
+        vi = cell_b + (resumed ? st.s.z : 0u);
+        esum = resumed ? st.esum.xyz : vec3(0.0);
+        near_voxel = true;
+        continue;
+      }
+      gather_far(vox, weight, to_c, dc2);
+      ++gathered;
+      continue;
+    }
+    if (++word >= pc.words) break;
+    [[unroll]] for (uint t = 0u; t < 4u; ++t) tbits[t] = t < used ? bits[tb[t] + word] : 0u;
+    m = tbits[0] | tbits[1] | tbits[2] | tbits[3];
+  }
+  outv[i] = acc;
+  state[i].s = uvec4(kPvPhaseDone, 0u, 0u, gathered);
+  atomicAdd(status[kPvStatusCount], gathered);
+}

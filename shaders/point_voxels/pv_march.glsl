@@ -1,0 +1,104 @@
+// The marching functions of point_voxels' shaders (paper 002 section 3.1): march_ray with a loop
+// budget, and the sky's radiance along escaped rays. Expects pv_common.glsl included and `prox`
+// (sorted proxies), `cell_start` (cell ranges) and, with PV_SKY defined, `sky_sh` declared.
+#ifndef SOFTGI_PV_MARCH_GLSL
+#define SOFTGI_PV_MARCH_GLSL
+
+#ifdef PV_SKY
+// Lights::sky_radiance: the order-3 SH of the sky (`sky_sh`, 9 RGB coefficients) at w, clamped at
+// 0. The basis of sh::eval_basis written out for l <= 2: y_lm = K_lm P_lm(z) {cos, sin}(m phi) with
+// (x + i y)^m for the azimuthal factors, index l^2 + l + m.
+vec3 pv_sky_radiance(vec3 w) {
+  const float k0 = 0.28209479177387814, k1 = 0.4886025119029199, k2m1 = 1.0925484305920792, k20 = 0.31539156525252005,
+              k22 = 0.5462742152960396;
+  vec3 l = sky_sh[0].xyz * k0;
+  l += sky_sh[1].xyz * (k1 * w.y) + sky_sh[2].xyz * (k1 * w.z) + sky_sh[3].xyz * (k1 * w.x);
+  l += sky_sh[4].xyz * (k22 * (2.0 * w.x * w.y)) + sky_sh[5].xyz * (k2m1 * w.z * w.y) + sky_sh[6].xyz * (k20 * (3.0 * w.z * w.z - 1.0)) +
+       sky_sh[7].xyz * (k2m1 * w.z * w.x) + sky_sh[8].xyz * (k22 * (w.x * w.x - w.y * w.y));
+  return max(l, vec3(0.0));
+}
+#endif
+
+// march_ray with a loop budget: the first voxel along o + t d (t in [t_min, t_max]) whose discs the
+// ray hits, -1 when it leaves the grid, -2 when `budget` loop iterations ran out first; then `steps`
+// (cells stepped) and `disc` (next disc of the current cell) say where to resume, and the next call
+// with them replays the DDA to that cell without testing discs. One loop whose every iteration is a
+// disc test or a DDA step: a driver that limits loop iterations per SIMD batch of invocations (llvmpipe)
+// counts at most the budget for the batch, whatever the lanes' paths (nested loops would count the
+// inner loop's longest lane once per outer iteration). Expects `prox` (sorted proxies) and
+// `cell_start` (cell ranges) declared.
+int pv_march(vec3 o, vec3 d, float t_min, float t_max, inout uint steps, inout uint disc, uint budget) {
+  if (g_counts.x == 0u) return -1;
+  const vec3 lo = g_lo_r.xyz, hi = lo + g_cell_a.xyz * vec3(g_dims.xyz);
+  float t0 = t_min, t1 = t_max;
+  for (int a = 0; a < 3; ++a) {
+    if (abs(d[a]) < 1e-12) {
+      if (o[a] < lo[a] || o[a] > hi[a]) return -1;
+      continue;
+    }
+    float ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
+    if (ta > tb) {
+      const float x = ta;
+      ta = tb;
+      tb = x;
+    }
+    t0 = max(t0, ta);
+    t1 = min(t1, tb);
+  }
+  if (!(t0 <= t1)) return -1;
+  ivec3 v = pv_cell_of(o + d * t0);
+  ivec3 stp = ivec3(0);
+  vec3 t_next = vec3(0.0), t_delta = vec3(0.0);
+  for (int a = 0; a < 3; ++a) {
+    if (abs(d[a]) < 1e-12) {
+      stp[a] = 0;
+      t_next[a] = uintBitsToFloat(0x7f800000u);
+      t_delta[a] = uintBitsToFloat(0x7f800000u);
+      continue;
+    }
+    stp[a] = d[a] > 0.0 ? 1 : -1;
+    const float boundary = lo[a] + float(v[a] + (stp[a] > 0 ? 1 : 0)) * g_cell_a[a];
+    t_next[a] = (boundary - o[a]) / d[a];
+    t_delta[a] = g_cell_a[a] / abs(d[a]);
+  }
+  const float r = g_lo_r.w;
+  const uint target = steps;  // cells to replay before testing discs again
+  uint taken = 0u, spent = 0u, k = 0u, cell_b = 0u, i = 0u, e = 0u;
+  if (target == 0u) {
+    k = pv_hash(v);
+    cell_b = cell_start[k];
+    i = cell_b + disc;
+    e = cell_start[k + 1u];
+  }
+  for (;;) {
+    if (++spent > budget) {
+      if (taken < target) return -2;  // still replaying: the saved place stands
+      steps = taken;
+      disc = i - cell_b;
+      return -2;
+    }
+    if (i < e) {
+      const float t = pv_ray_disc(o, d, prox[i].position.xyz, prox[i].normal.xyz, r);
+      if (t >= t_min && t <= t_max) return int(k);
+      ++i;
+      continue;
+    }
+    int a = 0;
+    if (t_next[1] < t_next[a]) a = 1;
+    if (t_next[2] < t_next[a]) a = 2;
+    if (t_next[a] > t1) return -1;
+    v[a] += stp[a];
+    if (v[a] < 0 || v[a] >= g_dims[a]) return -1;
+    t_next[a] += t_delta[a];
+    ++taken;
+    if (taken >= target) {
+      k = pv_hash(v);
+      cell_b = cell_start[k];
+      i = cell_b + (taken == target ? disc : 0u);
+      e = cell_start[k + 1u];
+    }
+  }
+  return -1;
+}
+
+#endif

@@ -1,0 +1,323 @@
+// The lights' depth maps of point-proxy voxels (paper 002 Figure 2a) rasterised on the Vulkan
+// device: a depth-only graphics pipeline (shaders/point_voxels/depth_raster.vert) draws the posed
+// triangles into each face of every local light's cube map and into the sun's directional map, each
+// face's depth attachment is copied to a buffer and depth_resolve.comp turns its values into the
+// depths of the CPU's software rasteriser (rasterize_cube_depth, rasterize_ortho_depth). The maps
+// stay on the device for the VPL lighting; the host copy (for the direct pass) is read back only
+// when asked for.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "pv_passes.hpp"
+#include "pv_vulkan.hpp"
+#include "../common/accumulation_vulkan.hpp"
+#include "softgi/backends/vulkan/backend.hpp"
+#include "softgi/backends/vulkan/context.hpp"
+#include "pv_shared.h"
+
+namespace spv {
+#include "softgi/shaders/point_voxels/depth_raster_vert.h"
+#include "softgi/shaders/point_voxels/depth_resolve_comp.h"
+}  // namespace spv
+
+namespace softgi::techniques::point_voxels {
+
+namespace vk = backends::vulkan;
+using namespace common::gpu_passes;
+
+namespace {
+
+constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
+
+struct RasterPush {
+  glm::vec4 center_near;
+  glm::ivec4 mode_axes;
+  glm::vec4 params, u_lo, v_lo, dir, extent;
+};
+static_assert(sizeof(RasterPush) == 112);
+
+// The depth-only pipeline and, per map size, its attachment and framebuffer.
+struct DepthRaster {
+  std::mutex m;
+  std::unique_ptr<vk::PipelineLayout> layout;
+  vk::Owned<VkRenderPass> render_pass;
+  vk::Owned<VkPipeline> pipeline;
+  std::uint32_t size = 0;
+  vk::Image depth;
+  vk::Owned<VkFramebuffer> framebuffer;
+  vk::Buffer corners, raw;
+  std::uint64_t corners_hash = 0;
+  PipelineCache compute;
+};
+
+void make_pipeline(vk::Context& ctx, DepthRaster& r) {
+  const auto vs_words = words(spv::point_voxels_depth_raster_vert);
+  const vk::ShaderReflection rv = vk::reflect_spirv(vs_words);
+  r.layout = std::make_unique<vk::PipelineLayout>(ctx, std::vector<vk::ShaderReflection>{rv}, "point_voxels depth_raster");
+  VkDevice dev = ctx.device();
+  VkAttachmentDescription att{};
+  att.format = kDepthFormat;
+  att.samples = VK_SAMPLE_COUNT_1_BIT;
+  att.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  att.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  att.stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+  att.stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+  att.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  att.finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;  // copied to the raw buffer after each face
+  const VkAttachmentReference ref{0, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
+  VkSubpassDescription sub{};
+  sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+  sub.pDepthStencilAttachment = &ref;
+  // Before: the previous face's copy out of the attachment (write after read). After: the copy
+  // reads what the subpass wrote.
+  std::array<VkSubpassDependency, 2> deps{};
+  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
+  deps[0].dstSubpass = 0;
+  deps[0].srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  deps[0].dstStageMask = VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+  deps[0].srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  deps[0].dstAccessMask = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  deps[1].srcSubpass = 0;
+  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
+  deps[1].srcStageMask = VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+  deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  deps[1].srcAccessMask = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  VkRenderPassCreateInfo rp{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
+  rp.attachmentCount = 1;
+  rp.pAttachments = &att;
+  rp.subpassCount = 1;
+  rp.pSubpasses = &sub;
+  rp.dependencyCount = static_cast<std::uint32_t>(deps.size());
+  rp.pDependencies = deps.data();
+  VkRenderPass render_pass = VK_NULL_HANDLE;
+  vk::check(vkCreateRenderPass(dev, &rp, nullptr, &render_pass), "vkCreateRenderPass (point_voxels depth_raster)");
+  r.render_pass = vk::Owned<VkRenderPass>(render_pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); });
+
+  vk::Owned<VkShaderModule> vs = ctx.create_shader_module(vs_words, "point_voxels depth_raster.vert");
+  VkPipelineShaderStageCreateInfo stage{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  stage.stage = VK_SHADER_STAGE_VERTEX_BIT;
+  stage.module = vs.get();
+  stage.pName = rv.entry_point.c_str();
+  VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};  // corners from a storage buffer
+  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  vp.viewportCount = 1;
+  vp.scissorCount = 1;
+  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  rs.polygonMode = VK_POLYGON_MODE_FILL;
+  rs.cullMode = VK_CULL_MODE_NONE;  // both sides cast shadows, as on the CPU
+  rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+  rs.lineWidth = 1.0f;
+  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;  // the texel centre, as the CPU's coverage test
+  VkPipelineDepthStencilStateCreateInfo ds{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
+  ds.depthTestEnable = VK_TRUE;
+  ds.depthWriteEnable = VK_TRUE;
+  ds.depthCompareOp = VK_COMPARE_OP_GREATER;  // cube faces; the directional map is drawn with the depth flipped to match
+  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  const std::array<VkDynamicState, 2> dyn = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  VkPipelineDynamicStateCreateInfo dy{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+  dy.dynamicStateCount = static_cast<std::uint32_t>(dyn.size());
+  dy.pDynamicStates = dyn.data();
+  VkGraphicsPipelineCreateInfo gi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  gi.stageCount = 1;
+  gi.pStages = &stage;
+  gi.pVertexInputState = &vi;
+  gi.pInputAssemblyState = &ia;
+  gi.pViewportState = &vp;
+  gi.pRasterizationState = &rs;
+  gi.pMultisampleState = &ms;
+  gi.pDepthStencilState = &ds;
+  gi.pColorBlendState = &cb;
+  gi.pDynamicState = &dy;
+  gi.layout = r.layout->handle();
+  gi.renderPass = render_pass;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  vk::check(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &gi, nullptr, &pipeline), "vkCreateGraphicsPipelines (point_voxels depth_raster)");
+  r.pipeline = vk::Owned<VkPipeline>(pipeline, [dev](VkPipeline x) { vkDestroyPipeline(dev, x, nullptr); });
+}
+
+void make_target(vk::Context& ctx, DepthRaster& r, std::uint32_t size) {
+  r.framebuffer.reset();
+  r.depth = ctx.create_image(size, size, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                             VK_IMAGE_ASPECT_DEPTH_BIT, "point_voxels depth map " + std::to_string(size) + "^2");
+  const VkImageView view = r.depth.view();
+  VkFramebufferCreateInfo fi{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+  fi.renderPass = r.render_pass.get();
+  fi.attachmentCount = 1;
+  fi.pAttachments = &view;
+  fi.width = size;
+  fi.height = size;
+  fi.layers = 1;
+  VkDevice dev = ctx.device();
+  VkFramebuffer fb = VK_NULL_HANDLE;
+  vk::check(vkCreateFramebuffer(dev, &fi, nullptr, &fb), "vkCreateFramebuffer (point_voxels depth_raster)");
+  r.framebuffer = vk::Owned<VkFramebuffer>(fb, [dev](VkFramebuffer x) { vkDestroyFramebuffer(dev, x, nullptr); });
+  r.size = size;
+}
+
+// One map (`count` faces) drawn face by face, each face copied to the raw buffer at its place.
+void record_faces(vk::Recorder& rec, DepthRaster& r, const std::vector<RasterPush>& faces, float clear, std::uint32_t corners) {
+  VkCommandBuffer cmd = rec.cmd();
+  const VkDescriptorSet set = rec.descriptor_set(*r.layout, 0, {vk::Bind::buffer_at(gpu::kPvRasterBindCorners, r.corners)});
+  for (std::size_t f = 0; f < faces.size(); ++f) {
+    VkClearValue cv{};
+    cv.depthStencil.depth = clear;
+    VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+    bi.renderPass = r.render_pass.get();
+    bi.framebuffer = r.framebuffer.get();
+    bi.renderArea.extent = {r.size, r.size};
+    bi.clearValueCount = 1;
+    bi.pClearValues = &cv;
+    vkCmdBeginRenderPass(cmd, &bi, VK_SUBPASS_CONTENTS_INLINE);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r.pipeline.get());
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, r.layout->handle(), 0, 1, &set, 0, nullptr);
+    const VkViewport viewport{0.0f, 0.0f, static_cast<float>(r.size), static_cast<float>(r.size), 0.0f, 1.0f};
+    const VkRect2D scissor{{0, 0}, {r.size, r.size}};
+    vkCmdSetViewport(cmd, 0, 1, &viewport);
+    vkCmdSetScissor(cmd, 0, 1, &scissor);
+    vkCmdPushConstants(cmd, r.layout->handle(), r.layout->push_constant_stages(), 0, sizeof(RasterPush), &faces[f]);
+    if (corners) vkCmdDraw(cmd, corners, 1, 0, 0);
+    vkCmdEndRenderPass(cmd);
+    VkBufferImageCopy copy{};
+    copy.bufferOffset = static_cast<VkDeviceSize>(f) * r.size * r.size * sizeof(float);
+    copy.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
+    copy.imageExtent = {r.size, r.size, 1};
+    vkCmdCopyImageToBuffer(cmd, r.depth.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, r.raw.handle(), 1, &copy);
+  }
+}
+
+}  // namespace
+
+void vulkan_light_maps(const Settings& s, render::FrameContext& ctx, std::shared_ptr<Lights> L, LightBuffers& out) {
+  vk::Context& dev = vk::context_of(ctx);
+  auto r = dev.cached<DepthRaster>("point_voxels.depth_raster", [] { return std::make_shared<DepthRaster>(); });
+  std::lock_guard<std::mutex> lock(r->m);
+  const auto size = static_cast<std::uint32_t>(s.shadow_map_size);
+  const auto& lim = dev.device_info().limits;
+  if (size > lim.maxImageDimension2D || size > lim.maxFramebufferWidth || size > lim.maxFramebufferHeight)
+    throw std::invalid_argument("point_voxels light_maps on vulkan: parameter 'shadow_map_size' " + std::to_string(size) + " exceeds device '" +
+                                dev.device_info().name + "''s largest framebuffer (" + std::to_string(lim.maxFramebufferWidth) + ")");
+  const std::size_t face = static_cast<std::size_t>(size) * size;
+  const std::size_t cube_floats = L->local.size() * 6 * face, sun_floats = L->sun ? face : 0;
+  check_fits(dev, 6 * face * sizeof(float), "a cube depth map of " + std::to_string(size) + "^2 texels per face",
+             "point_voxels light_maps", "use a smaller shadow_map_size, or --backend cpu");
+  check_fits(dev, cube_floats * sizeof(float), "the cube depth maps of " + std::to_string(L->local.size()) + " lights", "point_voxels light_maps",
+             "use a smaller shadow_map_size, or --backend cpu");
+
+  // The posed triangles' corners, 3 per triangle; the directional map's depth range from the vertices.
+  std::vector<glm::vec4> corners;
+  float z_lo = std::numeric_limits<float>::infinity(), z_hi = -z_lo;
+  for (const auto& obj : ctx.posed.objects) {
+    if (!obj.source) continue;
+    for (const auto& t : obj.source->triangles)
+      for (int k = 0; k < 3; ++k) {
+        if (t[k] >= obj.positions.size())
+          throw std::invalid_argument("point_voxels light_maps on vulkan: mesh '" + obj.source->name + "' has a vertex index " +
+                                      std::to_string(t[k]) + " >= " + std::to_string(obj.positions.size()));
+        const glm::vec3 p = obj.positions[t[k]];
+        corners.push_back(glm::vec4(p, 1.0f));
+        if (L->sun) {
+          const float z = -glm::dot(p, L->sun_map.dir);
+          z_lo = std::min(z_lo, z);
+          z_hi = std::max(z_hi, z);
+        }
+      }
+  }
+  if (corners.size() > std::numeric_limits<std::uint32_t>::max())
+    throw std::invalid_argument("point_voxels light_maps on vulkan: " + std::to_string(corners.size() / 3) + " triangles exceed 32-bit vertex numbering");
+  check_fits(dev, corners.size() * sizeof(glm::vec4), "the corners of " + std::to_string(corners.size() / 3) + " triangles",
+             "point_voxels light_maps", "use a simpler scene, or --backend cpu");
+  // Padded so that no vertex sits on the clip planes of the [0, 1] depth range.
+  const float pad = std::max(1e-4f, 1e-3f * (z_hi - z_lo));
+  z_lo -= pad;
+  z_hi += pad;
+
+  if (!r->pipeline) make_pipeline(dev, *r);
+  if (r->size != size) make_target(dev, *r, size);
+  const std::size_t before = dev.transfer_bytes().upload;
+  upload_bytes_if_changed(dev, r->corners, r->corners_hash, corners.data(), corners.size() * sizeof(glm::vec4), "point_voxels triangle corners");
+  const std::size_t uploaded = dev.transfer_bytes().upload - before;
+  dev.ensure_buffer(r->raw, 6 * face * sizeof(float), kStorage, vk::MemoryKind::Device, "point_voxels depth map texels");
+  dev.ensure_buffer(out.cube, std::max<std::size_t>(4, cube_floats) * sizeof(float), kStorage, vk::MemoryKind::Device, "point_voxels cube depth maps");
+  dev.ensure_buffer(out.sun, (gpu::kPvSunHeader + std::max<std::size_t>(1, sun_floats)) * sizeof(float), kStorage, vk::MemoryKind::Device,
+                    "point_voxels sun depth map");
+  // The sun map's header (pv_vulkan's layout, vpl_light.comp's reader).
+  std::vector<float> header(gpu::kPvSunHeader, 0.0f);
+  if (L->sun) {
+    const OrthoDepthMap& m = L->sun_map;
+    const float h[] = {m.dir.x, m.dir.y, m.dir.z, m.u.x, m.u.y, m.u.z, m.v.x, m.v.y, m.v.z, m.lo.x, m.lo.y, m.extent.x, m.extent.y,
+                       static_cast<float>(m.size)};
+    std::copy(std::begin(h), std::end(h), header.begin());
+  }
+  dev.upload(out.sun, header.data(), header.size() * sizeof(float));
+  out.cube_hash = out.sun_hash = 0;
+
+  vk::ComputePipeline& resolve = pipeline(dev, r->compute, "pv.depth_resolve", words(spv::point_voxels_depth_resolve_comp), {});
+  struct Resolve {
+    std::uint32_t first, end, mode, out_offset;
+    float near, z_lo, z_range;
+  };
+  const auto n_corners = static_cast<std::uint32_t>(corners.size());
+  double secs = 0.0;
+  auto run_map = [&](const std::vector<RasterPush>& faces, float clear, const Resolve& res, const vk::Buffer& target, const std::string& what) {
+    const vk::SubmitResult sr = dev.submit([&](vk::Recorder& rec) {
+      rec.begin_timer("light_maps");
+      record_faces(rec, *r, faces, clear, n_corners);
+      rec.barrier();
+      dispatch_chunks<Resolve>(rec, resolve, {vk::Bind::buffer_at(gpu::kPvResolveBindRaw, r->raw), vk::Bind::buffer_at(gpu::kPvResolveBindOut, target)},
+                               faces.size() * face, gpu::kPvGroup, [&](std::uint32_t a, std::uint32_t b) {
+                                 Resolve q = res;
+                                 q.first = a;
+                                 q.end = b;
+                                 return q;
+                               });
+      rec.end_timer();
+      rec.barrier();
+    }, what);
+    secs += std::max(0.0, timer_seconds(sr));
+  };
+  for (std::size_t l = 0; l < L->local.size(); ++l) {
+    std::vector<RasterPush> faces(6);
+    for (int f = 0; f < 6; ++f) {
+      const int a = f / 2;
+      RasterPush& p = faces[static_cast<std::size_t>(f)];
+      p.center_near = glm::vec4(L->local[l].center, kCubeNear);
+      p.mode_axes = glm::ivec4(static_cast<int>(gpu::kPvRasterCube), a, (a + 1) % 3, (a + 2) % 3);
+      p.params = glm::vec4(f % 2 == 0 ? 1.0f : -1.0f, 0.0f, 0.0f, 0.0f);
+    }
+    run_map(faces, 0.0f, Resolve{0, 0, gpu::kPvRasterCube, static_cast<std::uint32_t>(l * 6 * face), kCubeNear, 0.0f, 0.0f}, out.cube,
+            "point_voxels cube depth map");
+  }
+  if (L->sun) {
+    const OrthoDepthMap& m = L->sun_map;
+    RasterPush p;
+    p.center_near = glm::vec4(0.0f);
+    p.mode_axes = glm::ivec4(static_cast<int>(gpu::kPvRasterOrtho), 0, 0, 0);
+    // Drawn as 1 - the normalised depth so that the pipeline's GREATER keeps the nearest (cleared to 0).
+    p.params = glm::vec4(z_hi, -1.0f / (z_hi - z_lo), 0.0f, 0.0f);
+    p.u_lo = glm::vec4(m.u, m.lo.x);
+    p.v_lo = glm::vec4(m.v, m.lo.y);
+    p.dir = glm::vec4(m.dir, 0.0f);
+    p.extent = glm::vec4(m.extent, 0.0f, 0.0f);
+    run_map({p}, 0.0f, Resolve{0, 0, gpu::kPvRasterOrtho, gpu::kPvSunHeader, 0.0f, z_hi, -(z_hi - z_lo)}, out.sun, "point_voxels sun depth map");
+  }
+  auto& rec = ctx.record();
+  rec.counters["triangles"] = static_cast<double>(corners.size() / 3);
+  rec.counters["maps_texels"] = static_cast<double>(cube_floats + sun_floats);
+  rec.counters["kernel_gpu_seconds"] = secs;
+  rec.counters["upload_bytes"] = static_cast<double>(uploaded);
+  rec.bytes = L->bytes() + (cube_floats + sun_floats) * sizeof(float) + corners.size() * sizeof(glm::vec4);
+}
+
+}  // namespace softgi::techniques::point_voxels
