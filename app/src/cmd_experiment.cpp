@@ -23,6 +23,7 @@
 #include "output_dir.hpp"
 #include "softgi/io/scene_file.hpp"
 #include "softgi/metrics/image_metrics.hpp"
+#include "softgi/metrics/reference_noise.hpp"
 #include "softgi/reference/reference.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -146,6 +147,45 @@ struct Variant {
   }
   Compared image = Compared::Final;
 };
+
+// The scene's camera turned about its target by `deg` degrees around its up axis.
+scene::Scene orbited(const scene::Scene& sc, double deg) {
+  scene::Scene out = sc;
+  const glm::dvec3 target(sc.camera.target), up = glm::normalize(glm::dvec3(sc.camera.up));
+  const glm::dvec3 d = glm::dvec3(sc.camera.position) - target;
+  const double a = deg * 3.14159265358979323846 / 180.0, c = std::cos(a), s = std::sin(a);
+  // Rodrigues' rotation of d about `up`.
+  const glm::dvec3 r = d * c + glm::cross(up, d) * s + up * glm::dot(up, d) * (1.0 - c);
+  out.camera.position = glm::vec3(target + r);
+  return out;
+}
+
+// One variant's frames along the camera path and their frame-to-frame changes.
+struct PathRun {
+  std::vector<double> change;  // relMSE of frame k + 1 against frame k
+  std::vector<double> temporal;  // temporal_error of each step
+  double mean_change = NAN, mean_temporal = NAN;
+};
+
+// How far a technique's frame-to-frame change departs from the true one: mean over pixels and
+// channels of ((t1 - t0) - (r1 - r0))^2 / (r0^2 + eps), the reference frames r0, r1 each the mean of
+// two independent halves, less the part their noise adds (mean of ((a0 - b0)^2 + (a1 - b1)^2) / 4 /
+// (r0^2 + eps): the variance of a half-difference over 4 is that of the mean). A technique whose
+// error is the same in every frame scores 0 however large that error; flicker scores above 0.
+double temporal_error(const Image& t0, const Image& t1, const Image& a0, const Image& b0, const Image& a1, const Image& b1, double eps) {
+  double sum = 0.0, noise = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < t0.rgb.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double r0 = 0.5 * (a0.rgb[i][c] + b0.rgb[i][c]), r1 = 0.5 * (a1.rgb[i][c] + b1.rgb[i][c]);
+      const double d = (static_cast<double>(t1.rgb[i][c]) - t0.rgb[i][c]) - (r1 - r0), w = 1.0 / (r0 * r0 + eps);
+      const double h0 = static_cast<double>(a0.rgb[i][c]) - b0.rgb[i][c], h1 = static_cast<double>(a1.rgb[i][c]) - b1.rgb[i][c];
+      sum += d * d * w;
+      noise += 0.25 * (h0 * h0 + h1 * h1) * w;
+      ++n;
+    }
+  return n ? (sum - noise) / static_cast<double>(n) : 0.0;
+}
 
 struct Reference {
   int order = 0;
@@ -432,6 +472,137 @@ class ExperimentRunner {
   }
   }
 
+  // Temporal stability over def.camera_orbit_deg (the paper's limitation: the sparse rays' origins
+  // and directions change with the viewpoint, so the voxels found change from frame to frame): each
+  // variant's compared image at every camera, and the reference's as two independent halves, so
+  // that its frame-to-frame change can be measured with its own noise taken out.
+  void measure_camera_path() {
+  if (def.camera_orbit_deg.size() < 2) return;
+  render::Backend& backend = variants_ptr ? *variants_ptr : *backend_ptr;
+  const std::size_t n = def.camera_orbit_deg.size();
+  std::vector<scene::Scene> scenes;
+  for (double deg : def.camera_orbit_deg) scenes.push_back(orbited(sc, deg));
+  std::vector<std::pair<Image, Image>> halves;
+  for (std::size_t k = 0; k < n; ++k) {
+    std::pair<Image, Image> hk;
+    for (int half = 0; half < 2; ++half) {
+      reference::ReferenceOptions opt;
+      opt.spp = std::max(1, spp / 2);
+      opt.blockers = reference::ReferenceOptions::Blockers::Geometry;
+      opt.light_sh_order = 0;
+      opt.indirect = true;
+      opt.time = def.time;
+      // Every frame's halves have seeds of their own: frames sharing a seed would share their noise
+      // (the camera barely moves), and the noise estimates below take the frames' noises as independent.
+      opt.seed = args.seed + 7919u * static_cast<unsigned>(half + 1) + 104729u * static_cast<unsigned>(k + 1);
+      opt.width = w;
+      opt.height = h;
+      opt.jitter = false;
+      bool cached = false;
+      const auto r = cached_reference(scenes[k], opt,
+                                      progress_printer("camera path reference " + std::to_string(k + 1) + "/" + std::to_string(n) +
+                                                       (half == 0 ? " (half a)" : " (half b)")),
+                                      cached);
+      (half == 0 ? hk.first : hk.second) = def.image == Compared::Indirect ? r.indirect : r.final_image;
+    }
+    halves.push_back(std::move(hk));
+  }
+  double sum = 0.0;
+  for (std::size_t k = 0; k + 1 < n; ++k) {
+    path_ref_change.push_back(metrics::noise_corrected_relmse_between(halves[k + 1].first, halves[k + 1].second, halves[k].first,
+                                                                      halves[k].second));
+    sum += path_ref_change.back().corrected;
+  }
+  path_ref_mean = sum / static_cast<double>(n - 1);
+  out->write_image_pair("camera_path/reference_0", metrics::mean_of_halves(halves[0].first, halves[0].second));
+  out->write_png_display("camera_path/reference_change_0_1.png",
+                         metrics::error_map(metrics::mean_of_halves(halves[1].first, halves[1].second),
+                                            metrics::mean_of_halves(halves[0].first, halves[0].second)));
+  path_runs.assign(vars.size(), PathRun{});
+  for (std::size_t vi = 0; vi < vars.size(); ++vi) {
+    Variant& v = vars[vi];
+    if (!v.error.empty()) continue;
+    std::cerr << "experiment: camera path, " << v.def.label << "\n";
+    std::vector<Image> frames;
+    try {
+      for (std::size_t k = 0; k < n; ++k) {
+        render::RenderRequest req;
+        req.width = w;
+        req.height = h;
+        req.time = def.time;
+        req.outputs = {"final"};
+        if (def.image == Compared::Indirect) req.outputs = {"final", "indirect"};
+        render::FrameResult f = backend.render(*v.technique, scenes[k], v.params, req);
+        frames.push_back(def.image == Compared::Indirect ? std::move(f.indirect) : std::move(f.final_image));
+      }
+    } catch (const std::exception& e) {
+      v.error = std::string("camera path: ") + e.what();
+      failures.push_back(v.def.label + ": " + v.error);
+      continue;
+    }
+    PathRun& run = path_runs[vi];
+    double total = 0.0, total_t = 0.0;
+    const double eps = metrics::MetricOptions{}.relmse_epsilon;
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+      run.change.push_back(metrics::compare(frames[k + 1], frames[k]).relmse);
+      run.temporal.push_back(temporal_error(frames[k], frames[k + 1], halves[k].first, halves[k].second, halves[k + 1].first,
+                                            halves[k + 1].second, eps));
+      total += run.change.back();
+      total_t += run.temporal.back();
+    }
+    run.mean_change = total / static_cast<double>(n - 1);
+    run.mean_temporal = total_t / static_cast<double>(n - 1);
+    out->write_image_pair("camera_path/" + v.def.label + "_0", frames[0]);
+    out->write_png_display("camera_path/" + v.def.label + "_change_0_1.png", metrics::error_map(frames[1], frames[0]));
+  }
+  }
+
+  // The camera path's section of index.md and results.json.
+  void write_camera_path(Json& j, std::ostringstream& md) {
+  if (path_runs.empty()) return;
+  const std::string image_name = def.image == Compared::Indirect ? "indirect" : "final";
+  md << "## Temporal stability over a camera path\n\n"
+     << "The camera turned about its target by";
+  for (double d : def.camera_orbit_deg) md << " " << fmt(d, 3);
+  md << " degrees (about its up axis), one frame each. Frame-to-frame change: relMSE of the " << image_name
+     << " image of frame k + 1 against frame k, averaged over the " << def.camera_orbit_deg.size() - 1
+     << " steps; the reference's with its noise taken out (two independent halves of " << std::max(1, spp / 2)
+     << " spp per frame; `metrics::noise_corrected_relmse_between`). Temporal error: mean of ((t_{k+1} - t_k) - (r_{k+1} - r_k))^2 / "
+        "(r_k^2 + eps) over the pixels, less what the reference's noise adds: how far the frame-to-frame change departs from the "
+        "true one (0 for an error that is the same in every frame; flicker adds to it). Images: [reference, frame 0](camera_path/reference_0.png), "
+        "[reference change 0 -> 1](camera_path/reference_change_0_1.png).\n\n"
+     << "| variant | mean change | reference's mean change | ratio | temporal error | change per step | temporal error per step | images |\n"
+        "|---|---|---|---|---|---|---|---|\n";
+  Json jp = {{"orbit_deg", def.camera_orbit_deg}, {"reference_half_spp", std::max(1, spp / 2)}};
+  Json jref = Json::array();
+  for (const auto& e : path_ref_change)
+    jref.push_back({{"corrected", num(e.corrected)}, {"raw", num(e.raw)}, {"noise", num(e.noise)}, {"ci95", {num(e.ci_low), num(e.ci_high)}}});
+  jp["reference_change"] = jref;
+  jp["reference_mean_change"] = num(path_ref_mean);
+  Json jv = Json::array();
+  for (std::size_t vi = 0; vi < vars.size(); ++vi) {
+    const Variant& v = vars[vi];
+    const PathRun& r = path_runs[vi];
+    if (!v.error.empty() || r.change.empty()) continue;
+    std::string steps, tsteps;
+    for (double c : r.change) steps += (steps.empty() ? "" : ", ") + fmt(c, 3);
+    for (double c : r.temporal) tsteps += (tsteps.empty() ? "" : ", ") + fmt(c, 3);
+    const double ratio = r.mean_change / path_ref_mean;
+    md << "| " << v.def.label << " | " << fmt(r.mean_change) << " | " << fmt(path_ref_mean) << " | " << fmt(ratio, 3) << " | "
+       << fmt(r.mean_temporal) << " | " << steps << " | " << tsteps << " | [frame 0](camera_path/" << v.def.label
+       << "_0.png) · [change 0 -> 1](camera_path/" << v.def.label << "_change_0_1.png) |\n";
+    jv.push_back({{"label", v.def.label},
+                  {"change", r.change},
+                  {"mean_change", num(r.mean_change)},
+                  {"ratio_to_reference", num(ratio)},
+                  {"temporal_error", r.temporal},
+                  {"mean_temporal_error", num(r.mean_temporal)}});
+  }
+  md << "\n";
+  jp["variants"] = jv;
+  j["camera_path"] = jp;
+  }
+
   // results.json, index.md, images; then the failures, if any.
   void write() {
   render::Backend& backend = variants_ptr ? *variants_ptr : *backend_ptr;
@@ -635,6 +806,7 @@ class ExperimentRunner {
   }
 
   if (def.operator_curve) write_operator_curve(*out, j, md);
+  write_camera_path(j, md);
 
   std::string pruned;
   for (const auto& v : vars)
@@ -668,6 +840,9 @@ class ExperimentRunner {
   std::vector<Mask> bands;
   std::vector<std::string> failures;
   std::vector<Reference> refs;
+  std::vector<PathRun> path_runs;          // per variant, along def.camera_orbit_deg
+  std::vector<metrics::NoiseCorrectedError> path_ref_change;  // the reference's, noise removed
+  double path_ref_mean = NAN;
   std::optional<OutputDir> out;  // DIR and its record, results.json
 };
 
@@ -690,6 +865,7 @@ void run_experiment(const ExperimentArgs& args, bool spp_given, bool frames_give
   run.render_variants();
   run.render_references();
   run.measure();
+  run.measure_camera_path();
   run.write();
 }
 

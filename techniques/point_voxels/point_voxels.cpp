@@ -372,8 +372,8 @@ void pass_march(const Settings& s, FrameContext& ctx) {
   auto m = std::make_shared<Marched>();
   const std::size_t np = static_cast<std::size_t>(g.width) * g.height;
   std::vector<std::vector<std::int32_t>> lists(np);
-  m->sky_irradiance.assign(np, glm::vec3(0.0f));
-  m->escaped.assign(np, 0.0f);
+  m->sky.irradiance.assign(np, glm::vec3(0.0f));
+  m->sky.escaped.assign(np, 0.0f);
   const float r = V.proxies.radius;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 64), [&](const tbb::blocked_range<std::size_t>& br) {
     for (std::size_t i = br.begin(); i < br.end(); ++i) {
@@ -396,8 +396,8 @@ void pass_march(const Settings& s, FrameContext& ctx) {
       }
       std::sort(list.begin(), list.end());
       list.erase(std::unique(list.begin(), list.end()), list.end());
-      m->sky_irradiance[i] = e * (kPi / static_cast<float>(s.rays));
-      m->escaped[i] = static_cast<float>(escaped) / static_cast<float>(s.rays);
+      m->sky.irradiance[i] = e * (kPi / static_cast<float>(s.rays));
+      m->sky.escaped[i] = static_cast<float>(escaped) / static_cast<float>(s.rays);
     }
   });
   m->lists.width = g.width;
@@ -422,15 +422,17 @@ void pass_filter(const Settings& s, FrameContext& ctx) {
   const auto& in = *ctx.get<std::shared_ptr<const Marched>>(kLists);
   auto m = std::make_shared<Marched>();
   m->lists = visibility_filter(in.lists, g.depth.data(), g.normal.data(), s.filter);
-  m->sky_irradiance.resize(in.sky_irradiance.size());
-  m->escaped.resize(in.escaped.size());
-  filter_field(&in.sky_irradiance[0].x, 3, g.width, g.height, g.depth.data(), g.normal.data(), s.filter, &m->sky_irradiance[0].x);
-  filter_field(in.escaped.data(), 1, g.width, g.height, g.depth.data(), g.normal.data(), s.filter, m->escaped.data());
+  auto sky = std::make_shared<SkyLight>();
+  sky->irradiance.resize(in.sky.irradiance.size());
+  sky->escaped.resize(in.sky.escaped.size());
+  filter_field(&in.sky.irradiance[0].x, 3, g.width, g.height, g.depth.data(), g.normal.data(), s.filter, &sky->irradiance[0].x);
+  filter_field(in.sky.escaped.data(), 1, g.width, g.height, g.depth.data(), g.normal.data(), s.filter, sky->escaped.data());
   const std::size_t hits = hit_pixels(g);
   auto& rec = ctx.record();
   rec.counters["list_mean_before"] = hits ? static_cast<double>(in.lists.voxel.size()) / hits : 0.0;
   rec.counters["list_mean"] = hits ? static_cast<double>(m->lists.voxel.size()) / hits : 0.0;
-  rec.bytes = m->bytes();
+  rec.bytes = m->bytes() + sky->bytes();
+  ctx.put<std::shared_ptr<const SkyLight>>(kFilteredSky, std::move(sky));
   ctx.put<std::shared_ptr<const Marched>>(kFiltered, std::move(m));
 }
 
@@ -529,9 +531,9 @@ void pass_direct(FrameContext& ctx) {
   const auto& g = ctx.get<GBuffer>(render::kGBuffer);
   const auto& L = *ctx.get<std::shared_ptr<const Lights>>(kLightMaps);
   std::vector<std::vector<float>> sky;  // irradiance (3 channels), escaped fraction (1)
-  if (L.sky && ctx.has(kFiltered)) {
-    const auto& F = *ctx.get<std::shared_ptr<const Marched>>(kFiltered);
-    sky = upsample_fields(ctx.get<GBuffer>(kMarchGBuffer), g, {{&F.sky_irradiance[0].x, 3}, {F.escaped.data(), 1}});
+  if (L.sky && ctx.has(kFilteredSky)) {
+    const auto& F = *ctx.get<std::shared_ptr<const SkyLight>>(kFilteredSky);
+    sky = upsample_fields(ctx.get<GBuffer>(kMarchGBuffer), g, {{&F.irradiance[0].x, 3}, {F.escaped.data(), 1}});
   }
   Image img(g.width, g.height);
   const std::size_t np = img.rgb.size();
@@ -593,7 +595,8 @@ std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const re
   const std::size_t window = static_cast<std::size_t>(2 * s.filter.radius_x + 1) * (2 * s.filter.radius_y + 1);
   host(kMarchGBuffer, render::gbuffer_bytes(mw, mh), "march_gbuffer");
   host(kLists, mp * (static_cast<std::size_t>(s.rays) * 4 + 4 + 4 * sizeof(float)), "march", false, true);
-  host(kFiltered, mp * (std::min(window * s.rays, cells) * 4 + 4 + 4 * sizeof(float)), "filter", false, true);
+  host(kFiltered, mp * (std::min(window * s.rays, cells) * 4 + 4), "filter", false, true);
+  host(kFilteredSky, mp * 4 * sizeof(float), "filter");
   const int gw = render::scaled_size(w, s.gather_scale), gh = render::scaled_size(h, s.gather_scale);
   const std::size_t gp = render::pixel_count(gw, gh);
   if (s.indirect) {
@@ -696,7 +699,7 @@ class PointVoxels final : public render::Technique {
            "sparse shadow rays march the voxels, ray-disc tests, first hit ends a ray: the visible voxels per pixel (section 3.1)",
            common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_march(s, c); }), kernels,
                                                [s](const DeviceKernels& k) { return bind(k.march, s); })});
-    g.add({"filter", {kMarchGBuffer, kLists}, {}, {kFiltered},
+    g.add({"filter", {kMarchGBuffer, kLists}, {}, {kFiltered, kFilteredSky},
            "visibility filter: union of the neighbours' lists under the depth and normal constraints (eq. 4)",
            common::with_kernels<DeviceKernels>(cpu([s](FrameContext& c) { pass_filter(s, c); }), kernels,
                                                [s](const DeviceKernels& k) { return bind(k.filter, s); })});
@@ -707,7 +710,7 @@ class PointVoxels final : public render::Technique {
     g.add({"indirect", {render::kGBuffer, kGatherGBuffer, kGathered}, {}, {render::kIndirect},
            "bilateral upsampling of the gathered light to display resolution, times the Phong terms",
            cpu([](FrameContext& c) { pass_indirect(c); })});
-    g.add({"direct", {render::kGBuffer, kLightMaps}, {kFiltered, kMarchGBuffer}, {render::kDirect},
+    g.add({"direct", {render::kGBuffer, kLightMaps}, {kFilteredSky, kMarchGBuffer}, {render::kDirect},
            "local lights and sun through their depth maps, the sky through the filtered escaped rays",
            cpu([](FrameContext& c) { pass_direct(c); })});
     render::add_compose_pass(g);

@@ -285,7 +285,7 @@ void vulkan_light_maps(const Settings& s, render::FrameContext& ctx, std::shared
       rec.end_timer();
       rec.barrier();
     }, what);
-    secs += std::max(0.0, timer_seconds(sr));
+    secs += std::max(0.0, sr.gpu_seconds);
   };
   for (std::size_t l = 0; l < L->local.size(); ++l) {
     std::vector<RasterPush> faces(6);

@@ -30,7 +30,8 @@ inline constexpr const char* kVpls = "point_voxels.vpls";              // shared
 inline constexpr const char* kMarchGBuffer = "point_voxels.march_gbuffer";
 inline constexpr const char* kGatherGBuffer = "point_voxels.gather_gbuffer";
 inline constexpr const char* kLists = "point_voxels.lists";            // shared_ptr<const Marched>
-inline constexpr const char* kFiltered = "point_voxels.filtered";      // shared_ptr<const Marched>
+inline constexpr const char* kFiltered = "point_voxels.filtered";      // shared_ptr<const Marched>: the lists only
+inline constexpr const char* kFilteredSky = "point_voxels.filtered_sky";  // shared_ptr<const SkyLight>
 inline constexpr const char* kGathered = "point_voxels.gathered";      // shared_ptr<const std::vector<Gathered>>
 inline constexpr const char* kIndirectEnabled = "point_voxels.indirect_enabled";  // input; empty when indirect=false
 
@@ -85,13 +86,20 @@ struct Lights {
 // The environment's SH per environment (signature), shared across frames.
 using SkyCache = common::SharedCache<std::string, std::vector<glm::vec3>>;
 
-// What the marching pass found per marching pixel: visible voxels, and the environment seen
-// through the escaped rays (irradiance without the sun; the escaped fraction).
+// The environment seen through a marching pixel's escaped rays: irradiance without the sun, and the
+// escaped fraction.
+struct SkyLight {
+  std::vector<glm::vec3> irradiance;
+  std::vector<float> escaped;
+  std::size_t bytes() const { return irradiance.size() * sizeof(glm::vec3) + escaped.size() * sizeof(float); }
+};
+// What the marching pass found per marching pixel: visible voxels, and the sky through the escaped
+// rays. The filtered lists (kFiltered) leave `sky` empty: the filtered sky is kFilteredSky, which
+// only the direct pass reads.
 struct Marched {
   PixelLists lists;
-  std::vector<glm::vec3> sky_irradiance;
-  std::vector<float> escaped;
-  std::size_t bytes() const { return lists.bytes() + sky_irradiance.size() * sizeof(glm::vec3) + escaped.size() * sizeof(float); }
+  SkyLight sky;
+  std::size_t bytes() const { return lists.bytes() + sky.bytes(); }
 };
 
 // The seed of marching pixel i's rays, and of the environment rays of the proxy sampled i-th.

@@ -317,31 +317,45 @@ DeviceMarched marched_on_device(FrameContext& ctx, vk::Context& dev, GpuState& g
       if (v / 32 >= words) throw std::logic_error("point_voxels " + pass + " on vulkan: voxel " + std::to_string(v) + " outside the grid");
       bits[p * words + v / 32] |= 1u << (v % 32);
     }
-  std::vector<glm::vec4> fields(np);
-  for (std::size_t p = 0; p < np; ++p) fields[p] = glm::vec4(M.sky_irradiance[p], M.escaped[p]);
   put_if_changed(dev, g.bits[slot], g.bits_hash[slot], bits, "point_voxels voxel bitsets");
-  put_if_changed(dev, g.fields[slot], g.fields_hash[slot], fields, "point_voxels sky fields");
+  if (M.sky.irradiance.size() == np && M.sky.escaped.size() == np) {
+    std::vector<glm::vec4> fields(np);
+    for (std::size_t p = 0; p < np; ++p) fields[p] = glm::vec4(M.sky.irradiance[p], M.sky.escaped[p]);
+    put_if_changed(dev, g.fields[slot], g.fields_hash[slot], fields, "point_voxels sky fields");
+  } else if (slot == 0) {
+    throw std::logic_error("point_voxels " + pass + " on vulkan: the marched lists carry no sky light");
+  }
   return DeviceMarched{M.lists.width, M.lists.height, words, M.lists.voxel.size()};
 }
 
-std::shared_ptr<const Marched> read_marched(vk::Context& dev, const DeviceMarched& d, const vk::Buffer& bits, const vk::Buffer& fields) {
+std::shared_ptr<const SkyLight> read_sky(vk::Context& dev, std::size_t np, const vk::Buffer& fields) {
+  const auto f = download<glm::vec4>(dev, fields, np);
+  auto sky = std::make_shared<SkyLight>();
+  sky->irradiance.resize(np);
+  sky->escaped.resize(np);
+  for (std::size_t p = 0; p < np; ++p) {
+    sky->irradiance[p] = glm::vec3(f[p]);
+    sky->escaped[p] = f[p].w;
+  }
+  return sky;
+}
+
+// The host copy of lists the device holds (bitsets to compressed rows), with the sky light of
+// `fields` when given.
+std::shared_ptr<const Marched> read_marched(vk::Context& dev, const DeviceMarched& d, const vk::Buffer& bits, const vk::Buffer* fields) {
   const std::size_t np = static_cast<std::size_t>(d.width) * d.height;
   const auto b = download<std::uint32_t>(dev, bits, np * d.words);
-  const auto f = download<glm::vec4>(dev, fields, np);
   auto m = std::make_shared<Marched>();
   m->lists.width = d.width;
   m->lists.height = d.height;
   m->lists.offset.assign(np + 1, 0);
-  m->sky_irradiance.resize(np);
-  m->escaped.resize(np);
   for (std::size_t p = 0; p < np; ++p) {
     for (std::uint32_t w = 0; w < d.words; ++w)
       for (std::uint32_t word = b[p * d.words + w]; word != 0; word &= word - 1)
         m->lists.voxel.push_back(static_cast<std::int32_t>(w * 32 + static_cast<std::uint32_t>(__builtin_ctz(word))));
     m->lists.offset[p + 1] = static_cast<std::uint32_t>(m->lists.voxel.size());
-    m->sky_irradiance[p] = glm::vec3(f[p]);
-    m->escaped[p] = f[p].w;
   }
+  if (fields) m->sky = *read_sky(dev, np, *fields);
   return m;
 }
 
@@ -388,7 +402,7 @@ void run_march(vk::Context& dev, GpuState& g, vk::ComputePipeline& p, const std:
       rec.end_timer();
       rec.barrier();
     }, what);
-    run.seconds += std::max(0.0, timer_seconds(res));
+    run.seconds += std::max(0.0, res.gpu_seconds);
     ++run.dispatches;
     dev.download(g.march_status, status, sizeof status);
     if (status[gpu::kPvStatusUnfinished] == 0) break;
@@ -460,15 +474,15 @@ void vulkan_voxelize(const Settings& s, FrameContext& ctx) {
     rec.end_timer();
     rec.barrier();
   }, "point_voxels voxelize");
-  // The keys pass wrote each proxy's key into the unsorted copy: the host's copy no longer matches.
-  g.uprox_hash = 0;
+  // The keys pass wrote each proxy's key into the unsorted copy; it writes the same keys from the same
+  // positions every frame, so the host copy's hash still stands for what the next frame needs.
   std::uint32_t status[gpu::kPvStatusWords];
   dev.download(g.scan_status, status, sizeof status);
 
   auto& rec = ctx.record();
   rec.counters["voxels"] = static_cast<double>(cells);
   rec.counters["voxels_occupied"] = status[gpu::kPvStatusCount];
-  rec.counters["kernel_gpu_seconds"] = timer_seconds(res);
+  rec.counters["kernel_gpu_seconds"] = res.gpu_seconds;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
   rec.bytes = n * sizeof(GpuProxy) * 2 + (cells * 3 + 1) * 4;
   ctx.put_deferred<std::shared_ptr<const Voxels>>(kVoxels, [d, &g, &dev]() {
@@ -579,7 +593,7 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
       rec.end_timer();
       rec.barrier();
     }, "point_voxels vpl_light");
-    run.seconds += std::max(0.0, timer_seconds(res));
+    run.seconds += std::max(0.0, res.gpu_seconds);
   }
   {
     struct Range {
@@ -593,7 +607,7 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
       rec.end_timer();
       rec.barrier();
     }, "point_voxels vpl_finish");
-    run.seconds += std::max(0.0, timer_seconds(res));
+    run.seconds += std::max(0.0, res.gpu_seconds);
   }
   auto& rec = ctx.record();
   rec.counters["vpls"] = static_cast<double>(n);
@@ -677,7 +691,7 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
       rec.end_timer();
       rec.barrier();
     }, "point_voxels march_lists");
-    run.seconds += std::max(0.0, timer_seconds(res));
+    run.seconds += std::max(0.0, res.gpu_seconds);
   }
   std::uint32_t status[gpu::kPvStatusWords];
   dev.download(g.list_status, status, sizeof status);
@@ -694,7 +708,7 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   rec.bytes = np * (W * 4 + sizeof(glm::vec4) + sizeof(GpuMarchPixel)) + std::min(np, per_batch) * rays * sizeof(GpuItem);
   ctx.put_deferred<std::shared_ptr<const Marched>>(kLists, [dm, &g, &dev]() {
     std::lock_guard<std::mutex> l(g.m);
-    return read_marched(dev, dm, g.bits[0], g.fields[0]);
+    return read_marched(dev, dm, g.bits[0], &g.fields[0]);
   });
   ctx.put_device<DeviceMarched>(kLists, dm);
 }
@@ -752,12 +766,16 @@ void vulkan_filter(const Settings& s, FrameContext& ctx) {
   auto& rec = ctx.record();
   rec.counters["list_mean_before"] = hits ? static_cast<double>(in.entries) / hits : 0.0;
   rec.counters["list_mean"] = hits ? static_cast<double>(dm.entries) / hits : 0.0;
-  rec.counters["kernel_gpu_seconds"] = timer_seconds(res);
+  rec.counters["kernel_gpu_seconds"] = res.gpu_seconds;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
   rec.bytes = np * (W * 4 + sizeof(glm::vec4));
   ctx.put_deferred<std::shared_ptr<const Marched>>(kFiltered, [dm, &g, &dev]() {
     std::lock_guard<std::mutex> l(g.m);
-    return read_marched(dev, dm, g.bits[1], g.fields[1]);
+    return read_marched(dev, dm, g.bits[1], nullptr);
+  });
+  ctx.put_deferred<std::shared_ptr<const SkyLight>>(kFilteredSky, [np, &g, &dev]() {
+    std::lock_guard<std::mutex> l(g.m);
+    return read_sky(dev, np, g.fields[1]);
   });
   ctx.put_device<DeviceMarched>(kFiltered, dm);
 }
@@ -828,7 +846,7 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
       rec.end_timer();
       rec.barrier();
     }, "point_voxels gather");
-    secs += std::max(0.0, timer_seconds(res));
+    secs += std::max(0.0, res.gpu_seconds);
     dev.download(g.gather_status, status, sizeof status);
     gathered += status[gpu::kPvStatusCount];
     unmatched += status[gpu::kPvStatusUnmatched];

@@ -32,6 +32,10 @@ struct ExperimentDef {
   bool silhouettes = false;                 // error shares in bands around depth discontinuities
   bool operator_curve = false;              // paper 000 Figure 5's operator error curve
   std::vector<ExperimentRatio> ratios;
+  // Temporal stability over a camera path: the camera turned about its target by each of these
+  // azimuths (degrees, about its up axis), one frame each, and the frame-to-frame change of each
+  // variant's compared image against the reference's (docs/experiments.md).
+  std::vector<double> camera_orbit_deg;
 };
 
 }  // namespace softgi::render
