@@ -199,6 +199,16 @@ void record_faces(vk::Recorder& rec, DepthRaster& r, const std::vector<RasterPus
 
 }  // namespace
 
+std::vector<float> sun_header(const Lights& L) {
+  std::vector<float> header(gpu::kPvSunHeader, 0.0f);
+  if (!L.sun) return header;
+  const OrthoDepthMap& m = L.sun_map;
+  const float h[] = {m.dir.x, m.dir.y, m.dir.z, m.u.x, m.u.y, m.u.z, m.v.x, m.v.y, m.v.z, m.lo.x, m.lo.y, m.extent.x, m.extent.y,
+                     static_cast<float>(m.size)};
+  std::copy(std::begin(h), std::end(h), header.begin());
+  return header;
+}
+
 void vulkan_light_maps(const Settings& s, render::FrameContext& ctx, std::shared_ptr<Lights> L, LightBuffers& out) {
   vk::Context& dev = vk::context_of(ctx);
   auto r = dev.cached<DepthRaster>("point_voxels.depth_raster", [] { return std::make_shared<DepthRaster>(); });
@@ -252,14 +262,7 @@ void vulkan_light_maps(const Settings& s, render::FrameContext& ctx, std::shared
   dev.ensure_buffer(out.cube, std::max<std::size_t>(4, cube_floats) * sizeof(float), kStorage, vk::MemoryKind::Device, "point_voxels cube depth maps");
   dev.ensure_buffer(out.sun, (gpu::kPvSunHeader + std::max<std::size_t>(1, sun_floats)) * sizeof(float), kStorage, vk::MemoryKind::Device,
                     "point_voxels sun depth map");
-  // The sun map's header (pv_vulkan's layout, vpl_light.comp's reader).
-  std::vector<float> header(gpu::kPvSunHeader, 0.0f);
-  if (L->sun) {
-    const OrthoDepthMap& m = L->sun_map;
-    const float h[] = {m.dir.x, m.dir.y, m.dir.z, m.u.x, m.u.y, m.u.z, m.v.x, m.v.y, m.v.z, m.lo.x, m.lo.y, m.extent.x, m.extent.y,
-                       static_cast<float>(m.size)};
-    std::copy(std::begin(h), std::end(h), header.begin());
-  }
+  const std::vector<float> header = sun_header(*L);
   dev.upload(out.sun, header.data(), header.size() * sizeof(float));
   out.cube_hash = out.sun_hash = 0;
 

@@ -240,33 +240,24 @@ std::shared_ptr<const Voxels> read_voxels(vk::Context& dev, const DeviceVoxels& 
   return v;
 }
 
-// The sorted proxies of kVoxels on the device (sprox, start): the device copy this frame's GPU
-// voxelisation left, else the host copy uploaded (when its content changed).
-DeviceVoxels voxels_on_device(FrameContext& ctx, vk::Context& dev, GpuState& g, const std::string& pass) {
-  if (const auto* d = ctx.device_copy<DeviceVoxels>(kVoxels)) {
+// The voxels of `resource` on the device: kVoxels in sprox and start, kVpls (lit) in vprox, vstart,
+// radiance and vsh. The device copy this frame's GPU pass left there, else the host copy, uploaded
+// where its content changed.
+DeviceVoxels voxels_on_device(FrameContext& ctx, vk::Context& dev, GpuState& g, const char* resource, const std::string& pass) {
+  if (const auto* d = ctx.device_copy<DeviceVoxels>(resource)) {
     put_grid(dev, g, *d);
     return *d;
   }
-  const auto& V = *ctx.get<std::shared_ptr<const Voxels>>(kVoxels);
-  check_fits(dev, V.proxies.size() * sizeof(GpuProxy), std::to_string(V.proxies.size()) + " proxies", pass);
-  DeviceVoxels d = device_voxels(V);
-  put_if_changed(dev, g.sprox, g.sprox_hash, gpu_proxies(V), "point_voxels sorted proxies");
-  put_if_changed(dev, g.start, g.start_hash, V.grid.start, "point_voxels cell ranges");
-  put_grid(dev, g, d);
-  return d;
-}
-
-// The lit VPLs of kVpls on the device (vprox, vstart, radiance, vsh), likewise.
-DeviceVoxels vpls_on_device(FrameContext& ctx, vk::Context& dev, GpuState& g, const std::string& pass) {
-  if (const auto* d = ctx.device_copy<DeviceVoxels>(kVpls)) {
-    put_grid(dev, g, *d);
-    return *d;
-  }
-  const auto& V = *ctx.get<std::shared_ptr<const Voxels>>(kVpls);
+  const bool lit = std::string(resource) == kVpls;
+  const auto& V = *ctx.get<std::shared_ptr<const Voxels>>(resource);
   const std::size_t n = V.proxies.size(), cells = V.grid.cells();
-  check_fits(dev, n * sizeof(GpuProxy), std::to_string(n) + " VPLs", pass);
+  check_fits(dev, n * sizeof(GpuProxy), std::to_string(n) + " proxies", pass);
+  const DeviceVoxels d = device_voxels(V);
+  put_if_changed(dev, lit ? g.vprox : g.sprox, lit ? g.vprox_hash : g.sprox_hash, gpu_proxies(V), "point_voxels sorted proxies");
+  put_if_changed(dev, lit ? g.vstart : g.start, lit ? g.vstart_hash : g.start_hash, V.grid.start, "point_voxels cell ranges");
+  put_grid(dev, g, d);
+  if (!lit) return d;
   check_fits(dev, cells * gpu::kPvVoxelFloats * sizeof(float), "the SH of " + std::to_string(cells) + " voxels", pass);
-  DeviceVoxels d = device_voxels(V);
   std::vector<glm::vec4> rad(n);
   for (std::size_t i = 0; i < n; ++i) rad[i] = glm::vec4(V.proxies.radiance[i], 0.0f);
   std::vector<float> sh(cells * gpu::kPvVoxelFloats, 0.0f);
@@ -276,11 +267,8 @@ DeviceVoxels vpls_on_device(FrameContext& ctx, vk::Context& dev, GpuState& g, co
       for (int ch = 0; ch < 3; ++ch) c[3 * m + ch] = V.grid.sh[k][m][ch];
     for (int ch = 0; ch < 3; ++ch) c[12 + ch] = V.grid.centroid[k][ch];
   }
-  put_if_changed(dev, g.vprox, g.vprox_hash, gpu_proxies(V), "point_voxels VPLs");
-  put_if_changed(dev, g.vstart, g.vstart_hash, V.grid.start, "point_voxels VPL cell ranges");
   put_if_changed(dev, g.radiance, g.radiance_hash, rad, "point_voxels VPL radiance");
   put_if_changed(dev, g.vsh, g.vsh_hash, sh, "point_voxels voxel SH");
-  put_grid(dev, g, d);
   return d;
 }
 
@@ -496,7 +484,7 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
-  const DeviceVoxels d = voxels_on_device(ctx, dev, g, "light_vpls");
+  const DeviceVoxels d = voxels_on_device(ctx, dev, g, kVoxels, "light_vpls");
   const DeviceLights* dl = ctx.device_copy<DeviceLights>(kLightMaps);
   const std::shared_ptr<const Lights> lights_ptr = dl ? dl->meta : ctx.get<std::shared_ptr<const Lights>>(kLightMaps);
   const Lights& L = *lights_ptr;
@@ -519,14 +507,8 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
     std::vector<float> cube;
     for (const auto& m : L.local) cube.insert(cube.end(), m.depth.begin(), m.depth.end());
     check_fits(dev, cube.size() * sizeof(float), "the cube depth maps of " + std::to_string(L.local.size()) + " lights", "light_vpls");
-    std::vector<float> sun(gpu::kPvSunHeader, 0.0f);
-    if (L.sun) {
-      const OrthoDepthMap& m = L.sun_map;
-      const float h[] = {m.dir.x, m.dir.y, m.dir.z, m.u.x, m.u.y, m.u.z, m.v.x, m.v.y, m.v.z, m.lo.x, m.lo.y, m.extent.x, m.extent.y,
-                         static_cast<float>(m.size)};
-      std::copy(std::begin(h), std::end(h), sun.begin());
-      sun.insert(sun.end(), m.depth.begin(), m.depth.end());
-    }
+    std::vector<float> sun = sun_header(L);
+    if (L.sun) sun.insert(sun.end(), L.sun_map.depth.begin(), L.sun_map.depth.end());
     check_fits(dev, sun.size() * sizeof(float), "the sun's depth map", "light_vpls");
     put_if_changed(dev, g.maps.cube, g.maps.cube_hash, cube, "point_voxels cube depth maps");
     put_if_changed(dev, g.maps.sun, g.maps.sun_hash, sun, "point_voxels sun depth map");
@@ -628,7 +610,7 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
   const auto& mg = ctx.get<GBuffer>(kMarchGBuffer);
-  const DeviceVoxels d = voxels_on_device(ctx, dev, g, "march");
+  const DeviceVoxels d = voxels_on_device(ctx, dev, g, kVoxels, "march");
   std::shared_ptr<const Lights> lp;
   if (const auto* dl = ctx.device_copy<DeviceLights>(kLightMaps)) lp = dl->meta;
   else if (ctx.has(kLightMaps)) lp = ctx.get<std::shared_ptr<const Lights>>(kLightMaps);
@@ -788,7 +770,7 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
   const auto& mg = ctx.get<GBuffer>(kMarchGBuffer);
   const std::size_t np = static_cast<std::size_t>(gg.width) * gg.height;
   const std::size_t before = dev.transfer_bytes().upload;
-  const DeviceVoxels d = vpls_on_device(ctx, dev, g, "gather");
+  const DeviceVoxels d = voxels_on_device(ctx, dev, g, kVpls, "gather");
   const std::uint32_t W = words_of(d.frame);
   marched_on_device(ctx, dev, g, kFiltered, 1, W, "gather");
   put_pixels(dev, g, mg);

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "pv_passes.hpp"
 #include "softgi/backends/vulkan/context.hpp"
@@ -18,6 +19,10 @@ struct LightBuffers {
   backends::vulkan::Buffer cube, sun;
   std::uint64_t cube_hash = 0, sun_hash = 0;
 };
+
+// The sun map's header as vpl_light.comp reads it (kPvSunHeader floats: dir, u, v, lo, extent,
+// size; zeros without a sun).
+std::vector<float> sun_header(const Lights& L);
 
 // Rasterises the depth maps of `lights` (planned by the host: centres, the sun's frame) into `out`
 // (pv_depth_vulkan.cpp). Records the pass's counters; puts nothing.
