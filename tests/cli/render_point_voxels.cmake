@@ -46,13 +46,15 @@ foreach(i RANGE ${last})
     endif()
   endif()
 endforeach()
-foreach(p gbuffer proxies light_maps light_vpls march_gbuffer gather_gbuffer march filter gather indirect direct compose)
+foreach(p gbuffer proxies voxelize light_maps light_vpls march_gbuffer gather_gbuffer march filter gather indirect direct compose)
   if(NOT p IN_LIST names)
     message(FATAL_ERROR "pass ${p} missing from the record: ${names}")
   endif()
 endforeach()
 
-foreach(scene cornell_glossy atrium)
+# Every built-in scene on the Vulkan backend too: its GPU passes on each scene's geometry and lights
+# (local lights' cube maps, the sun's map, sky or dark environments, skinned and rigid motion).
+foreach(scene ${scenes})
   set(OUT ${WORK_DIR}/vulkan_${scene})
   execute_process(COMMAND ${SOFTGI} render --scene ${scene} --technique point_voxels --backend vulkan --width 32 --height 24 ${SMALL}
     --out ${OUT} OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)

@@ -458,7 +458,7 @@ TEST(PointVoxelsFrame, CornellBoxBleedsTheWallsColours) {
     }
   std::set<std::string> ran;
   for (const auto& p : f.passes) ran.insert(p.name);
-  for (const char* p : {"proxies", "light_maps", "light_vpls", "march", "filter", "gather", "indirect", "direct", "compose"})
+  for (const char* p : {"proxies", "voxelize", "light_maps", "light_vpls", "march", "filter", "gather", "indirect", "direct", "compose"})
     EXPECT_TRUE(ran.count(p)) << p;
   // The floor near the red (left) wall is redder in the indirect image than near the green one.
   const int y = 44;  // a floor row of the 48 x 48 view
