@@ -160,32 +160,20 @@ scene::Scene orbited(const scene::Scene& sc, double deg) {
   return out;
 }
 
+// Noise-corrected errors as JSON: corrected value, raw, noise and the 95 % interval each.
+Json temporal_json(const std::vector<metrics::NoiseCorrectedError>& v) {
+  Json a = Json::array();
+  for (const auto& e : v)
+    a.push_back({{"corrected", num(e.corrected)}, {"raw", num(e.raw)}, {"noise", num(e.noise)}, {"ci95", {num(e.ci_low), num(e.ci_high)}}});
+  return a;
+}
+
 // One variant's frames along the camera path and their frame-to-frame changes.
 struct PathRun {
   std::vector<double> change;  // relMSE of frame k + 1 against frame k
-  std::vector<double> temporal;  // temporal_error of each step
+  std::vector<metrics::NoiseCorrectedError> temporal;  // metrics::temporal_error of each step
   double mean_change = NAN, mean_temporal = NAN;
 };
-
-// How far a technique's frame-to-frame change departs from the true one: mean over pixels and
-// channels of ((t1 - t0) - (r1 - r0))^2 / (r0^2 + eps), the reference frames r0, r1 each the mean of
-// two independent halves, less the part their noise adds (mean of ((a0 - b0)^2 + (a1 - b1)^2) / 4 /
-// (r0^2 + eps): the variance of a half-difference over 4 is that of the mean). A technique whose
-// error is the same in every frame scores 0 however large that error; flicker scores above 0.
-double temporal_error(const Image& t0, const Image& t1, const Image& a0, const Image& b0, const Image& a1, const Image& b1, double eps) {
-  double sum = 0.0, noise = 0.0;
-  std::size_t n = 0;
-  for (std::size_t i = 0; i < t0.rgb.size(); ++i)
-    for (int c = 0; c < 3; ++c) {
-      const double r0 = 0.5 * (a0.rgb[i][c] + b0.rgb[i][c]), r1 = 0.5 * (a1.rgb[i][c] + b1.rgb[i][c]);
-      const double d = (static_cast<double>(t1.rgb[i][c]) - t0.rgb[i][c]) - (r1 - r0), w = 1.0 / (r0 * r0 + eps);
-      const double h0 = static_cast<double>(a0.rgb[i][c]) - b0.rgb[i][c], h1 = static_cast<double>(a1.rgb[i][c]) - b1.rgb[i][c];
-      sum += d * d * w;
-      noise += 0.25 * (h0 * h0 + h1 * h1) * w;
-      ++n;
-    }
-  return n ? (sum - noise) / static_cast<double>(n) : 0.0;
-}
 
 struct Reference {
   int order = 0;
@@ -542,13 +530,12 @@ class ExperimentRunner {
     }
     PathRun& run = path_runs[vi];
     double total = 0.0, total_t = 0.0;
-    const double eps = metrics::MetricOptions{}.relmse_epsilon;
     for (std::size_t k = 0; k + 1 < n; ++k) {
       run.change.push_back(metrics::compare(frames[k + 1], frames[k]).relmse);
-      run.temporal.push_back(temporal_error(frames[k], frames[k + 1], halves[k].first, halves[k].second, halves[k + 1].first,
-                                            halves[k + 1].second, eps));
+      run.temporal.push_back(metrics::temporal_error(frames[k], frames[k + 1], halves[k].first, halves[k].second, halves[k + 1].first,
+                                                     halves[k + 1].second, {}, metrics::MetricOptions{}.relmse_epsilon));
       total += run.change.back();
-      total_t += run.temporal.back();
+      total_t += run.temporal.back().corrected;
     }
     run.mean_change = total / static_cast<double>(n - 1);
     run.mean_temporal = total_t / static_cast<double>(n - 1);
@@ -574,10 +561,7 @@ class ExperimentRunner {
      << "| variant | mean change | reference's mean change | ratio | temporal error | change per step | temporal error per step | images |\n"
         "|---|---|---|---|---|---|---|---|\n";
   Json jp = {{"orbit_deg", def.camera_orbit_deg}, {"reference_half_spp", std::max(1, spp / 2)}};
-  Json jref = Json::array();
-  for (const auto& e : path_ref_change)
-    jref.push_back({{"corrected", num(e.corrected)}, {"raw", num(e.raw)}, {"noise", num(e.noise)}, {"ci95", {num(e.ci_low), num(e.ci_high)}}});
-  jp["reference_change"] = jref;
+  jp["reference_change"] = temporal_json(path_ref_change);
   jp["reference_mean_change"] = num(path_ref_mean);
   Json jv = Json::array();
   for (std::size_t vi = 0; vi < vars.size(); ++vi) {
@@ -586,7 +570,7 @@ class ExperimentRunner {
     if (!v.error.empty() || r.change.empty()) continue;
     std::string steps, tsteps;
     for (double c : r.change) steps += (steps.empty() ? "" : ", ") + fmt(c, 3);
-    for (double c : r.temporal) tsteps += (tsteps.empty() ? "" : ", ") + fmt(c, 3);
+    for (const auto& c : r.temporal) tsteps += (tsteps.empty() ? "" : ", ") + fmt(c.corrected, 3);
     const double ratio = r.mean_change / path_ref_mean;
     md << "| " << v.def.label << " | " << fmt(r.mean_change) << " | " << fmt(path_ref_mean) << " | " << fmt(ratio, 3) << " | "
        << fmt(r.mean_temporal) << " | " << steps << " | " << tsteps << " | [frame 0](camera_path/" << v.def.label
@@ -595,7 +579,7 @@ class ExperimentRunner {
                   {"change", r.change},
                   {"mean_change", num(r.mean_change)},
                   {"ratio_to_reference", num(ratio)},
-                  {"temporal_error", r.temporal},
+                  {"temporal_error", temporal_json(r.temporal)},
                   {"mean_temporal_error", num(r.mean_temporal)}});
   }
   md << "\n";

@@ -81,7 +81,6 @@ std::vector<ParamDesc> params() {
   return d;
 }
 
-
 common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
   static common::DeviceKernelRegistry<DeviceKernels> r;
   return r;
@@ -201,6 +200,12 @@ int gather_taps(const Settings& s, const GBuffer& gg, const GBuffer& mg, std::si
   return used;
 }
 
+std::size_t hit_pixels(const GBuffer& g) {
+  std::size_t hits = 0;
+  for (std::size_t i = 0; i < g.depth.size(); ++i) hits += g.hit(i);
+  return hits;
+}
+
 namespace {
 
 // The marching and gathering buffers: point samples of the display G-buffer, pixel (x, y) at display
@@ -222,12 +227,6 @@ GBuffer subsample(const GBuffer& full, int s) {
       g.view_dir[i] = full.view_dir[j];
     }
   return g;
-}
-
-std::size_t hit_pixels(const GBuffer& g) {
-  std::size_t hits = 0;
-  for (std::size_t i = 0; i < g.depth.size(); ++i) hits += g.hit(i);
-  return hits;
 }
 
 // --- passes ------------------------------------------------------------------------------------------

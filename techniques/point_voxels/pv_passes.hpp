@@ -111,6 +111,8 @@ glm::vec2 ray_sample(int k, int n, std::uint32_t seed);
 // Irradiance of a spherical light (centre c, radius R, radiance L) at p with normal n: L pi R^2 / d^2
 // times the cosine, exact while the sphere is above the horizon; `dir` gets the unit direction to it.
 glm::vec3 local_irradiance(const scene::SphericalLight& l, const glm::vec3& p, const glm::vec3& n, glm::vec3& dir);
+// Pixels of `g` that hit a surface (the passes' "pixels" counters).
+std::size_t hit_pixels(const render::GBuffer& g);
 // The receiver of G-buffer pixel i: position, normal, the view direction's mirror, the material's
 // Phong glossiness (section 3.3).
 Receiver receiver_at(const render::FrameContext& ctx, const render::GBuffer& g, std::size_t i);

@@ -677,8 +677,7 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   }
   std::uint32_t status[gpu::kPvStatusWords];
   dev.download(g.list_status, status, sizeof status);
-  std::size_t hits = 0;
-  for (std::size_t i = 0; i < np; ++i) hits += mg.hit(i);
+  const std::size_t hits = hit_pixels(mg);
   const DeviceMarched dm{mg.width, mg.height, W, status[gpu::kPvStatusCount]};
   auto& rec = ctx.record();
   rec.counters["pixels"] = static_cast<double>(hits);
@@ -742,8 +741,7 @@ void vulkan_filter(const Settings& s, FrameContext& ctx) {
   }, "point_voxels filter");
   std::uint32_t status[gpu::kPvStatusWords];
   dev.download(g.list_status, status, sizeof status);
-  std::size_t hits = 0;
-  for (std::size_t i = 0; i < np; ++i) hits += mg.hit(i);
+  const std::size_t hits = hit_pixels(mg);
   const DeviceMarched dm{mg.width, mg.height, W, status[gpu::kPvStatusCount]};
   auto& rec = ctx.record();
   rec.counters["list_mean_before"] = hits ? static_cast<double>(in.entries) / hits : 0.0;
@@ -777,10 +775,9 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
   check_index(np, "gathering pixels", "gather");
   check_fits(dev, np * sizeof(GpuGatherPixel), "the " + std::to_string(np) + " gathering pixels", "gather");
   std::vector<GpuGatherPixel> recv(np);
-  std::size_t hits = 0;
+  const std::size_t hits = hit_pixels(gg);
   for (std::size_t i = 0; i < np; ++i) {
     if (!gg.hit(i)) continue;
-    ++hits;
     Receiver r = receiver_at(ctx, gg, i);
     if (s.eq7 && r.glossy > 0.0f) r.eq7_sigma = eq7_sigma(r.ns, static_cast<float>(s.eq7_sigma_scale));
     recv[i] = {glm::vec4(r.position, gg.depth[i]), glm::vec4(r.normal, r.glossy), glm::vec4(r.reflect, r.ns),

@@ -133,6 +133,50 @@ TEST(ReferenceNoise, BothSidesNoisyRecoversTheKnownError) {
   EXPECT_NEAR(both.noise - one.noise, one.corrected - s.true_relmse, 0.2 * (one.corrected - s.true_relmse));
 }
 
+// Two frames of a moving image (m0, m1 = m0 + a change), their references as noisy halves with
+// seeds of their own. A test whose error is the same in both frames (a fixed bias) has no temporal
+// error: the corrected value's interval holds 0, while the raw value (the references' noise) does
+// not. A test that flickers (an independent +-delta per frame) has the known temporal error
+// mean ((d1 - d0)^2 / (r0^2 + eps)) inside its interval. Tolerance: the 95 % interval.
+TEST(ReferenceNoise, TemporalErrorSeesFlickerAndNotAFixedError) {
+  const int w = 128, h = 128;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> level(0.5f, 2.0f);
+  std::normal_distribution<float> nrm(0.0f, 1.0f);
+  const float half_sigma = 0.03f * std::sqrt(2.0f);
+  Image m0(w, h), m1(w, h), a0(w, h), b0(w, h), a1(w, h), b1(w, h), fixed0(w, h), fixed1(w, h), flick0(w, h), flick1(w, h);
+  double truth = 0.0;
+  for (std::size_t i = 0; i < m0.rgb.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      m0.rgb[i][c] = level(rng);
+      m1.rgb[i][c] = m0.rgb[i][c] * 1.1f;  // the true change between the frames
+      a0.rgb[i][c] = m0.rgb[i][c] + half_sigma * nrm(rng);
+      b0.rgb[i][c] = m0.rgb[i][c] + half_sigma * nrm(rng);
+      a1.rgb[i][c] = m1.rgb[i][c] + half_sigma * nrm(rng);
+      b1.rgb[i][c] = m1.rgb[i][c] + half_sigma * nrm(rng);
+      const float bias = 0.05f;
+      fixed0.rgb[i][c] = m0.rgb[i][c] + bias;
+      fixed1.rgb[i][c] = m1.rgb[i][c] + bias;
+      const float d0 = rng() % 2 ? 0.02f : -0.02f, d1 = rng() % 2 ? 0.02f : -0.02f;
+      flick0.rgb[i][c] = m0.rgb[i][c] + d0;
+      flick1.rgb[i][c] = m1.rgb[i][c] + d1;
+      const double r0 = 0.5 * (static_cast<double>(a0.rgb[i][c]) + b0.rgb[i][c]);
+      truth += static_cast<double>(d1 - d0) * (d1 - d0) / (r0 * r0 + 1e-2);
+    }
+  truth /= 3.0 * m0.rgb.size();
+  const metrics::NoiseCorrectedError fixed = metrics::temporal_error(fixed0, fixed1, a0, b0, a1, b1);
+  const metrics::NoiseCorrectedError flick = metrics::temporal_error(flick0, flick1, a0, b0, a1, b1);
+  std::printf("fixed: raw %.6f corrected %.6f [%.6f, %.6f]; flicker: truth %.6f corrected %.6f [%.6f, %.6f]\n", fixed.raw,
+              fixed.corrected, fixed.ci_low, fixed.ci_high, truth, flick.corrected, flick.ci_low, flick.ci_high);
+  EXPECT_LE(fixed.ci_low, 0.0);
+  EXPECT_GE(fixed.ci_high, 0.0);
+  EXPECT_GT(fixed.raw, fixed.ci_high) << "the references' noise alone shows as change when it is not taken out";
+  EXPECT_LE(flick.ci_low, truth);
+  EXPECT_GE(flick.ci_high, truth);
+  EXPECT_GT(flick.ci_low, 0.0);
+  EXPECT_THROW(metrics::temporal_error(flick0, Image(w, h + 1), a0, b0, a1, b1), std::invalid_argument);
+}
+
 TEST(ReferenceNoise, BadInputNamesTheImage) {
   const Image ok(4, 4, glm::vec3(1.0f)), small(3, 4, glm::vec3(1.0f));
   Image nan = ok;

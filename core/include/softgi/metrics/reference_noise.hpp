@@ -36,6 +36,16 @@ NoiseCorrectedError noise_corrected_relmse(const Image& test, const Image& half_
 NoiseCorrectedError noise_corrected_relmse_between(const Image& test_a, const Image& test_b, const Image& half_a,
                                                    const Image& half_b, const Mask& mask = {}, double epsilon = 1e-2);
 
+// Temporal error of a frame sequence's step k -> k + 1: how far a test's frame-to-frame change
+// t1 - t0 departs from the reference's r1 - r0, each reference frame the mean of two independent
+// halves (a0, b0 and a1, b1, with seeds of their own): mean over pixels of the channels'
+// ((t1 - t0) - (r1 - r0))^2 / (r0^2 + epsilon), less what the references' noise adds
+// (((a0 - b0)^2 + (a1 - b1)^2) / 4 at the same weights), with the 95 % interval. A test whose error is
+// the same in both frames scores 0 however large that error; flicker scores above 0. Errors name the
+// image as noise_corrected_relmse's do.
+NoiseCorrectedError temporal_error(const Image& t0, const Image& t1, const Image& a0, const Image& b0, const Image& a1,
+                                   const Image& b1, const Mask& mask = {}, double epsilon = 1e-2);
+
 // The two halves' mean, the reference they stand for.
 Image mean_of_halves(const Image& half_a, const Image& half_b);
 
