@@ -222,6 +222,9 @@ struct GpuShade {
     std::size_t pixels = 0;                              // display pixels
     const float* coarse = nullptr;                       // n^2 per coarse sample
     std::size_t coarse_count = 0;
+    // Instead of `coarse`: the frame resource whose device copy holds the field (a GPU pass left it
+    // there), its rows indexed by `index` as they are; coarse_count is then taken from it.
+    const char* coarse_resource = nullptr;
   };
   const Gather* gather = nullptr;
   // The frame resource holding the visibility when a GPU pass left it on the device (b->g null):

@@ -9,6 +9,10 @@
 #include <sstream>
 #include <stdexcept>
 
+namespace spv {
+#include "softgi/shaders/common/field_column_comp.h"
+}  // namespace spv
+
 namespace softgi::techniques::common::gpu_passes {
 
 vk::ComputePipeline& pipeline(vk::Context& dev, PipelineCache& cache, const std::string& key, std::span<const std::uint32_t> spirv,
@@ -275,6 +279,45 @@ DeviceConstants& device_constants(vk::Context& dev) {
   return *dev.cached<DeviceConstants>("common.constants", [] { return std::make_shared<DeviceConstants>(); });
 }
 }  // namespace
+
+namespace {
+
+// download_field_column's pipeline and output buffer, per device.
+struct ColumnState {
+  std::mutex m;
+  PipelineCache pipelines;
+  vk::Buffer out;
+};
+
+}  // namespace
+
+std::vector<float> download_field_column(vk::Context& dev, const DeviceField& field, std::size_t stride, std::size_t column,
+                                         const std::string& what) {
+  if (!field.buffer || stride == 0 || column >= stride || field.floats % stride != 0)
+    throw std::logic_error(what + " on vulkan: column " + std::to_string(column) + " of rows of " + std::to_string(stride) + " floats in " +
+                           std::to_string(field.floats) + " floats");
+  const std::size_t rows = field.floats / stride;
+  std::vector<float> v(rows);
+  if (rows == 0) return v;
+  if (rows > std::numeric_limits<std::uint32_t>::max() / 2 || field.floats > std::numeric_limits<std::uint32_t>::max())
+    throw std::invalid_argument(what + " on vulkan: " + std::to_string(rows) + " rows exceed the 32-bit indexing");
+  auto st = dev.cached<ColumnState>("common.field_column", [] { return std::make_shared<ColumnState>(); });
+  std::lock_guard<std::mutex> lock(st->m);
+  dev.ensure_buffer(st->out, rows * sizeof(float), kStorage, vk::MemoryKind::Device, "field column");
+  vk::ComputePipeline& p = pipeline(dev, st->pipelines, "common.field_column", words(spv::common_field_column_comp), {});
+  struct Push {
+    std::uint32_t first, end, stride, column;
+  };
+  const std::vector<vk::Bind> binds = {vk::Bind::buffer_at(0, *field.buffer), vk::Bind::buffer_at(1, st->out)};
+  dev.submit([&](vk::Recorder& rec) {
+    dispatch_chunks<Push>(rec, p, binds, rows, gpu::kShadeGroup, [&](std::uint32_t first, std::uint32_t end) {
+      return Push{first, end, static_cast<std::uint32_t>(stride), static_cast<std::uint32_t>(column)};
+    });
+    rec.barrier();
+  }, what + " column");
+  dev.download(st->out, v.data(), rows * sizeof(float));
+  return v;
+}
 
 const vk::Buffer& basis_constants(vk::Context& dev) {
   DeviceConstants& c = device_constants(dev);

@@ -124,6 +124,11 @@ void put_device_field(render::FrameContext& ctx, const std::string& resource, co
   ctx.put_device<DeviceField>(resource, field);
 }
 
+// Column `column` of every row of a device field (`stride` floats per row, `rows` rows): read back
+// without the rest of the field (shaders/common/field_column.comp).
+std::vector<float> download_field_column(vk::Context& dev, const DeviceField& field, std::size_t stride, std::size_t column,
+                                         const std::string& what);
+
 // The OL table: the increasing prefix of the core's OL sweep that sh::ShTables::ol_lookup
 // interpolates, converted to float as planes x, a, b. `technique` names the buffer and the error.
 struct OlTable {

@@ -63,20 +63,31 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   const DeviceField* dvis = !ga && in.visibility_resource ? device_field(ctx, in.visibility_resource) : nullptr;
   if (dvis && dvis->floats != count * static_cast<std::size_t>(n2))
     throw std::logic_error("shade on vulkan: the device visibility does not match the " + std::to_string(count) + " receivers");
+  // A gather's coarse field on the device (image_splat's O_p, left there by exponentiate).
+  const DeviceField* dcoarse = ga && ga->coarse_resource ? device_field(ctx, ga->coarse_resource) : nullptr;
+  if (ga && ga->coarse_resource && !dcoarse)
+    throw std::logic_error(std::string("shade on vulkan: no device copy of '") + ga->coarse_resource + "' to gather from");
+  if (dcoarse && (dcoarse->order != n || dcoarse->floats % static_cast<std::size_t>(n2) != 0))
+    throw std::logic_error("shade on vulkan: the device field to gather from is not of order " + std::to_string(n));
   const std::uint32_t vis_mode = ga ? gpu::kShadeVisGather : (b.g || dvis ? gpu::kShadeVisReceiver : gpu::kShadeVisNone);
   const PlanBuffers& plan = product_plan_buffers(dev, n);
   const vk::Buffer& basis = basis_constants(dev);
   upload_receivers(dev, g.shade_rec, soa, "shade receivers", &g.rec_hash);
-  // Visibility: per receiver, or the coarse field of a gather.
-  const float* vsrc = ga ? ga->coarse : dvis ? nullptr : b.g;
-  const std::size_t vrows = ga ? ga->coarse_count : count;
+  // Visibility: per receiver, or the coarse field of a gather (uploaded unless it is on the device).
+  const float* vsrc = ga ? (dcoarse ? nullptr : ga->coarse) : dvis ? nullptr : b.g;
+  const std::size_t vrows = ga ? (dcoarse ? dcoarse->floats / n2 : ga->coarse_count) : count;
   const std::size_t vis_bytes = vsrc ? vrows * n2 * sizeof(float) : 0;
   check_fits_shade(dev, vis_bytes, "the visibility of " + std::to_string(vrows) + (ga ? " coarse samples" : " receivers"), "shade");
   dev.ensure_buffer(g.shade_vis, std::max<std::size_t>(sizeof(float), vis_bytes), kStorage, vk::MemoryKind::Device, "shade visibility");
   if (vis_bytes) dev.upload(g.shade_vis, vsrc, vis_bytes);
   if (ga) {
-    if (!ga->pixel || !ga->index || !ga->weight || (ga->coarse_count && !ga->coarse))
+    if (!ga->pixel || !ga->index || !ga->weight || (!dcoarse && ga->coarse_count && !ga->coarse))
       throw std::logic_error("shade on vulkan: incomplete gather");
+    for (std::size_t p = 0; p < ga->pixels; ++p)
+      for (std::int32_t t : ga->index[p])
+        if (t >= 0 && static_cast<std::size_t>(t) >= vrows)
+          throw std::logic_error("shade on vulkan: display pixel " + std::to_string(p) + " gathers coarse sample " + std::to_string(t) +
+                                 " of " + std::to_string(vrows));
     check_fits_shade(dev, ga->pixels * 16, "the eq. 11 taps of " + std::to_string(ga->pixels) + " display pixels", "shade");
     for (std::size_t i = 0; i < count; ++i)
       if (ga->pixel[i] < 0 || static_cast<std::size_t>(ga->pixel[i]) >= ga->pixels)
@@ -132,7 +143,7 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   const std::uint32_t nl = lights ? static_cast<std::uint32_t>(in.lights->size()) : 0u;
   const std::uint32_t rt = lights ? static_cast<std::uint32_t>(lt->rows_theta) : 2u, rf = lights ? static_cast<std::uint32_t>(lt->rows_f) : 2u;
   const std::vector<vk::Bind> binds = {
-      vk::Bind::buffer_at(gpu::kShadeBindReceivers, g.shade_rec),       vk::Bind::buffer_at(gpu::kShadeBindVis, dvis ? *dvis->buffer : g.shade_vis),
+      vk::Bind::buffer_at(gpu::kShadeBindReceivers, g.shade_rec),       vk::Bind::buffer_at(gpu::kShadeBindVis, dvis ? *dvis->buffer : dcoarse ? *dcoarse->buffer : g.shade_vis),
       vk::Bind::buffer_at(gpu::kShadeBindConsts, g.shade_consts),       vk::Bind::buffer_at(gpu::kShadeBindPrIndex, plan.pr_range),
       vk::Bind::buffer_at(gpu::kShadeBindPrTerms, plan.pr_terms),       vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
       vk::Bind::buffer_at(gpu::kShadeBindOut, g.shade_out),             vk::Bind::buffer_at(gpu::kShadeBindTapPixel, g.shade_tap_pixel),

@@ -445,19 +445,32 @@ void normalise(const Settings& s, const float* rgb, const float* omega, const fl
   }
 }
 
-void pass_normalize_indirect(const Settings& s, FrameContext& ctx) {
+// `field_dc` (a device backend's): O_p's DC coefficients read back from the device where a GPU pass
+// left O_p there, so that the rest of it stays there for shade_direct.
+void pass_normalize_indirect(const Settings& s, FrameContext& ctx,
+                             const std::function<std::vector<float>(FrameContext&, const std::string&)>& field_dc = {}) {
   const auto& sums = *ctx.get<std::shared_ptr<const IndirectSums>>(kIndirectSums);
-  std::shared_ptr<const Field> occ;
-  if (ctx.has(kOcclusion)) occ = ctx.get<std::shared_ptr<const Field>>(kOcclusion);
   auto out = std::make_shared<Field>();
   out->channels = 3;
   out->v.assign(sums.rgb.size(), 0.0f);
   XiStats xs;
-  normalise(s, sums.rgb.data(), sums.omega.data(), occ ? occ->v.data() : nullptr, occ ? occ->channels : 0, sums.omega.size(),
-            out->v.data(), &xs);
+  std::shared_ptr<const Field> occ;
+  std::vector<float> dc;
+  const bool has_occ = ctx.has(kOcclusion);
+  if (has_occ && field_dc && ctx.is_deferred(kOcclusion)) {
+    dc = field_dc(ctx, kOcclusion);
+    if (dc.size() != sums.omega.size())
+      throw std::logic_error("image_splat normalize_indirect: " + std::to_string(dc.size()) + " DC coefficients of O_p for " +
+                             std::to_string(sums.omega.size()) + " receivers");
+    normalise(s, sums.rgb.data(), sums.omega.data(), dc.data(), 1, sums.omega.size(), out->v.data(), &xs);
+  } else {
+    if (has_occ) occ = ctx.get<std::shared_ptr<const Field>>(kOcclusion);
+    normalise(s, sums.rgb.data(), sums.omega.data(), occ ? occ->v.data() : nullptr, occ ? occ->channels : 0, sums.omega.size(),
+              out->v.data(), &xs);
+  }
   auto& rec = ctx.record();
   rec.counters["receivers"] = static_cast<double>(sums.omega.size());
-  rec.counters["normalized"] = s.normalize_indirect && occ;
+  rec.counters["normalized"] = s.normalize_indirect && has_occ;
   rec.counters["xi_mean"] = sums.omega.empty() ? 1.0 : xs.sum / static_cast<double>(sums.omega.size());
   rec.counters["xi_raw_min"] = std::isfinite(xs.raw_min) ? xs.raw_min : 1.0;
   rec.counters["xi_raw_max"] = std::isfinite(xs.raw_max) ? xs.raw_max : 1.0;
@@ -488,7 +501,12 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
   const std::size_t np = fine.object.size();
   for (std::size_t i = 0; i < np; ++i)
     if (fine.hit(i)) up->surface.push_back(static_cast<std::int32_t>(i));
-  if (ctx.has(kOcclusion)) {
+  if (ctx.has(kOcclusion) && ctx.is_deferred(kOcclusion)) {
+    // O_p stays where a GPU pass left it: shade_direct's device kernel gathers from it through the
+    // coarse pixels' receivers (see Upsampled).
+    up->device_visibility = kOcclusion;
+    up->coarse_receiver = r.receiver;
+  } else if (ctx.has(kOcclusion)) {
     // Interpolated per block in shade_direct (see Upsampled).
     const auto& occ = *ctx.get<std::shared_ptr<const Field>>(kOcclusion);
     up->coarse_visibility = to_pixels(r, occ.v.data(), occ.channels);
@@ -605,12 +623,21 @@ namespace {
 // The kernels (k): DirectShader::shade on the CPU, shaders/common/shade.comp on Vulkan.
 void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const DirectKernels& k) {
   const auto& fine = ctx.get<render::GBuffer>(render::kGBuffer);
-  const auto& up = *ctx.get<std::shared_ptr<const Upsampled>>(kUpsampled);
+  std::shared_ptr<const Upsampled> up_ptr = ctx.get<std::shared_ptr<const Upsampled>>(kUpsampled);
+  if (up_ptr->device_visibility && !k.reads_device_visibility) {
+    // Host kernels interpolate O_p from its coarse copy: read it back now.
+    auto host = std::make_shared<Upsampled>(*up_ptr);
+    const auto& occ = *ctx.get<std::shared_ptr<const Field>>(kOcclusion);
+    host->coarse_visibility = to_pixels(*ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), occ.v.data(), occ.channels);
+    host->device_visibility = nullptr;
+    up_ptr = host;
+  }
+  const auto& up = *up_ptr;
   std::shared_ptr<const common::LightLobeTable> lt;
   if (ctx.has(kLightTables)) lt = ctx.get<std::shared_ptr<const common::LightLobeTable>>(kLightTables);
   std::shared_ptr<const RobustMisses> rm;
   if (ctx.has(kRobust)) rm = ctx.get<std::shared_ptr<const RobustMisses>>(kRobust);
-  const bool shadowed = !up.coarse_visibility.empty();
+  const bool shadowed = !up.coarse_visibility.empty() || up.device_visibility;
   const int n = s.order;
   const DirectShader shader = make_direct_shader(env_light(st, ctx.scene, n, s.window_h), n, s.window_h, lt, ctx.posed.lights, s.isa);
 
@@ -861,8 +888,12 @@ class ImageSplat final : public render::Technique {
     g.add({"accumulate_indirect", {kReceivers, kBins, kIndirectTables}, {}, {kIndirectSums},
            "sum of I_i . H(N_p) and omega_i per receiver (section 5, eqs. 13-17)",
            with_kernels([](FrameContext& c) { pass_accumulate_indirect(c); }, dev_accumulate_indirect)});
+    auto dev_normalize = [s](const DeviceKernels& k) -> render::PassFn {
+      if (!k.field_dc) return {};
+      return [s, f = k.field_dc](FrameContext& c) { pass_normalize_indirect(s, c, f); };
+    };
     g.add({"normalize_indirect", {kIndirectSums}, {kOcclusion}, {kIndirectNorm}, "xi_p = (1 - O_p)_0 / (omega_p / sqrt(4 pi)) (eq. 12)",
-           cpu([s](FrameContext& c) { pass_normalize_indirect(s, c); })});
+           with_kernels([s](FrameContext& c) { pass_normalize_indirect(s, c); }, dev_normalize)});
     g.add({"upsample", {render::kGBuffer, render::kReceiverGBuffer, kReceivers}, {kOcclusion, kIndirectNorm}, {kUpsampled},
            s.upsample.mode == UpsampleMode::Bilateral ? "bilateral upsampling of O_p and the indirect shading (section 4.2, eq. 11)"
                                                       : "bilinear upsampling of O_p and the indirect shading (Figure 7)",

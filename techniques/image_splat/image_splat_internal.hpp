@@ -203,6 +203,11 @@ struct Upsampled {  // display resolution
   // O_p is not stored at display resolution (n^2 floats per pixel, 64 MB at 1024^2 and order 4):
   // shade_direct interpolates it with w per block of surface pixels from this coarse copy.
   std::vector<float> coarse_visibility;  // n^2 per coarse pixel (empty without proxies)
+  // O_p left on the device by a GPU exponentiate (the resource is deferred): the resource's name;
+  // coarse_visibility then stays empty and a device kernel gathers from O_p in receiver order,
+  // through the coarse pixels' receivers. A host kernel has it read back first (pass_shade_direct).
+  const char* device_visibility = nullptr;
+  std::vector<std::int32_t> coarse_receiver;  // per coarse pixel, its receiver (-1: background)
   std::vector<std::int32_t> surface;     // display pixels that hit a surface, in scan order
   std::vector<float> indirect;           // 3 per display pixel (empty without indirect)
   std::size_t bytes() const;
@@ -217,6 +222,8 @@ struct DirectKernels {
   std::function<long long(const DirectShader& d, const render::GBuffer& fine, const Upsampled& up, glm::vec3* out)> surface;
   // out[i] for every receiver of rec, visibility g (n^2 per receiver; null: unshadowed).
   std::function<long long(const DirectShader& d, const common::ReceiverSoA& rec, const float* g, glm::vec3* out)> receivers;
+  // Whether `surface` gathers O_p from the device when Upsampled::device_visibility is set.
+  bool reads_device_visibility = false;
 };
 DirectKernels cpu_direct_kernels();
 
@@ -247,6 +254,9 @@ struct DeviceKernels {
                                               const IndirectEvaluator&)>
       accumulate_indirect;
   std::function<UpsampleKernels(render::FrameContext&)> upsample;
+  // The DC coefficient of every row of a field a GPU pass left on the device (resource `name`, n^2
+  // floats per receiver): what normalize_indirect's xi_p needs of O_p, read back without the rest.
+  std::function<std::vector<float>(render::FrameContext&, const std::string& name)> field_dc;
   std::function<DirectKernels(render::FrameContext&)> direct;
 };
 // Registers (or replaces) `backend`'s kernels; plan() adds them to every graph it builds after.

@@ -214,7 +214,28 @@ DirectKernels vulkan_direct_kernels(render::FrameContext& ctx) {
     const std::size_t n2 = static_cast<std::size_t>(d.order) * d.order;
     common::GpuShade in{&bs, d.lights_table.get(), &d.lights, true, nullptr};
     common::GpuShade::Gather ga;
-    if (!up.coarse_visibility.empty()) {  // section 4.2: O_p interpolated on the device
+    std::vector<std::array<std::int32_t, 4>> receiver_taps;
+    if (up.device_visibility) {
+      // Section 4.2 with O_p where exponentiate left it, in receiver order: the taps' coarse pixels
+      // become their receivers (a tap only ever names a coarse pixel that hit a surface).
+      if (up.w.index.size() != fine.object.size() || up.w.weight.size() != up.w.index.size())
+        throw std::logic_error("image_splat shade_direct on vulkan: upsampling weights do not match the display buffer");
+      receiver_taps.resize(up.w.index.size());
+      for (std::size_t p = 0; p < receiver_taps.size(); ++p)
+        for (int t = 0; t < 4; ++t) {
+          const std::int32_t q = up.w.index[p][t];
+          if (q >= 0 && (static_cast<std::size_t>(q) >= up.coarse_receiver.size() || up.coarse_receiver[q] < 0))
+            throw std::logic_error("image_splat shade_direct on vulkan: display pixel " + std::to_string(p) + " gathers coarse pixel " +
+                                   std::to_string(q) + ", which has no receiver");
+          receiver_taps[p][t] = q < 0 ? -1 : up.coarse_receiver[q];
+        }
+      ga.pixel = up.surface.data();
+      ga.index = receiver_taps.data();
+      ga.weight = up.w.weight.data();
+      ga.pixels = up.w.index.size();
+      ga.coarse_resource = up.device_visibility;
+      in.gather = &ga;
+    } else if (!up.coarse_visibility.empty()) {  // section 4.2: O_p interpolated on the device
       if (up.coarse_visibility.size() % n2 != 0 || up.w.index.size() != fine.object.size() || up.w.weight.size() != up.w.index.size())
         throw std::logic_error("image_splat shade_direct on vulkan: upsampled visibility and weights do not match the display buffer");
       ga.pixel = up.surface.data();
@@ -231,11 +252,26 @@ DirectKernels vulkan_direct_kernels(render::FrameContext& ctx) {
     const common::BatchShade bs = d.batch(g);
     return common::vulkan_shade(*c, common::GpuShade{&bs, d.lights_table.get(), &d.lights, true, nullptr}, rec, out);
   };
+  k.reads_device_visibility = true;
   return k;
+}
+
+// O_p's DC coefficients (normalize_indirect's xi_p, eq. 12) from exponentiate's device copy.
+std::vector<float> vulkan_field_dc(render::FrameContext& ctx, const std::string& name) {
+  const DeviceField* f = device_field(ctx, name);
+  if (!f) throw std::logic_error("image_splat normalize_indirect on vulkan: '" + name + "' has no device copy");
+  vk::Context& dev = vk::context_of(ctx);
+  GpuState& g = gpu_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);  // the field's buffer is this state's
+  const std::size_t before = dev.transfer_bytes().download;
+  std::vector<float> dc = download_field_column(dev, *f, static_cast<std::size_t>(f->order) * f->order, 0, "image_splat normalize_indirect");
+  ctx.record().counters["dc_download_bytes"] = static_cast<double>(dev.transfer_bytes().download - before);
+  return dc;
 }
 
 void register_vulkan_kernels() {
   DeviceKernels k;
+  k.field_dc = vulkan_field_dc;
   k.accumulate_log = vulkan_accumulate_log;
   k.exp_supports = vulkan_exp_supports;
   k.exponentiate = vulkan_exponentiate;

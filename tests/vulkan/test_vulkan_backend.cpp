@@ -180,6 +180,39 @@ TEST(VulkanBackend, ImageSplatLogOcclusionStaysOnTheDevice) {
   EXPECT_EQ(log->problems(), 0u) << log->summary();
 }
 
+// O_p (paper 000 eq. 4) never leaves the device in a frame whose passes run on Vulkan: normalize_indirect
+// reads back its DC coefficient only (4 bytes per receiver, for xi_p of eq. 12), upsample leaves it
+// where it is, and shade_direct's eq. 11 gather reads it there through the coarse pixels'
+// receivers. The frame's images are the CPU backend's (RendersAnImageSplatFrameLikeTheCpuBackend).
+TEST(VulkanBackend, ImageSplatOcclusionStaysOnTheDevice) {
+  auto ctx = softgi::testing::validated_context();
+  auto log = ctx->validation_log();
+  {
+    const scene::Scene sc = scene::make_builtin("character");
+    auto tech = render::create_technique("image_splat");
+    const render::ParamSet params = render::default_params(*tech);
+    render::RenderRequest req;
+    req.width = 64;
+    req.height = 48;
+    render::SteppedFrame frame(*tech, sc, params, req, ctx.get());
+    for (const render::PassDesc* p : frame.passes()) frame.run(*p, backends::vulkan::kBackendName);
+    EXPECT_TRUE(frame.context().is_deferred("image_splat.occlusion")) << "O_p was read back";
+    bool normalized = false;
+    for (const auto& p : frame.result().passes)
+      if (p.name == "normalize_indirect") {
+        normalized = true;
+        EXPECT_EQ(p.counters.at("dc_download_bytes"), p.counters.at("receivers") * sizeof(float));
+      }
+    EXPECT_TRUE(normalized);
+    const Image& img = frame.context().get<Image>(render::kFinal);
+    float peak = 0.0f;
+    for (const auto& c : img.rgb) peak = std::max({peak, c.x, c.y, c.z});
+    EXPECT_GT(peak, 0.0f);
+  }
+  ctx.reset();
+  EXPECT_EQ(log->problems(), 0u) << log->summary();
+}
+
 // A whole image_splat frame (paper 000) on both backends, on `cornell` (a spherical light: every
 // pass of the graph runs, the light through shade_direct's GPU shading) and `character` (skinned,
 // robust misses). The backends' G-buffers differ at silhouettes (rasterised against ray traced:
@@ -198,8 +231,8 @@ TEST(VulkanBackend, RendersAnImageSplatFrameLikeTheCpuBackend) {
     backends::CpuBackend cpu;
     auto tech = techniques::image_splat::create();
     const render::ParamSet params = render::default_params(*tech);
-    const std::set<std::string> gpu_passes = {"gbuffer",     "receiver_gbuffer",    "accumulate_log", "exponentiate",
-                                              "upsample",    "accumulate_indirect", "shade_direct"};
+    const std::set<std::string> gpu_passes = {"gbuffer",  "receiver_gbuffer",    "accumulate_log",     "exponentiate",
+                                              "upsample", "accumulate_indirect", "normalize_indirect", "shade_direct"};
     for (const std::string name : {"cornell", "character"}) {
       SCOPED_TRACE(name);
       const scene::Scene sc = scene::make_builtin(name);
