@@ -32,6 +32,7 @@ layout(std430, set = 0, binding = kShadeBindOut) writeonly buffer Out { vec4 out
 layout(std430, set = 0, binding = kShadeBindTapPixel) readonly buffer TapPixel { int tap_pixel[]; };
 layout(std430, set = 0, binding = kShadeBindTapIndex) readonly buffer TapIndex { ivec4 tap_index[]; };
 layout(std430, set = 0, binding = kShadeBindTapWeight) readonly buffer TapWeight { vec4 tap_weight[]; };
+layout(std430, set = 0, binding = kShadeBindCoarseRow) readonly buffer CoarseRow { int coarse_row[]; };
 layout(std430, set = 0, binding = kShadeBindLightTable) readonly buffer LightTable { float ltab[]; };
 layout(std430, set = 0, binding = kShadeBindLights) readonly buffer Lights { vec4 lights[]; };
 layout(std430, set = 0, binding = kShadeBindStatus) buffer Status { uint clamped; };
@@ -128,7 +129,10 @@ void main() {
     const vec4 wt = tap_weight[px];
     unshadowed = idx.x < 0;
     for (int t = 0; t < 4 && idx[t] >= 0; ++t) {
-      const uint base = uint(idx[t]) * n2;
+      // The field's row of the tap's coarse sample: the sample itself, or (a field in another
+      // order, as O_p in receiver order) its entry of coarse_row.
+      const uint row = (pc.flags & kShadeFlagCoarseRow) != 0u ? uint(coarse_row[idx[t]]) : uint(idx[t]);
+      const uint base = row * n2;
       [[unroll]] for (uint k = 0; k < n2; ++k) g[k] += wt[t] * vis[base + k];
     }
   }

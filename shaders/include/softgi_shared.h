@@ -85,12 +85,14 @@ SOFTGI_CONST_UINT(kShadeBindTapWeight, 9u)   // gather: vec4 per display pixel, 
 SOFTGI_CONST_UINT(kShadeBindLightTable, 10u) // spherical lights: LightLobeTable psi (rows_theta x rows_f), then k (x order)
 SOFTGI_CONST_UINT(kShadeBindLights, 11u)     // spherical lights: 2 vec4 per light (centre, radius; radiance, 0)
 SOFTGI_CONST_UINT(kShadeBindStatus, 12u)     // uint: receivers whose shading was clamped at 0
+SOFTGI_CONST_UINT(kShadeBindCoarseRow, 13u)  // gather with kShadeFlagCoarseRow: int per coarse sample, its row of the field
 // Where shade.comp reads a receiver's visibility g (specialisation constant VIS).
 SOFTGI_CONST_UINT(kShadeVisNone, 0u)      // unshadowed: g = sqrt(4 pi) y_00
 SOFTGI_CONST_UINT(kShadeVisReceiver, 1u)  // n^2 floats per receiver
 SOFTGI_CONST_UINT(kShadeVisGather, 2u)    // interpolated from a coarse field with per-pixel taps (image_splat, eq. 11)
 // shade.comp push-constant flags.
 SOFTGI_CONST_UINT(kShadeFlagZeroNormalEmpty, 1u)  // a receiver with a zero normal (no surface) shades to 0
+SOFTGI_CONST_UINT(kShadeFlagCoarseRow, 2u)        // gather: a tap's coarse sample reads field row coarse_row[sample]
 
 #undef SOFTGI_CONST_UINT
 #ifdef __cplusplus

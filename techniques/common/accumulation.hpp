@@ -223,8 +223,12 @@ struct GpuShade {
     const float* coarse = nullptr;                       // n^2 per coarse sample
     std::size_t coarse_count = 0;
     // Instead of `coarse`: the frame resource whose device copy holds the field (a GPU pass left it
-    // there), its rows indexed by `index` as they are; coarse_count is then taken from it.
+    // there); coarse_count is then taken from it.
     const char* coarse_resource = nullptr;
+    // A field in another order than the coarse samples (O_p in receiver order): tap sample q reads
+    // row coarse_row[q] (coarse_rows entries); null: row q.
+    const std::int32_t* coarse_row = nullptr;
+    std::size_t coarse_rows = 0;
   };
   const Gather* gather = nullptr;
   // The frame resource holding the visibility when a GPU pass left it on the device (b->g null):

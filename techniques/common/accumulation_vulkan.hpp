@@ -6,6 +6,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -123,6 +124,15 @@ void put_device_field(render::FrameContext& ctx, const std::string& resource, co
   });
   ctx.put_device<DeviceField>(resource, field);
 }
+
+// The eq. 11 taps and weights vulkan_upsample_weights left on the device (upsample_vulkan.cpp), when
+// `index` (pixels entries) is the host copy of the weights it computed last: a later dispatch binds
+// them instead of uploading the host copy. Null when they are not the resident ones.
+struct ResidentTaps {
+  const vk::Buffer* index = nullptr;
+  const vk::Buffer* weight = nullptr;
+};
+ResidentTaps resident_upsample_taps(vk::Context& dev, const std::array<std::int32_t, 4>* index, std::size_t pixels);
 
 // Column `column` of every row of a device field (`stride` floats per row, `rows` rows): read back
 // without the rest of the field (shaders/common/field_column.comp).

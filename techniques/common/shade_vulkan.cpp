@@ -30,7 +30,7 @@ struct ShadeState {
   std::mutex m;
   PipelineCache pipelines;
   vk::Buffer shade_rec, shade_vis, shade_consts, shade_out, shade_status, shade_lights;
-  vk::Buffer shade_tap_pixel, shade_tap_index, shade_tap_weight;  // eq. 11 gather (paper 000)
+  vk::Buffer shade_tap_pixel, shade_tap_index, shade_tap_weight, shade_coarse_row;  // eq. 11 gather (paper 000)
   std::uint64_t rec_hash = 0;     // what shade_rec holds (upload_receivers)
   vk::Buffer light_table;         // LightLobeTable psi then k
   std::vector<float> light_host;  // the floats in light_table (upload_if_changed)
@@ -80,27 +80,36 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   check_fits_shade(dev, vis_bytes, "the visibility of " + std::to_string(vrows) + (ga ? " coarse samples" : " receivers"), "shade");
   dev.ensure_buffer(g.shade_vis, std::max<std::size_t>(sizeof(float), vis_bytes), kStorage, vk::MemoryKind::Device, "shade visibility");
   if (vis_bytes) dev.upload(g.shade_vis, vsrc, vis_bytes);
+  ResidentTaps taps;
   if (ga) {
     if (!ga->pixel || !ga->index || !ga->weight || (!dcoarse && ga->coarse_count && !ga->coarse))
       throw std::logic_error("shade on vulkan: incomplete gather");
+    // Every tap's row of the field, checked here: the shader reads it unchecked.
+    const std::size_t samples = ga->coarse_row ? ga->coarse_rows : vrows;
+    for (std::size_t q = 0; ga->coarse_row && q < ga->coarse_rows; ++q)
+      if (ga->coarse_row[q] >= 0 && static_cast<std::size_t>(ga->coarse_row[q]) >= vrows)
+        throw std::logic_error("shade on vulkan: coarse sample " + std::to_string(q) + " reads row " + std::to_string(ga->coarse_row[q]) +
+                               " of " + std::to_string(vrows));
     for (std::size_t p = 0; p < ga->pixels; ++p)
       for (std::int32_t t : ga->index[p])
-        if (t >= 0 && static_cast<std::size_t>(t) >= vrows)
+        if (t >= 0 && (static_cast<std::size_t>(t) >= samples || (ga->coarse_row && ga->coarse_row[t] < 0)))
           throw std::logic_error("shade on vulkan: display pixel " + std::to_string(p) + " gathers coarse sample " + std::to_string(t) +
-                                 " of " + std::to_string(vrows));
-    check_fits_shade(dev, ga->pixels * 16, "the eq. 11 taps of " + std::to_string(ga->pixels) + " display pixels", "shade");
-    for (std::size_t i = 0; i < count; ++i)
-      if (ga->pixel[i] < 0 || static_cast<std::size_t>(ga->pixel[i]) >= ga->pixels)
-        throw std::logic_error("shade on vulkan: receiver " + std::to_string(i) + " gathers from pixel " + std::to_string(ga->pixel[i]) +
-                               " outside " + std::to_string(ga->pixels));
+                                 (ga->coarse_row ? ", which has no row of the field" : " of " + std::to_string(vrows)));
     dev.ensure_buffer(g.shade_tap_pixel, count * sizeof(std::int32_t), kStorage, vk::MemoryKind::Device, "shade tap pixels");
     dev.upload(g.shade_tap_pixel, ga->pixel, count * sizeof(std::int32_t));
-    dev.ensure_buffer(g.shade_tap_index, ga->pixels * 16, kStorage, vk::MemoryKind::Device, "shade tap index");
-    dev.upload(g.shade_tap_index, ga->index, ga->pixels * 16);
-    dev.ensure_buffer(g.shade_tap_weight, ga->pixels * 16, kStorage, vk::MemoryKind::Device, "shade tap weights");
-    dev.upload(g.shade_tap_weight, ga->weight, ga->pixels * 16);
+    // The taps and weights upsample left on the device are bound as they are; others are uploaded.
+    taps = resident_upsample_taps(dev, ga->index, ga->pixels);
+    if (!taps.index) {
+      dev.ensure_buffer(g.shade_tap_index, ga->pixels * 16, kStorage, vk::MemoryKind::Device, "shade tap index");
+      dev.upload(g.shade_tap_index, ga->index, ga->pixels * 16);
+      dev.ensure_buffer(g.shade_tap_weight, ga->pixels * 16, kStorage, vk::MemoryKind::Device, "shade tap weights");
+      dev.upload(g.shade_tap_weight, ga->weight, ga->pixels * 16);
+    }
+    dev.ensure_buffer(g.shade_coarse_row, std::max<std::size_t>(16, ga->coarse_rows * sizeof(std::int32_t)), kStorage, vk::MemoryKind::Device,
+                      "shade coarse rows");
+    if (ga->coarse_row) dev.upload(g.shade_coarse_row, ga->coarse_row, ga->coarse_rows * sizeof(std::int32_t));
   } else {
-    for (vk::Buffer* buf : {&g.shade_tap_pixel, &g.shade_tap_index, &g.shade_tap_weight})
+    for (vk::Buffer* buf : {&g.shade_tap_pixel, &g.shade_tap_index, &g.shade_tap_weight, &g.shade_coarse_row})
       dev.ensure_buffer(*buf, 16, kStorage, vk::MemoryKind::Device, "shade taps (unused)");
   }
   std::vector<float> consts(5 * n2);
@@ -139,7 +148,8 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
     std::uint32_t count, first, end, flags, light_count, rows_theta, rows_f;
     float theta_floor;
   };
-  const std::uint32_t flags = in.zero_normal_empty ? gpu::kShadeFlagZeroNormalEmpty : 0u;
+  const std::uint32_t flags =
+      (in.zero_normal_empty ? gpu::kShadeFlagZeroNormalEmpty : 0u) | (ga && ga->coarse_row ? gpu::kShadeFlagCoarseRow : 0u);
   const std::uint32_t nl = lights ? static_cast<std::uint32_t>(in.lights->size()) : 0u;
   const std::uint32_t rt = lights ? static_cast<std::uint32_t>(lt->rows_theta) : 2u, rf = lights ? static_cast<std::uint32_t>(lt->rows_f) : 2u;
   const std::vector<vk::Bind> binds = {
@@ -147,7 +157,9 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
       vk::Bind::buffer_at(gpu::kShadeBindConsts, g.shade_consts),       vk::Bind::buffer_at(gpu::kShadeBindPrIndex, plan.pr_range),
       vk::Bind::buffer_at(gpu::kShadeBindPrTerms, plan.pr_terms),       vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
       vk::Bind::buffer_at(gpu::kShadeBindOut, g.shade_out),             vk::Bind::buffer_at(gpu::kShadeBindTapPixel, g.shade_tap_pixel),
-      vk::Bind::buffer_at(gpu::kShadeBindTapIndex, g.shade_tap_index),  vk::Bind::buffer_at(gpu::kShadeBindTapWeight, g.shade_tap_weight),
+      vk::Bind::buffer_at(gpu::kShadeBindTapIndex, taps.index ? *taps.index : g.shade_tap_index),
+      vk::Bind::buffer_at(gpu::kShadeBindTapWeight, taps.weight ? *taps.weight : g.shade_tap_weight),
+      vk::Bind::buffer_at(gpu::kShadeBindCoarseRow, g.shade_coarse_row),
       vk::Bind::buffer_at(gpu::kShadeBindLightTable, g.light_table),    vk::Bind::buffer_at(gpu::kShadeBindLights, g.shade_lights),
       vk::Bind::buffer_at(gpu::kShadeBindStatus, g.shade_status)};
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {

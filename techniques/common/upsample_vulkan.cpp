@@ -227,6 +227,21 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   ctx.record().counters["apply_gpu_seconds"] = timer_seconds(res);
 }
 
+}  // namespace softgi::techniques::common
+
+namespace softgi::techniques::common::gpu_passes {
+
+ResidentTaps resident_upsample_taps(vk::Context& dev, const std::array<std::int32_t, 4>* index, std::size_t pixels) {
+  UpsampleState& g = upsample_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);
+  if (!index || g.up_resident != static_cast<const void*>(index) || g.up_pixels != pixels) return {};
+  return {&g.up_index, &g.up_weight};
+}
+
+}  // namespace softgi::techniques::common::gpu_passes
+
+namespace softgi::techniques::common {
+
 UpsampleKernels vulkan_upsample_kernels(render::FrameContext& ctx) {
   render::FrameContext* c = &ctx;
   return {[c](const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt) { return vulkan_upsample_weights(*c, coarse, fine, opt); },

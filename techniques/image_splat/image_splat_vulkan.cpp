@@ -214,26 +214,18 @@ DirectKernels vulkan_direct_kernels(render::FrameContext& ctx) {
     const std::size_t n2 = static_cast<std::size_t>(d.order) * d.order;
     common::GpuShade in{&bs, d.lights_table.get(), &d.lights, true, nullptr};
     common::GpuShade::Gather ga;
-    std::vector<std::array<std::int32_t, 4>> receiver_taps;
     if (up.device_visibility) {
-      // Section 4.2 with O_p where exponentiate left it, in receiver order: the taps' coarse pixels
-      // become their receivers (a tap only ever names a coarse pixel that hit a surface).
+      // Section 4.2 with O_p where exponentiate left it, in receiver order: each tap's coarse pixel
+      // reads the row of its receiver (a tap only ever names a coarse pixel that hit a surface).
       if (up.w.index.size() != fine.object.size() || up.w.weight.size() != up.w.index.size())
         throw std::logic_error("image_splat shade_direct on vulkan: upsampling weights do not match the display buffer");
-      receiver_taps.resize(up.w.index.size());
-      for (std::size_t p = 0; p < receiver_taps.size(); ++p)
-        for (int t = 0; t < 4; ++t) {
-          const std::int32_t q = up.w.index[p][t];
-          if (q >= 0 && (static_cast<std::size_t>(q) >= up.coarse_receiver.size() || up.coarse_receiver[q] < 0))
-            throw std::logic_error("image_splat shade_direct on vulkan: display pixel " + std::to_string(p) + " gathers coarse pixel " +
-                                   std::to_string(q) + ", which has no receiver");
-          receiver_taps[p][t] = q < 0 ? -1 : up.coarse_receiver[q];
-        }
       ga.pixel = up.surface.data();
-      ga.index = receiver_taps.data();
+      ga.index = up.w.index.data();
       ga.weight = up.w.weight.data();
       ga.pixels = up.w.index.size();
       ga.coarse_resource = up.device_visibility;
+      ga.coarse_row = up.coarse_receiver.data();
+      ga.coarse_rows = up.coarse_receiver.size();
       in.gather = &ga;
     } else if (!up.coarse_visibility.empty()) {  // section 4.2: O_p interpolated on the device
       if (up.coarse_visibility.size() % n2 != 0 || up.w.index.size() != fine.object.size() || up.w.weight.size() != up.w.index.size())

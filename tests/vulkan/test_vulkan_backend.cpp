@@ -175,6 +175,14 @@ TEST(VulkanBackend, ImageSplatLogOcclusionStaysOnTheDevice) {
     EXPECT_EQ(by_pass["accumulate_log"].upload, 0u);
     EXPECT_EQ(by_pass["accumulate_log"].download, 0u);
     EXPECT_EQ(by_pass["exponentiate"].download, gpu::kExpStatusWords * sizeof(std::uint32_t));  // the status words only
+    // shade_direct binds the eq. 11 taps and weights upsample left on the device (32 bytes a display
+    // pixel) and O_p in place: it uploads its surface receivers (24 bytes each), their pixels (4), the
+    // coarse pixels' receivers (at most 4 bytes a display pixel) and a few KB of constants.
+    double surface = 0.0;
+    for (const auto& p : second.passes)
+      if (p.name == "shade_direct") surface = p.counters.at("surface_pixels");
+    EXPECT_GT(surface, 0.0);
+    EXPECT_LE(by_pass["shade_direct"].upload, static_cast<std::size_t>(28 * surface) + 4 * 48 * 36 + 4096);
   }
   ctx.reset();
   EXPECT_EQ(log->problems(), 0u) << log->summary();
