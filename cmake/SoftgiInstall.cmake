@@ -12,6 +12,9 @@ install(DIRECTORY ${PROJECT_SOURCE_DIR}/core/include/softgi ${PROJECT_SOURCE_DIR
 if(TARGET softgi)
   install(TARGETS softgi RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()
+if(TARGET softgi-viewer)
+  install(TARGETS softgi-viewer RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endif()
 install(EXPORT softgiTargets NAMESPACE softgi:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/softgi)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/softgiConfig.cmake.in
   ${PROJECT_BINARY_DIR}/softgiConfig.cmake INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/softgi)

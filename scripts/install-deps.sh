@@ -17,6 +17,9 @@ PACKAGES=(
   clang libclang-rt-14-dev llvm-14
   # The report page's test loads DIR/index.html in a headless browser (console errors, charts drawn).
   chromium-headless-shell
+  # softgi-viewer: Dear ImGui (its library holds the GLFW and Vulkan backends); its tests open the
+  # window on a virtual X server.
+  libimgui-dev xvfb xauth
 )
 
 missing=()

@@ -20,6 +20,7 @@ namespace {
 
 struct RenderArgs {
   SceneArgs scene;
+  CameraArgs camera;
   std::string technique, backend, device, out;  // backend: "" = the reference backend
   std::vector<std::string> params;
   double frame = 0.0;
@@ -40,7 +41,8 @@ void run_render(const RenderArgs& args) {
   OutputDir out(args.out, "--out", "record.json");  // before the device, the scene and the frame
   std::unique_ptr<render::Backend> backend_ptr = make_backend(backend_name, args.device, "render");  // device errors early
   render::Backend& backend = *backend_ptr;
-  const scene::Scene sc = load_cli_scene("render", args.scene.spec, args.scene.fit_proxies);
+  scene::Scene sc = load_cli_scene("render", args.scene.spec, args.scene.fit_proxies);
+  apply_camera_args(args.camera, sc.camera);
   int w = args.width, h = args.height;
   render::resolve_resolution(sc.camera, w, h);
   render::make_pinhole_camera(sc, w, h, "render");  // camera and size errors before any work
@@ -71,22 +73,8 @@ void run_render(const RenderArgs& args) {
   save("direct", r.direct);
   save("indirect", r.indirect);
 
-  Json rec = {{"softgi_version", softgi_version()},
-                        {"date", utc_now()},
-                        {"command", "render"},
-                        {"scene", scene_json(sc, args.scene.spec)},
-                        {"technique", technique->name()},
-                        {"backend", backend.name()},
-                        {"device", device_json(backend)},
-                        {"params", params_json(params)},
-                        {"frame_time", args.frame},
-                        {"resolution", {w, h}},
-                        {"images", images}};
-  rec.update(frame_json(r));
-  std::size_t vertices = 0;
-  for (const auto& v : r.vertex_radiance) vertices += v.size();
-  if (vertices) rec["vertex_results"] = {{"objects", r.vertex_radiance.size()}, {"vertices", vertices}};
-  out.finish(rec);
+  out.finish(render_record("render", args.scene.spec, args.scene.fit_proxies, sc, *technique, backend, params, args.frame, w, h,
+                           images, r, args.out));
 
   std::cerr << "render: " << r.passes.size() << " passes in " << r.total_seconds * 1e3 << " ms (";
   for (std::size_t i = 0; i < r.passes.size(); ++i)
@@ -101,6 +89,7 @@ void register_render(CLI::App& app) {
   add_scene_options(*sub, args->scene);
   sub->add_option("--technique", args->technique, "technique name (softgi techniques lists them)")->required();
   sub->add_option("--param", args->params, "technique parameter NAME=VALUE (repeatable)");
+  add_camera_options(*sub, args->camera);
   sub->add_option("--frame", args->frame, "animation time in seconds (default 0)");
   sub->add_option("--width", args->width, "image width (default: the scene camera's)")->check(CLI::Range(1, 16384));
   sub->add_option("--height", args->height, "image height (default: the scene camera's)")->check(CLI::Range(1, 16384));

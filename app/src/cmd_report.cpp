@@ -157,7 +157,7 @@ std::vector<std::string> settings_arguments(const ReportArgs& a) {
 
 std::string command_line(const std::vector<std::string>& args) {
   std::string c = "softgi";
-  for (const auto& a : args) c += " " + report::shell_quote(a);
+  for (const auto& a : args) c += " " + shell_quote(a);
   return c;
 }
 
@@ -278,7 +278,7 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
     std::vector<std::string> shard_args = args;
     shard_args.insert(shard_args.end(), {"--shard", "${SLURM_ARRAY_TASK_ID}/" + std::to_string(n), "--no-page", "--quiet-progress"});
     std::string shard_cmd = "softgi";
-    for (const auto& x : shard_args) shard_cmd += " " + (x.rfind("${", 0) == 0 ? "\"" + x + "\"" : report::shell_quote(x));
+    for (const auto& x : shard_args) shard_cmd += " " + (x.rfind("${", 0) == 0 ? "\"" + x + "\"" : shell_quote(x));
     std::ostringstream sb;
     sb << "#!/bin/bash\n"
        << "# softgi report as a Slurm job array: " << plan.size() << " jobs in " << n << " shards, written by\n#   " << command
@@ -288,7 +288,7 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
        << "#SBATCH --array=0-" << n - 1 << "\n"
        << "#SBATCH --ntasks=1\n"
        << "#SBATCH --cpus-per-task=${SOFTGI_SLURM_CPUS:-4}\n"
-       << "#SBATCH --output=" << report::shell_quote((fs::path(a.out) / "logs" / "slurm-%A_%a.out").string()) << "\n"
+       << "#SBATCH --output=" << shell_quote((fs::path(a.out) / "logs" / "slurm-%A_%a.out").string()) << "\n"
        << "set -euo pipefail\n"
        << shard_cmd << "\n";
     std::ostringstream sub;
@@ -296,11 +296,11 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
         << "# Submits the shards of slurm/report.sbatch, then `softgi report merge` once all have succeeded.\n"
         << "set -euo pipefail\n"
         << "here=\"$(cd \"$(dirname \"${BASH_SOURCE[0]}\")\" && pwd)\"\n"
-        << "mkdir -p " << report::shell_quote((fs::path(a.out) / "logs").string()) << "\n"
+        << "mkdir -p " << shell_quote((fs::path(a.out) / "logs").string()) << "\n"
         << "array=$(sbatch --parsable \"$here/report.sbatch\")\n"
         << "sbatch --dependency=afterok:\"$array\" --job-name=softgi-report-merge --output="
-        << report::shell_quote((fs::path(a.out) / "logs" / "merge-%j.out").string()) << " --wrap="
-        << report::shell_quote("softgi report merge --out " + report::shell_quote(a.out)) << "\n"
+        << shell_quote((fs::path(a.out) / "logs" / "merge-%j.out").string()) << " --wrap="
+        << shell_quote("softgi report merge --out " + shell_quote(a.out)) << "\n"
         << "echo \"submitted array $array and its merge\"\n";
     out.write_text("slurm/report.sbatch", sb.str());
     out.write_text("slurm/submit.sh", sub.str());

@@ -193,6 +193,108 @@ Json scene_json(const scene::Scene& sc, const std::string& spec) {
   return {{"name", sc.name}, {"source", sc.source}, {"spec", spec}, {"notices", sc.notices}};
 }
 
+void add_camera_options(CLI::App& sub, CameraArgs& args) {
+  sub.add_option("--camera-position", args.position, "camera position x,y,z (default: the scene camera's)");
+  sub.add_option("--camera-target", args.target, "point the camera looks at, x,y,z (default: the scene camera's)");
+  sub.add_option("--camera-up", args.up, "camera up hint x,y,z (default: the scene camera's)");
+  sub.add_option("--fov", args.fov_y_deg, "vertical field of view in degrees (default: the scene camera's)");
+}
+
+namespace {
+glm::vec3 parse_vec3(const std::string& text, const std::string& option) {
+  const std::vector<std::string> items = split_list(text);
+  glm::vec3 v{0.0f};
+  std::size_t used = 0;
+  bool ok = items.size() == 3;
+  for (int k = 0; ok && k < 3; ++k) {
+    try {
+      v[k] = std::stof(items[k], &used);
+      ok = used == items[k].size() && std::isfinite(v[k]);
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  if (!ok) throw std::invalid_argument(option + " '" + text + "': expected three finite numbers x,y,z");
+  return v;
+}
+}  // namespace
+
+void apply_camera_args(const CameraArgs& args, scene::Camera& camera) {
+  if (!args.position.empty()) camera.position = parse_vec3(args.position, "--camera-position");
+  if (!args.target.empty()) camera.target = parse_vec3(args.target, "--camera-target");
+  if (!args.up.empty()) camera.up = parse_vec3(args.up, "--camera-up");
+  if (args.fov_y_deg != 0.0) {
+    if (!(args.fov_y_deg > 0.0 && args.fov_y_deg < 179.0))
+      throw std::invalid_argument("--fov " + std::to_string(args.fov_y_deg) + ": expected degrees inside (0, 179)");
+    camera.fov_y_deg = static_cast<float>(args.fov_y_deg);
+  }
+}
+
+std::string format_vec3(const glm::vec3& v) {
+  std::ostringstream os;
+  os.precision(9);  // a float's round trip
+  os << v.x << "," << v.y << "," << v.z;
+  return os.str();
+}
+
+Json camera_json(const scene::Camera& c) {
+  return {{"position", {c.position.x, c.position.y, c.position.z}},
+          {"target", {c.target.x, c.target.y, c.target.z}},
+          {"up", {c.up.x, c.up.y, c.up.z}},
+          {"fov_y_deg", c.fov_y_deg}};
+}
+
+std::string shell_quote(const std::string& s) {
+  if (!s.empty() && s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-./,=:") == std::string::npos)
+    return s;
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string render_command_line(const std::string& spec, int fit_proxies, const scene::Scene& sc, const std::string& technique,
+                                const render::ParamSet& params, const std::string& backend, double time, int width, int height,
+                                const std::string& out) {
+  std::ostringstream os;
+  os.precision(17);
+  os << "softgi render --scene " << shell_quote(spec);
+  if (fit_proxies) os << " --fit-proxies " << fit_proxies;
+  os << " --technique " << shell_quote(technique) << " --backend " << shell_quote(backend);
+  std::ostringstream fov;
+  fov.precision(9);
+  fov << sc.camera.fov_y_deg;
+  os << " --camera-position " << format_vec3(sc.camera.position) << " --camera-target " << format_vec3(sc.camera.target)
+     << " --camera-up " << format_vec3(sc.camera.up) << " --fov " << fov.str();
+  const render::ParamSet defaults(params.descs());
+  for (const auto& d : params.descs())
+    if (params.get_text(d.name) != defaults.get_text(d.name)) os << " --param " << shell_quote(d.name + "=" + params.get_text(d.name));
+  os << " --frame " << time << " --width " << width << " --height " << height << " --out " << shell_quote(out);
+  return os.str();
+}
+
+Json render_record(const std::string& command, const std::string& spec, int fit_proxies, const scene::Scene& sc,
+                   const render::Technique& technique, const render::Backend& backend, const render::ParamSet& params,
+                   double time, int width, int height, const Json& images, const render::FrameResult& r, const std::string& out) {
+  Json rec = {{"softgi_version", softgi_version()},
+              {"date", utc_now()},
+              {"command", command},
+              {"command_line", render_command_line(spec, fit_proxies, sc, technique.name(), params, backend.name(), time, width, height, out)},
+              {"scene", scene_json(sc, spec)},
+              {"camera", camera_json(sc.camera)},
+              {"technique", technique.name()},
+              {"backend", backend.name()},
+              {"device", device_json(backend)},
+              {"params", params_json(params)},
+              {"frame_time", time},
+              {"resolution", {width, height}},
+              {"images", images}};
+  rec.update(frame_json(r));
+  std::size_t vertices = 0;
+  for (const auto& v : r.vertex_radiance) vertices += v.size();
+  if (vertices) rec["vertex_results"] = {{"objects", r.vertex_radiance.size()}, {"vertices", vertices}};
+  return rec;
+}
+
 std::string softgi_version() { return SOFTGI_VERSION; }
 
 std::string utc_now() {

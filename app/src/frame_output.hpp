@@ -13,6 +13,10 @@
 #include "softgi/render/technique.hpp"
 #include "softgi/scene/scene.hpp"
 
+namespace CLI {
+class App;
+}
+
 namespace softgi::app {
 
 // Records keep insertion order (parameters in description order, fields as written).
@@ -64,6 +68,39 @@ void print_frame_warnings(const std::string& command, const render::FrameResult&
 // "0.1.0" and an ISO 8601 UTC timestamp.
 std::string softgi_version();
 std::string utc_now();
+
+// A camera placed on the command line (softgi render; the viewer's screenshots name these options so
+// that the frame can be rendered again): each vector "x,y,z", the field of view in degrees. Empty /
+// 0: the scene camera's.
+struct CameraArgs {
+  std::string position, target, up;
+  double fov_y_deg = 0.0;
+};
+void add_camera_options(CLI::App& sub, CameraArgs& args);
+// Sets what `args` gives on `camera`; errors name the option and the text (three finite numbers; a
+// field of view inside (0, 179) degrees).
+void apply_camera_args(const CameraArgs& args, scene::Camera& camera);
+// "x,y,z" with enough digits that a float reads back to the same value.
+std::string format_vec3(const glm::vec3& v);
+// The camera a frame was rendered from: position, target, up, fov_y_deg.
+Json camera_json(const scene::Camera& c);
+
+// `s` as one word of a POSIX shell command (single-quoted unless it is plain).
+std::string shell_quote(const std::string& s);
+
+// What a frame of `softgi render` is, to render it again: the command line that renders `sc` (loaded
+// from `spec`, with --fit-proxies `fit_proxies` when non-zero) with its camera, the technique's
+// non-default parameters, the backend, the time and the size, writing to `out`. Arguments are
+// quoted for a POSIX shell.
+std::string render_command_line(const std::string& spec, int fit_proxies, const scene::Scene& sc, const std::string& technique,
+                                const render::ParamSet& params, const std::string& backend, double time, int width, int height,
+                                const std::string& out);
+// The run record of one rendered frame, the form `softgi render` writes and the viewer's screenshots
+// share: version, date, command, the command line that renders it again, scene, camera, technique,
+// backend, device, parameters, time, resolution, `images` (name -> {exr, png}) and frame_json(r).
+Json render_record(const std::string& command, const std::string& spec, int fit_proxies, const scene::Scene& sc,
+                   const render::Technique& technique, const render::Backend& backend, const render::ParamSet& params,
+                   double time, int width, int height, const Json& images, const render::FrameResult& r, const std::string& out);
 
 // "--help" footer: every registered technique with its parameter descriptions.
 std::string techniques_help();

@@ -235,14 +235,6 @@ std::string scene_label(const std::string& spec) {
 
 std::string frame_label(double t) { return fmt_time(t).insert(0, 1, 't'); }
 
-std::string shell_quote(const std::string& s) {
-  if (!s.empty() && s.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-./,=:") == std::string::npos)
-    return s;
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 std::vector<Job> plan_jobs(const Settings& s) {
   std::vector<Job> jobs;
   std::set<std::string> labels;

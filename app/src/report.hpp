@@ -60,8 +60,6 @@ std::vector<Job> plan_jobs(const Settings& s);
 // A scene spec as a file-name part ("spheres", "my_scene_gltf").
 std::string scene_label(const std::string& spec);
 std::string frame_label(double t);  // "t0", "t0.5"
-// `s` as one POSIX shell word: unchanged when it holds only safe characters, else single-quoted.
-std::string shell_quote(const std::string& s);
 
 // Runs jobs and the references they need, in one process; results go to DIR (report_dir) as
 // files: references/<scene>/<frame>/..., jobs/<id>.json, images/<id>/...

@@ -2,6 +2,7 @@
 // validation is on), device selection, memory, buffers and images, one-shot submissions with a
 // fence timeout and timestamp queries.
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/backends/vulkan/loader_pin.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
 
 #include <algorithm>
@@ -241,26 +242,29 @@ VkApplicationInfo app_info() {
   return a;
 }
 
-#if defined(__SANITIZE_ADDRESS__)
-// LeakSanitizer builds: the loader dlclose()s the driver and layers when an instance goes; memory
-// still referenced from an unloaded library's globals then looks leaked at exit (the globals can
-// no longer be scanned) and is reported against "<unknown module>" (measured with lavapipe: 56-635
-// bytes per process). Pinning every library loaded so far (RTLD_NOLOAD | RTLD_NODELETE: nothing new
-// is loaded) keeps them mapped, so leak checking reports real leaks only.
-int pin_library(struct dl_phdr_info* info, std::size_t, void*) {
-  if (info->dlpi_name && info->dlpi_name[0]) dlopen(info->dlpi_name, RTLD_LAZY | RTLD_NOLOAD | RTLD_NODELETE);
-  return 0;
-}
-void pin_loaded_libraries() { dl_iterate_phdr(pin_library, nullptr); }
-#else
-void pin_loaded_libraries() {}
-#endif
 
 constexpr const char* kValidationLayer = "VK_LAYER_KHRONOS_validation";
 constexpr std::uint32_t kQueryCapacity = 128;
 constexpr std::uint32_t kSetsPerPool = 256;
 
 }  // namespace
+
+#if defined(__SANITIZE_ADDRESS__)
+// LeakSanitizer builds: the loader dlclose()s the driver and layers when an instance goes; memory
+// still referenced from an unloaded library's globals then looks leaked at exit (the globals can
+// no longer be scanned) and is reported against "<unknown module>" (measured with lavapipe: 56-635
+// bytes per process). Pinning every library loaded so far (RTLD_NOLOAD | RTLD_NODELETE: nothing new
+// is loaded) keeps them mapped, so leak checking reports real leaks only.
+namespace {
+int pin_library(struct dl_phdr_info* info, std::size_t, void*) {
+  if (info->dlpi_name && info->dlpi_name[0]) dlopen(info->dlpi_name, RTLD_LAZY | RTLD_NOLOAD | RTLD_NODELETE);
+  return 0;
+}
+}  // namespace
+void pin_loaded_libraries() { dl_iterate_phdr(pin_library, nullptr); }
+#else
+void pin_loaded_libraries() {}
+#endif
 
 bool DeviceInfo::is_gpu() const {
   return type == VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU || type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU ||

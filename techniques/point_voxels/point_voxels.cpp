@@ -652,6 +652,31 @@ class PointVoxels final : public render::Technique {
   }
   std::vector<ParamDesc> params() const override { return point_voxels::params(); }
   std::vector<render::ExperimentDef> experiments() const override { return point_voxels::experiments(); }
+  std::vector<std::string> overlay_outputs() const override { return {kVoxels}; }
+  // The frame's point proxies (discs of the ray-disc test's radius) and its occupied voxels.
+  render::OverlayGeometry overlay(const render::FrameResult& frame) const override {
+    render::OverlayGeometry g;
+    g.scene_spheres = false;  // its proxies are sampled from the meshes, not the scene's sphere sets
+    const auto it = frame.resources.find(kVoxels);
+    if (it == frame.resources.end()) return g;
+    const auto* v = std::any_cast<std::shared_ptr<const Voxels>>(&it->second);
+    if (!v || !*v) return g;
+    const Voxels& vox = **v;
+    g.points_label = "point proxies";
+    g.boxes_label = "occupied voxels";
+    g.points.reserve(vox.proxies.size());
+    for (const auto& p : vox.proxies.position) g.points.push_back({p, vox.proxies.radius});
+    const VoxelGrid& grid = vox.grid;
+    for (int z = 0; z < grid.dims.z; ++z)
+      for (int y = 0; y < grid.dims.y; ++y)
+        for (int x = 0; x < grid.dims.x; ++x) {
+          const std::uint32_t k = grid.hash({x, y, z});
+          if (k + 1 >= grid.start.size() || grid.start[k + 1] == grid.start[k]) continue;
+          const glm::vec3 lo = grid.lo + glm::vec3(x, y, z) * grid.cell;
+          g.boxes.push_back({lo, lo + grid.cell});
+        }
+    return g;
+  }
   std::vector<render::MemoryItem> estimate_memory(const scene::Scene& scene, const render::ParamSet& params, int width,
                                                   int height) const override {
     return memory_items(scene, params, width, height);

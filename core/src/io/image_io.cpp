@@ -129,20 +129,26 @@ void write_atomic(const std::string& path, const char* format, const OIIO::Image
 void write_png8(const std::string& path, const Image& img, float exposure, bool encode_srgb) {
   check_image(path, img);
   check_finite(path, img);
-  std::vector<std::uint8_t> bytes(img.rgb.size() * 3);
-  for (std::size_t i = 0; i < img.rgb.size(); ++i) {
-    for (int k = 0; k < 3; ++k) {
-      float v = std::clamp(img.rgb[i][k] * exposure, 0.0f, 1.0f);
-      if (encode_srgb) v = linear_to_srgb(v);
-      bytes[3 * i + std::size_t(k)] = to_byte(v);
-    }
-  }
+  const std::vector<std::uint8_t> bytes = display_bytes(img, exposure, encode_srgb);
   OIIO::ImageSpec spec(img.width, img.height, 3, OIIO::TypeDesc::UINT8);
   spec.attribute("oiio:ColorSpace", "sRGB");
   write_atomic(path, "png", spec, OIIO::TypeDesc::UINT8, bytes.data());
 }
 
 }  // namespace
+
+std::vector<std::uint8_t> display_bytes(const Image& img, float exposure, bool encode_srgb, int channels) {
+  std::vector<std::uint8_t> bytes(img.rgb.size() * std::size_t(channels), 255);
+  for (std::size_t i = 0; i < img.rgb.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      float v = img.rgb[i][k] * exposure;
+      v = v > 0.0f ? std::min(v, 1.0f) : 0.0f;  // NaN -> 0
+      if (encode_srgb) v = linear_to_srgb(v);
+      bytes[std::size_t(channels) * i + std::size_t(k)] = to_byte(v);
+    }
+  }
+  return bytes;
+}
 
 Image read_image(const std::string& path) {
   std::error_code ec;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,10 @@ EnvironmentMap read_environment_map(const std::string& path, float max_radiance)
 void write_exr(const std::string& path, const Image& img, bool half = false);
 // Tone-mapped 8-bit PNG: exposure scale, Reinhard-free clamp, sRGB encoding. Same atomic write.
 void write_png(const std::string& path, const Image& img, float exposure = 1.0f);
+// The 8-bit values write_png stores (clamp(x * exposure) to [0, 1], sRGB-encoded when
+// `encode_srgb`), `channels` per pixel (3: RGB; 4: RGBA with alpha 255): one rule for PNG files and
+// the viewer's screen. NaN components become 0 (clamp), so check finiteness first where it matters.
+std::vector<std::uint8_t> display_bytes(const Image& img, float exposure = 1.0f, bool encode_srgb = true, int channels = 3);
 // 8-bit PNG of already display-referred RGB in [0, 1] (false-colour maps).
 void write_png_display(const std::string& path, const Image& img);
 

@@ -57,6 +57,24 @@ int scaled_size(int size, int scale);
 // Vertices of every object of the scene (nodes with a mesh): the per-vertex receivers.
 std::size_t scene_vertex_count(const scene::Scene& scene);
 
+// What a viewer draws over the image for a technique, beyond the scene's proxy spheres (which any
+// viewer poses itself): the technique's own proxies as discs, its spatial structure as boxes.
+struct OverlayGeometry {
+  struct Point {
+    glm::vec3 position{0.0f};
+    float radius = 0.0f;
+  };
+  struct Box {
+    glm::vec3 lo{0.0f}, hi{0.0f};
+  };
+  std::vector<Point> points;
+  std::vector<Box> boxes;
+  std::string points_label, boxes_label;  // what they are ("point proxies", "occupied voxels")
+  // The technique shades with the scene's proxy spheres (scene::ProxySet), so they belong in its
+  // overlay too.
+  bool scene_spheres = true;
+};
+
 class Technique {
  public:
   virtual ~Technique() = default;
@@ -66,6 +84,14 @@ class Technique {
   // The pass graph for this scene and settings. `empty` receives the resources that are empty for
   // this scene (no moving object, no re-radiating proxy, ...), so compile() leaves out their passes.
   virtual PassGraph plan(const scene::Scene& scene, const ParamSet& params, std::set<std::string>& empty) = 0;
+  // Frame resources that overlay() reads: a viewer that draws the overlay adds them to
+  // RenderRequest::outputs. None by default.
+  virtual std::vector<std::string> overlay_outputs() const { return {}; }
+  // The overlay of a frame rendered with overlay_outputs() among its outputs.
+  virtual OverlayGeometry overlay(const FrameResult& frame) const {
+    (void)frame;
+    return {};
+  }
   // The paper figures this technique reproduces, for `softgi experiment` (none by default). Their
   // variants may name other registered techniques (a comparison figure).
   virtual std::vector<ExperimentDef> experiments() const { return {}; }
