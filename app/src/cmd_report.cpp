@@ -47,6 +47,7 @@ struct ReportArgs {
   double target_noise = 0.0;
   unsigned seed = 1;
   bool no_page = false;
+  std::string bench_json;  // bench_techniques' JSON, shown on the page
   // merge
   std::vector<std::string> shard_dirs;
 };
@@ -139,6 +140,7 @@ std::vector<std::string> settings_arguments(const ReportArgs& a) {
   add("--device", a.device);
   add("--frames", a.frames);
   add("--rungs", a.rungs);
+  add("--bench-json", a.bench_json);
   add_int("--width", a.width, 0);
   add_int("--height", a.height, 0);
   add_int("--timed-frames", a.timed_frames, 0);
@@ -257,8 +259,19 @@ void run_processes(const ReportArgs& a, int n, const fs::path& logs, const std::
   if (!failed.empty()) throw std::runtime_error("report: worker process(es) failed; see" + failed);
 }
 
+// --bench-json FILE, read and checked before any work; its text, to be copied into DIR.
+std::string read_bench_json(const std::string& path) {
+  if (path.empty()) return {};
+  report::bench_results(path);  // a file that is not bench_techniques' JSON fails here, naming it
+  std::ifstream in(path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
 void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
   const report::Settings s = read_settings(a);
+  const std::string bench = read_bench_json(a.bench_json);
   if (a.jobs < 1 || a.jobs > 256) throw std::invalid_argument("--jobs " + std::to_string(a.jobs) + ": expected 1 to 256");
   if (a.jobs > 1 && !a.shard.empty()) throw std::invalid_argument("--jobs and --shard: a shard runs in one process");
   std::pair<int, int> shard{0, 1};
@@ -271,6 +284,7 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
   // Worker processes of --jobs share DIR with the process that started them, which wrote the plan.
   const bool worker = concurrent_jobs > 1 && a.jobs == 1;
   if (!worker) out.write_json("report.json", plan_json(s, plan, command));
+  if (!bench.empty() && !worker) out.write_text(report::kBenchFile, bench);
 
   if (a.emit_slurm > 0) {
     // A job array of N shards writing into DIR (a shared file system), then the merge that writes the page.
@@ -372,7 +386,8 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
 }
 
 // Joins shards' directories into DIR (jobs, images, references) and writes the page.
-void run_merge(const std::string& out_dir, const std::vector<std::string>& shard_dirs) {
+void run_merge(const std::string& out_dir, const std::vector<std::string>& shard_dirs, const std::string& bench_json) {
+  const std::string bench = read_bench_json(bench_json);
   register_builtin();
   std::optional<Json> plan;
   std::vector<fs::path> sources;
@@ -401,6 +416,7 @@ void run_merge(const std::string& out_dir, const std::vector<std::string>& shard
   if (!plan) throw std::invalid_argument("report merge: no report.json in " + out_dir + " and no shard directory given");
   OutputDir out(out_dir, "--out", "results.json");
   out.write_json("report.json", *plan);
+  if (!bench.empty()) out.write_text(report::kBenchFile, bench);
   for (const auto& d : shard_dirs) {
     std::error_code ec;
     if (fs::equivalent(d, out_dir, ec)) continue;
@@ -449,6 +465,8 @@ void register_report(CLI::App& app) {
       ->check(CLI::Range(0, 4096));
   sub->add_option("--jobs", a->jobs, "run the jobs in N processes (times then share the CPU; the page says so)");
   sub->add_option("--shard", a->shard, "run share I of N of the jobs (0 <= I < N), for a cluster; join with `report merge`");
+  sub->add_option("--bench-json", a->bench_json,
+                  "the comparative benchmark suite's results (bench_techniques --benchmark_out=F --benchmark_out_format=json), copied into DIR and shown on the page");
   sub->add_flag("--no-page", a->no_page, "write the jobs' results only (a shard; `report merge` writes the page)");
   sub->add_option("--emit-slurm", a->emit_slurm, "write DIR/slurm/report.sbatch (a job array of N shards) and submit.sh; renders nothing")
       ->check(CLI::Range(1, 100000));
@@ -457,7 +475,8 @@ void register_report(CLI::App& app) {
   CLI::App* merge = sub->add_subcommand("merge", "join shard directories into one report: DIR's index.html from every shard's jobs");
   merge->add_option("--out", a->out, "the merged report's directory")->required();
   merge->add_option("shards", a->shard_dirs, "shard directories (none: DIR holds them already)");
-  merge->callback([a] { run_merge(a->out, a->shard_dirs); });
+  merge->add_option("--bench-json", a->bench_json, "bench_techniques' results (--benchmark_out_format=json) to show on the page");
+  merge->callback([a] { run_merge(a->out, a->shard_dirs, a->bench_json); });
   sub->require_subcommand(0, 1);
   sub->callback([sub, a, quiet, concurrent] {
     if (sub->got_subcommand("merge")) return;

@@ -717,9 +717,92 @@ Json assemble_results(const std::string& dir_text, const Settings& settings, con
   }
   for (auto& p : points) p.erase("settings_hash");
   Json sj = settings_json(settings);
-  return {{"softgi_version", softgi_version()}, {"date", utc_now()},  {"command", command},   {"budget", settings.budget.name},
-          {"settings", sj},                      {"scenes", scenes},   {"points", points},     {"missing_jobs", missing},
-          {"planned_jobs", plan.size()}};
+  Json out = {{"softgi_version", softgi_version()}, {"date", utc_now()},  {"command", command},   {"budget", settings.budget.name},
+              {"settings", sj},                      {"scenes", scenes},   {"points", points},     {"missing_jobs", missing},
+              {"planned_jobs", plan.size()}};
+  if (fs::exists(dir / kBenchFile)) out["bench"] = bench_results((dir / kBenchFile).string());
+  return out;
+}
+
+Json bench_results(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("--bench-json '" + path + "': cannot read");
+  Json j;
+  try {
+    j = Json::parse(in);
+  } catch (const Json::parse_error& e) {
+    throw std::runtime_error("--bench-json '" + path + "': not JSON: " + e.what());
+  }
+  if (!j.is_object() || !j.contains("benchmarks") || !j["benchmarks"].is_array())
+    throw std::runtime_error("--bench-json '" + path + "': no \"benchmarks\" array (write it with bench_techniques --benchmark_out=F --benchmark_out_format=json)");
+  const double to_ms_of[] = {1e-6, 1e-3, 1.0, 1e3};  // ns, us, ms, s
+  auto to_ms = [&](const Json& b) {
+    const std::string u = b.value("time_unit", "ns");
+    const int k = u == "ns" ? 0 : u == "us" ? 1 : u == "ms" ? 2 : u == "s" ? 3 : -1;
+    if (k < 0) throw std::runtime_error("--bench-json '" + path + "': unknown time_unit '" + u + "'");
+    return b.value("real_time", std::nan("")) * to_ms_of[k];
+  };
+  // BM_Technique/<scene>/<backend>/<technique>[/iterations:N][/manual_time][_median|...]
+  struct Row {
+    Json row;
+    bool from_median = false;
+  };
+  std::map<std::string, Row> rows;
+  std::vector<std::string> order;
+  for (const Json& b : j["benchmarks"]) {
+    const std::string name = b.value("run_name", b.value("name", ""));
+    if (name.rfind("BM_Technique/", 0) != 0) continue;
+    const std::vector<std::string> parts = [&] {
+      std::vector<std::string> out;
+      std::stringstream ss(name);
+      for (std::string item; std::getline(ss, item, '/');) out.push_back(item);
+      return out;
+    }();
+    if (parts.size() < 4) throw std::runtime_error("--bench-json '" + path + "': benchmark name '" + name + "' is not BM_Technique/scene/backend/technique");
+    const std::string key = parts[1] + "/" + parts[2] + "/" + parts[3];
+    const bool aggregate = b.value("run_type", "iteration") == "aggregate";
+    if (aggregate && b.value("aggregate_name", "") != "median") continue;
+    auto it = rows.find(key);
+    if (it != rows.end() && (it->second.from_median || !aggregate)) continue;  // one row: the median, else the first run
+    if (it == rows.end()) order.push_back(key);
+    Json r = {{"scene", parts[1]}, {"backend", parts[2]}, {"technique", parts[3]}};
+    if (b.value("error_occurred", false)) {
+      r["error"] = b.value("error_message", "failed");
+      r["ms"] = nullptr;
+    } else {
+      r["error"] = nullptr;
+      r["ms"] = number_or_null(to_ms(b));
+      r["repetitions"] = b.value("repetitions", 1);
+      Json passes = Json::object();
+      for (const auto& [k, v] : b.items())
+        if (k.rfind("ms:", 0) == 0 && v.is_number()) passes[k.substr(3)] = v;
+      r["passes"] = passes;
+      for (const char* c : {"upload_MB", "download_MB", "pruned_passes"})
+        if (b.contains(c)) r[c] = b[c];
+    }
+    rows[key] = {r, aggregate};
+  }
+  // Ratios to the fastest technique of each scene and backend.
+  std::map<std::string, double> fastest;
+  for (const auto& [key, r] : rows)
+    if (r.row["ms"].is_number()) {
+      const std::string g = r.row["scene"].get<std::string>() + "/" + r.row["backend"].get<std::string>();
+      const double ms = r.row["ms"];
+      if (!fastest.count(g) || ms < fastest[g]) fastest[g] = ms;
+    }
+  Json out_rows = Json::array();
+  for (const auto& key : order) {
+    Json r = rows[key].row;
+    const std::string g = r["scene"].get<std::string>() + "/" + r["backend"].get<std::string>();
+    r["x_fastest"] = r["ms"].is_number() && fastest[g] > 0.0 ? Json(r["ms"].get<double>() / fastest[g]) : Json(nullptr);
+    out_rows.push_back(r);
+  }
+  if (out_rows.empty()) throw std::runtime_error("--bench-json '" + path + "': no BM_Technique benchmarks (is it bench_techniques' output?)");
+  Json ctx = Json::object();
+  const Json& c = j.value("context", Json::object());
+  for (const char* k : {"date", "host_name", "num_cpus", "mhz_per_cpu", "library_build_type", "executable"})
+    if (c.contains(k)) ctx[k] = c[k];
+  return {{"source", kBenchFile}, {"context", ctx}, {"rows", out_rows}};
 }
 
 }  // namespace softgi::app::report

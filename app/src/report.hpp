@@ -88,4 +88,16 @@ class Runner {
 Json assemble_results(const std::string& dir, const Settings& settings, const std::vector<Job>& plan,
                       const std::string& command);
 
+// The file in DIR that holds the comparative benchmark suite's results (a copy of --bench-json);
+// assemble_results puts bench_results() of it under "bench" when it is there.
+inline constexpr const char* kBenchFile = "bench_techniques.json";
+// The comparative benchmark suite's output (bench/bench_techniques --benchmark_out=F
+// --benchmark_out_format=json) as the page shows it: one row per (scene, backend, technique) with its
+// time per frame in ms (Google Benchmark's real_time of the run: the mean of its frames; the median
+// over repetitions where the run was repeated), its ratio to the fastest technique of that scene and
+// backend, the mean ms of every pass, the bytes moved per frame and the passes left out; rows that
+// failed keep their error. Also the run's context (host, CPUs, date, build type). Throws
+// std::runtime_error naming the file for one that is missing, not JSON, or not that program's output.
+Json bench_results(const std::string& path);
+
 }  // namespace softgi::app::report

@@ -305,6 +305,35 @@ const char* const kScript = R"HTML(</script>
     })));
   }
 
+  // The comparative benchmark suite (bench_techniques' JSON given with --bench-json).
+  if (R.bench && (R.bench.rows || []).length) {
+    const B = R.bench, ctx = B.context || {};
+    const sec = el('section', {id: 'bench'});
+    content.appendChild(sec);
+    sec.appendChild(el('h2', {text: 'Benchmark suite (bench_techniques)'}));
+    sec.appendChild(el('p', {class: 'muted', text: 'Every technique at default settings on each scene and backend, ' +
+      'time per frame as Google Benchmark reports it (the mean of a run\'s frames; the median over repetitions where repeated), ' +
+      'from ' + (ctx.host_name || '?') + ', ' + (ctx.num_cpus || '?') + ' CPUs at ' + (ctx.mhz_per_cpu || '?') + ' MHz, ' +
+      (ctx.date || '') + ' (' + (ctx.library_build_type || '?') + ' benchmark library). Raw: '}, [el('a', {href: B.source, text: B.source})]));
+    const ok = B.rows.filter(function (r) { return isNum(r.ms); });
+    if (ok.length)
+      chart(sec, {width: 420, data: {values: ok.map(function (r) { return {scene: r.scene + ' (' + r.backend + ')', technique: r.technique, ms: r.ms}; })},
+        // A dot plot: the times span orders of magnitude (log axis), which bars cannot start from.
+        mark: {type: 'point', filled: true, size: 90}, encoding: {
+          y: {field: 'scene', type: 'nominal', title: null},
+          x: {field: 'ms', type: 'quantitative', scale: {type: 'log'}, title: 'ms per frame (log)'},
+          color: {field: 'technique', type: 'nominal'}, shape: {field: 'technique', type: 'nominal'},
+          tooltip: [{field: 'scene'}, {field: 'technique'}, {field: 'ms', format: '.3g'}]}});
+    sec.appendChild(table(['scene', 'backend', 'technique', 'ms per frame', '× fastest', 'slowest passes (mean ms)', 'upload MB', 'download MB', 'pruned'],
+      B.rows.map(function (r) {
+        if (!isNum(r.ms)) return el('tr', {}, [cell(r.scene), cell(r.backend), cell(r.technique), cell('failed: ' + (r.error || '?'))]);
+        const passes = Object.keys(r.passes || {}).map(function (k) { return [k, r.passes[k]]; })
+          .sort(function (a, b) { return b[1] - a[1]; }).slice(0, 3).map(function (x) { return x[0] + ' ' + num(x[1]); }).join(', ');
+        return el('tr', {}, [cell(r.scene), cell(r.backend), cell(r.technique), cell(num(r.ms), 'num'), cell(num(r.x_fastest), 'num'),
+          cell(passes), cell(num(r.upload_MB), 'num'), cell(num(r.download_MB), 'num'), cell(String(r.pruned_passes === undefined ? '' : r.pruned_passes), 'num')]);
+      })));
+  }
+
   Promise.all(pending).then(function (drawn) {
     document.body.dataset.charts = String(drawn.reduce(function (a, b) { return a + b; }, 0));
     document.body.dataset.ready = '1';
