@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "../techniques/shexp/shexp_internal.hpp"
+#include "device_peak.hpp"
 #include "fma_peak.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
@@ -196,9 +197,15 @@ struct FlopModel {
 };
 
 // Counters for accumulate_log ("log_") and exponentiate ("exp_"), and a summary row for each.
+// Shares of peak are taken against the peak of the device the pass ran on: the CPU's FMA peak
+// (BM_FmaPeak) for the CPU backend, the Vulkan device's (BM_DeviceFmaPeak, a GLSL FMA loop) for the
+// Vulkan backend's GPU passes.
 inline void report_passes(benchmark::State& state, const std::map<std::string, PassSums>& sums, const FlopModel& fm, Row base) {
   namespace sx = techniques::shexp;
-  const double peak = peak_gflops();
+  // A Vulkan row without a measured device peak gets no share (-1), never one of the CPU's peak.
+  const bool on_device = base.backend != "cpu";
+  const double peak = on_device ? device_peak_gflops() : peak_gflops();
+  auto share_of = [peak](double gflops) { return peak > 0.0 ? gflops / peak : -1.0; };
   state.counters["peak_GFLOP/s"] = peak;
   std::string label;
   auto it = sums.find("accumulate_log");
@@ -211,8 +218,8 @@ inline void report_passes(benchmark::State& state, const std::map<std::string, P
     state.counters["log_pairs/frame"] = s.pairs / s.frames;
     state.counters["log_Mpairs/s"] = rate * 1e-6;
     state.counters["log_GFLOP/s"] = rate * fast * 1e-9;
-    state.counters["log_share_fast"] = rate * fast * 1e-9 / peak;
-    state.counters["log_share_straddle"] = rate * straddle * 1e-9 / peak;
+    state.counters["log_share_fast"] = share_of(rate * fast * 1e-9);
+    state.counters["log_share_straddle"] = share_of(rate * straddle * 1e-9);
     Row r = base;
     r.pass = "accumulate_log";
     r.source = s.source();
@@ -220,8 +227,8 @@ inline void report_passes(benchmark::State& state, const std::map<std::string, P
     r.wall_ms = s.wall / s.frames * 1e3;
     r.mrate = rate * 1e-6;
     r.gflops = rate * fast * 1e-9;
-    r.share = r.gflops / peak;
-    r.share_hi = rate * straddle * 1e-9 / peak;
+    r.share = share_of(r.gflops);
+    r.share_hi = share_of(rate * straddle * 1e-9);
     rows().push_back(r);
     label.append("log: ").append(r.source);
   }
@@ -245,7 +252,7 @@ inline void report_passes(benchmark::State& state, const std::map<std::string, P
       const sh::TripleProduct& tp = sh::TripleProduct::get(fm.acc_order);
       const double flops = s.squares * static_cast<double>(tp.square_flops()) + s.products * static_cast<double>(tp.product_flops());
       r.gflops = flops / s.kernel * 1e-9;
-      r.share = r.gflops / peak;
+      r.share = share_of(r.gflops);
       state.counters["exp_GFLOP/s"] = r.gflops;
       state.counters["exp_share"] = r.share;
     }
@@ -259,7 +266,7 @@ inline void report_passes(benchmark::State& state, const std::map<std::string, P
 // The summary table (markdown), printed after the benchmarks.
 inline void print_rows() {
   if (rows().empty()) return;
-  std::printf("\n| bench | scene | backend | pass | kernel ms/frame | pass wall ms | rate | GFLOP/s | share of FMA peak | time from |\n");
+  std::printf("\n| bench | scene | backend | pass | kernel ms/frame | pass wall ms | rate | GFLOP/s | share of the device's FMA peak | time from |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : rows()) {
     char gf[32] = "-", sh[48] = "-";
@@ -274,7 +281,12 @@ inline void print_rows() {
   double one = 0.0;  // best of five, as the 2-thread figure
   for (int i = 0; i < 5; ++i) one = std::max(one, fma_gflops(1, 20'000'000));
   const double two = peak_gflops();
-  std::printf("\nFMA peak: %.1f GFLOP/s on 2 threads (the shares' reference), %.1f on 1 thread\n", two, one);
+  std::printf("\nFMA peak: %.1f GFLOP/s on 2 threads (the CPU rows' reference), %.1f on 1 thread\n", two, one);
+  bool vulkan_rows = false;
+  for (const Row& r : rows()) vulkan_rows |= r.backend != "cpu";
+  if (vulkan_rows)
+    std::printf("Vulkan device FMA peak (GLSL loop, BM_DeviceFmaPeak): %.1f GFLOP/s (the Vulkan rows' reference), %.2fx the CPU's\n",
+                device_peak_gflops(), device_peak_gflops() / two);
   // Two threads on two cores run at about twice one thread; a 2-thread peak below this multiple of
   // the 1-thread figure means other processes held a core while it was measured (or the two CPUs
   // are hyperthreads of one core), and the shares above are inflated by up to that factor.
@@ -294,6 +306,8 @@ int frame_bench_main(int argc, char** argv, Register register_benchmarks) {
     std::fprintf(stderr, "%s\n", e.what());
     return 2;
   }
+  if (std::find(backends.begin(), backends.end(), "vulkan") != backends.end())
+    benchmark::RegisterBenchmark("BM_DeviceFmaPeak", BM_DeviceFmaPeak)->Iterations(3)->UseManualTime()->Unit(benchmark::kMillisecond);
   register_benchmarks(backends);
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
