@@ -59,19 +59,7 @@ void run_render(const RenderArgs& args) {
     throw std::runtime_error("render: technique '" + technique->name() + "' produced no final image");
   print_frame_warnings("render", r);
 
-  Json images = Json::object();
-  auto save = [&](const char* name, const Image& img) {
-    if (img.empty()) return;
-    // Only what was written: a file that failed is listed under outputs.missing instead.
-    const std::string base = name;
-    Json files = Json::object();
-    if (out.write_exr(base + ".exr", img)) files["exr"] = base + ".exr";
-    if (out.write_png(base + ".png", img)) files["png"] = base + ".png";
-    if (!files.empty()) images[name] = files;
-  };
-  save("final", r.final_image);
-  save("direct", r.direct);
-  save("indirect", r.indirect);
+  const Json images = write_frame_images(out, r);
 
   out.finish(render_record("render", args.scene.spec, args.scene.fit_proxies, sc, *technique, backend, params, args.frame, w, h,
                            images, r, args.out));

@@ -272,6 +272,21 @@ std::string render_command_line(const std::string& spec, int fit_proxies, const 
   return os.str();
 }
 
+Json write_frame_images(OutputDir& out, const render::FrameResult& r) {
+  Json images = Json::object();
+  auto save = [&](const std::string& name, const Image& img) {
+    if (img.empty()) return;
+    Json files = Json::object();
+    if (out.write_exr(name + ".exr", img)) files["exr"] = name + ".exr";
+    if (out.write_png(name + ".png", img)) files["png"] = name + ".png";
+    if (!files.empty()) images[name] = files;
+  };
+  save("final", r.final_image);
+  save("direct", r.direct);
+  save("indirect", r.indirect);
+  return images;
+}
+
 Json render_record(const std::string& command, const std::string& spec, int fit_proxies, const scene::Scene& sc,
                    const render::Technique& technique, const render::Backend& backend, const render::ParamSet& params,
                    double time, int width, int height, const Json& images, const render::FrameResult& r, const std::string& out) {

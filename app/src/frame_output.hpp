@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "output_dir.hpp"
 #include "softgi/render/backend.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/render/params.hpp"
@@ -95,6 +96,11 @@ std::string shell_quote(const std::string& s);
 std::string render_command_line(const std::string& spec, int fit_proxies, const scene::Scene& sc, const std::string& technique,
                                 const render::ParamSet& params, const std::string& backend, double time, int width, int height,
                                 const std::string& out);
+// Writes a frame's final, direct and indirect images (those it has) to `out` as NAME.exr and a
+// tone-mapped NAME.png; returns what a record lists under "images": {name: {exr, png}} for the files
+// written (a file that failed is under outputs.missing instead).
+Json write_frame_images(OutputDir& out, const render::FrameResult& r);
+
 // The run record of one rendered frame, the form `softgi render` writes and the viewer's screenshots
 // share: version, date, command, the command line that renders it again, scene, camera, technique,
 // backend, device, parameters, time, resolution, `images` (name -> {exr, png}) and frame_json(r).

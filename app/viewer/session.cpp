@@ -290,17 +290,7 @@ void Session::capture(const std::string& dir) const {
   if (p.result.final_image.empty())
     throw std::runtime_error("screenshot: no frame to write" + (p.error.empty() ? std::string() : " (the last one failed: " + p.error + ")"));
   app::OutputDir out(dir, "--screenshot", "record.json");
-  app::Json images = app::Json::object();
-  auto save = [&](const char* name, const Image& img) {
-    if (img.empty()) return;
-    app::Json files = app::Json::object();
-    if (out.write_exr(std::string(name) + ".exr", img)) files["exr"] = std::string(name) + ".exr";
-    if (out.write_png(std::string(name) + ".png", img)) files["png"] = std::string(name) + ".png";
-    if (!files.empty()) images[name] = files;
-  };
-  save("final", p.result.final_image);
-  save("direct", p.result.direct);
-  save("indirect", p.result.indirect);
+  const app::Json images = app::write_frame_images(out, p.result);
   auto& self = const_cast<Session&>(*this);  // backend() creates lazily; it exists after a frame
   out.finish(app::render_record("viewer", spec_, fit_proxies_, scene_, *p.technique, self.backend(), p.params, p.rendered_time,
                                 p.result.final_image.width, p.result.final_image.height, images, p.result, dir));
