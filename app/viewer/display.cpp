@@ -562,6 +562,8 @@ Display::~Display() = default;
 GLFWwindow* Display::window() const { return impl_->window; }
 bool Display::should_close() const { return glfwWindowShouldClose(impl_->window); }
 
+void Display::wait_events(double seconds) { glfwWaitEventsTimeout(seconds); }
+
 void Display::begin_frame() {
   glfwPollEvents();
   ImGui_ImplVulkan_NewFrame();

@@ -44,6 +44,8 @@ class Display {
 
   GLFWwindow* window() const;
   bool should_close() const;
+  // Waits up to `seconds` for a window event (input, resize, expose).
+  void wait_events(double seconds);
   // Polls window events and starts an ImGui frame.
   void begin_frame();
   // The image shown under the interface, scaled to fit the window with its aspect ratio kept.

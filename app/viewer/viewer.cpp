@@ -100,7 +100,10 @@ class Viewer {
       ++frames_rendered_;
       image_stale_ = true;
     }
-    if (gt_) gt_->request(session_.view_key(), session_.scene(), session_.time(), session_.width(), session_.height());
+    // While the clock runs every frame is a new view: a reference would be cancelled before its first
+    // pass, so none is started (and the one in progress stops) until the animation pauses.
+    if (gt_ && session_.playing()) gt_->cancel();
+    if (gt_ && !session_.playing()) gt_->request(session_.view_key(), session_.scene(), session_.time(), session_.width(), session_.height());
     update_error();
     if (image_stale_) upload_image();
     draw_interface();
@@ -115,6 +118,9 @@ class Viewer {
   void run_interactive() {
     while (!display_.should_close()) {
       try {
+        // Nothing to render and no reference converging: sleep until input (or 50 ms) instead of
+        // spinning on the swapchain.
+        if (!session_.dirty() && !(gt_ && gt_->busy())) display_.wait_events(0.05);
         step(true);
       } catch (const std::exception& e) {
         // A lost display device ends the session; anything else is shown and the viewer goes on.
