@@ -1,5 +1,7 @@
 // SHEXP (paper 004) measurements, each side by side in one run (docs/techniques/shexp.md):
 //  - BM_FmaPeak: this machine's FMA peak (an FMA-bound loop vectorised across both cores);
+//  - BM_StreamTriad: this machine's memory bandwidth (a STREAM triad, bandwidth.hpp), the reference
+//    of the display-resolution passes' shares (gbuffer, to_image, compose in BM_Frame);
 //  - BM_Kernel/<order>/<isa>: the accumulation kernel's receiver-blocker pairs per second, achieved
 //    GFLOP/s and share of that peak;
 //  - BM_Figure8/<order>: SHEXP-HYB and -PS*-2 against product-space accumulation, 200 x 200 ground
@@ -11,7 +13,8 @@
 //    the real geometry, all under order-4 SH lighting;
 //  - BM_CrowdHierarchy: hierarchy with ratio vectors against the flat list on `crowd`;
 //  - BM_Frame/<scene>/<backend>: whole frames on the CPU or Vulkan backend (`--backend`), the
-//    accumulation passes' pairs per second, GFLOP/s and share of the FMA peak (frame_bench.hpp).
+//    accumulation passes' pairs per second, GFLOP/s and share of the FMA peak, and the display
+//    passes' bytes moved (a lower bound) and share of the triad bandwidth (frame_bench.hpp).
 // GCC 12 reports its own AVX-512 intrinsics as maybe uninitialised (see techniques/common/kernel.cpp).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
@@ -57,6 +60,8 @@ using softgi::bench::peak_gflops;
 
 using softgi::bench::BM_FmaPeak;
 BENCHMARK(BM_FmaPeak)->Arg(1)->Arg(2)->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
+using softgi::bench::BM_StreamTriad;
+BENCHMARK(BM_StreamTriad)->Arg(1)->Arg(2)->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // --- the accumulation kernel --------------------------------------------------------------------
 
@@ -489,10 +494,12 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
     return;
   }
   std::map<std::string, softgi::bench::PassSums> sums;
+  std::map<std::string, double> wall;  // every pass, for the display passes' bandwidth
   double frame = 0.0;
   for (auto _ : state) {
     req.time += kStep;
     const render::FrameResult r = be->render(*tech, sc, params, req);
+    for (const auto& p : r.passes) wall[p.name] += p.wall_seconds;
     double t = 0.0;
     for (const auto& p : r.passes)
       if (p.name == "accumulate_log" || p.name == "exponentiate") {
@@ -514,6 +521,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
   base.technique = "shexp";
   base.backend = backend;
   softgi::bench::report_passes(state, sums, fm, base);
+  softgi::bench::report_display_passes(state, wall, static_cast<int>(state.iterations()), kFrameSide, kFrameSide, base);
 }
 
 }  // namespace

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "../techniques/shexp/shexp_internal.hpp"
+#include "bandwidth.hpp"
 #include "device_peak.hpp"
 #include "fma_peak.hpp"
 #include "softgi/backends/cpu_backend.hpp"
@@ -263,8 +264,48 @@ inline void report_passes(benchmark::State& state, const std::map<std::string, P
   state.SetLabel(label);
 }
 
+// Display-resolution passes against the memory bandwidth (bandwidth.hpp): one row per pass with a
+// byte model, from the mean wall time of the timed frames.
+struct BandwidthRow {
+  std::string bench, scene, backend, pass;
+  double ms = 0.0, mbytes = 0.0, gbps = 0.0, share = 0.0;
+};
+inline std::vector<BandwidthRow>& bandwidth_rows() {
+  static std::vector<BandwidthRow> r;
+  return r;
+}
+// `wall`: each pass's wall seconds summed over `frames` frames of width x height.
+inline void report_display_passes(benchmark::State& state, const std::map<std::string, double>& wall, int frames, int width,
+                                  int height, const Row& base) {
+  const double bw = bandwidth_gbps();
+  for (const auto& [pass, seconds] : wall) {
+    const double bytes = display_pass_bytes(pass, width, height);
+    if (bytes <= 0.0 || seconds <= 0.0 || frames <= 0) continue;
+    BandwidthRow r;
+    r.bench = base.bench;
+    r.scene = base.scene;
+    r.backend = base.backend;
+    r.pass = pass;
+    r.ms = seconds / frames * 1e3;
+    r.mbytes = bytes * 1e-6;
+    r.gbps = bytes / (seconds / frames) * 1e-9;
+    r.share = r.gbps / bw;
+    state.counters[pass + "_GB/s"] = r.gbps;
+    state.counters[pass + "_bw_share"] = r.share;
+    bandwidth_rows().push_back(r);
+  }
+}
+
 // The summary table (markdown), printed after the benchmarks.
 inline void print_rows() {
+  if (!bandwidth_rows().empty()) {
+    std::printf("\n| bench | scene | backend | display pass | wall ms/frame | MB moved (lower bound) | GB/s | share of the triad bandwidth |\n");
+    std::printf("|---|---|---|---|---|---|---|---|\n");
+    for (const BandwidthRow& r : bandwidth_rows())
+      std::printf("| %s | %s | %s | %s | %.2f | %.1f | %.2f | %.3f |\n", r.bench.c_str(), r.scene.c_str(), r.backend.c_str(), r.pass.c_str(),
+                  r.ms, r.mbytes, r.gbps, r.share);
+    std::printf("\nSTREAM triad: %.1f GB/s on 2 threads (the bandwidth rows' reference; 12 bytes per element)\n", bandwidth_gbps());
+  }
   if (rows().empty()) return;
   std::printf("\n| bench | scene | backend | pass | kernel ms/frame | pass wall ms | rate | GFLOP/s | share of the device's FMA peak | time from |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
