@@ -74,13 +74,14 @@ inline void BM_StreamTriad(benchmark::State& state) {
   if (threads == 2) bandwidth_storage() = std::max(bandwidth_storage(), best);
 }
 
-// Bytes a display-resolution pass must move at the least for a width x height frame: every plane it
-// reads once and every plane it writes once, at the sizes the CPU backend stores them
+// Bytes a display-resolution pass must move at the least for a width x height frame, for passes
+// that do not record their own "bytes_moved" counter (compose does): every plane it reads once and
+// every plane it writes once, at the sizes the CPU backend stores them
 // (render::gbuffer_bytes, render::image_bytes); -1 for a pass without a model. A lower bound: the
 // gathers to_image makes (three vertices per pixel) add more where they miss the cache.
 //   gbuffer:  writes every G-buffer plane;
 //   to_image: reads object, primitive (4 bytes each) and barycentric (8), writes one image;
-//   compose:  reads direct and indirect, writes final.
+//   compose:  reads direct and indirect, writes final (its own counter knows when there is no indirect).
 inline double display_pass_bytes(const std::string& pass, int width, int height) {
   const double px = static_cast<double>(render::pixel_count(width, height));
   const double image = static_cast<double>(render::image_bytes(width, height));

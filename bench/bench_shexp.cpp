@@ -494,12 +494,15 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
     return;
   }
   std::map<std::string, softgi::bench::PassSums> sums;
-  std::map<std::string, double> wall;  // every pass, for the display passes' bandwidth
+  std::map<std::string, double> wall, moved;  // every pass, for the display passes' bandwidth
   double frame = 0.0;
   for (auto _ : state) {
     req.time += kStep;
     const render::FrameResult r = be->render(*tech, sc, params, req);
-    for (const auto& p : r.passes) wall[p.name] += p.wall_seconds;
+    for (const auto& p : r.passes) {
+      wall[p.name] += p.wall_seconds;
+      if (const auto c = p.counters.find("bytes_moved"); c != p.counters.end()) moved[p.name] += c->second;
+    }
     double t = 0.0;
     for (const auto& p : r.passes)
       if (p.name == "accumulate_log" || p.name == "exponentiate") {
@@ -521,7 +524,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
   base.technique = "shexp";
   base.backend = backend;
   softgi::bench::report_passes(state, sums, fm, base);
-  softgi::bench::report_display_passes(state, wall, static_cast<int>(state.iterations()), kFrameSide, kFrameSide, base);
+  softgi::bench::report_display_passes(state, wall, moved, static_cast<int>(state.iterations()), kFrameSide, kFrameSide, base);
 }
 
 }  // namespace

@@ -274,12 +274,15 @@ inline std::vector<BandwidthRow>& bandwidth_rows() {
   static std::vector<BandwidthRow> r;
   return r;
 }
-// `wall`: each pass's wall seconds summed over `frames` frames of width x height.
-inline void report_display_passes(benchmark::State& state, const std::map<std::string, double>& wall, int frames, int width,
-                                  int height, const Row& base) {
+// `wall`: each pass's wall seconds summed over `frames` frames of width x height; `moved`: the
+// "bytes_moved" counters the passes recorded, summed the same way. A pass's own count is used where
+// it records one, else the byte model (bandwidth.hpp).
+inline void report_display_passes(benchmark::State& state, const std::map<std::string, double>& wall,
+                                  const std::map<std::string, double>& moved, int frames, int width, int height, const Row& base) {
   const double bw = bandwidth_gbps();
   for (const auto& [pass, seconds] : wall) {
-    const double bytes = display_pass_bytes(pass, width, height);
+    const auto own = moved.find(pass);
+    const double bytes = own != moved.end() && frames > 0 ? own->second / frames : display_pass_bytes(pass, width, height);
     if (bytes <= 0.0 || seconds <= 0.0 || frames <= 0) continue;
     BandwidthRow r;
     r.bench = base.bench;

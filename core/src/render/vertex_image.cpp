@@ -15,33 +15,26 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
       gb.view_dir.size() != n)
     throw std::invalid_argument("interpolate_vertex_values: G-buffer of " + std::to_string(gb.width) + "x" +
                                 std::to_string(gb.height) + " has incomplete object/primitive/barycentric/view_dir planes");
-  // Validate once per object rather than per pixel: every object a pixel sees needs one value per vertex.
-  std::vector<char> seen(posed.objects.size(), 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    const int o = gb.object[i];
-    if (o < 0) continue;
+  // The checks a visible pixel needs, made where the loop reads it (one pass over the G-buffer): its
+  // object, that object's mesh and per-vertex values (once per run of pixels of one object), its
+  // triangle. Objects no pixel sees need no values.
+  auto check_object = [&](std::size_t i, int o) {
     if (o >= static_cast<int>(posed.objects.size()))
       throw std::invalid_argument("interpolate_vertex_values: pixel " + std::to_string(i) + " sees object " +
                                   std::to_string(o) + " but the posed scene has " + std::to_string(posed.objects.size()));
     const scene::PosedObject& obj = posed.objects[o];
-    if (!seen[o]) {
-      seen[o] = 1;
-      const std::string name = obj.source ? "'" + obj.source->name + "'" : std::to_string(o);
-      if (!obj.source) throw std::invalid_argument("interpolate_vertex_values: object " + name + " has no mesh");
-      if (o >= static_cast<int>(per_vertex.size()) || per_vertex[o].size() < obj.positions.size())
-        throw std::invalid_argument("interpolate_vertex_values: object " + name + " (index " + std::to_string(o) +
-                                    ") is visible but has " +
-                                    std::to_string(o < static_cast<int>(per_vertex.size()) ? per_vertex[o].size() : 0) +
-                                    " per-vertex values for " + std::to_string(obj.positions.size()) + " vertices");
-    }
-    const int t = gb.primitive[i];
-    if (t < 0 || t >= static_cast<int>(obj.source->triangles.size()))
-      throw std::invalid_argument("interpolate_vertex_values: pixel " + std::to_string(i) + " has primitive " +
-                                  std::to_string(t) + " outside mesh '" + obj.source->name + "'");
-  }
+    const std::string name = obj.source ? "'" + obj.source->name + "'" : std::to_string(o);
+    if (!obj.source) throw std::invalid_argument("interpolate_vertex_values: object " + name + " has no mesh");
+    if (o >= static_cast<int>(per_vertex.size()) || per_vertex[o].size() < obj.positions.size())
+      throw std::invalid_argument("interpolate_vertex_values: object " + name + " (index " + std::to_string(o) +
+                                  ") is visible but has " +
+                                  std::to_string(o < static_cast<int>(per_vertex.size()) ? per_vertex[o].size() : 0) +
+                                  " per-vertex values for " + std::to_string(obj.positions.size()) + " vertices");
+  };
 
   Image out(gb.width, gb.height);
   tbb::parallel_for(tbb::blocked_range<int>(0, gb.height), [&](const tbb::blocked_range<int>& rows) {
+    int checked = -1;
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < gb.width; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * gb.width + x;
@@ -50,7 +43,16 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
           out.rgb[i] = background ? background(gb.view_dir[i]) : glm::vec3(0.0f);
           continue;
         }
-        const glm::uvec3 tri = posed.objects[o].source->triangles[gb.primitive[i]];
+        if (o != checked) {
+          check_object(i, o);
+          checked = o;
+        }
+        const scene::Mesh& mesh = *posed.objects[o].source;
+        const int t = gb.primitive[i];
+        if (t < 0 || t >= static_cast<int>(mesh.triangles.size()))
+          throw std::invalid_argument("interpolate_vertex_values: pixel " + std::to_string(i) + " has primitive " +
+                                      std::to_string(t) + " outside mesh '" + mesh.name + "'");
+        const glm::uvec3 tri = mesh.triangles[t];
         const std::vector<glm::vec3>& v = per_vertex[o];
         const glm::vec2 b = gb.barycentric[i];
         out.rgb[i] = (1.0f - b.x - b.y) * v[tri.x] + b.x * v[tri.y] + b.y * v[tri.z];
