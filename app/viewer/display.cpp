@@ -14,36 +14,25 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "softgi/backends/vulkan/context.hpp"
 #include "softgi/backends/vulkan/loader_pin.hpp"
 
 namespace softgi::viewer {
 
 namespace {
 
-std::string vk_result_name(VkResult r) {
-  switch (r) {
-    case VK_ERROR_DEVICE_LOST: return "VK_ERROR_DEVICE_LOST";
-    case VK_ERROR_OUT_OF_HOST_MEMORY: return "VK_ERROR_OUT_OF_HOST_MEMORY";
-    case VK_ERROR_OUT_OF_DEVICE_MEMORY: return "VK_ERROR_OUT_OF_DEVICE_MEMORY";
-    case VK_ERROR_SURFACE_LOST_KHR: return "VK_ERROR_SURFACE_LOST_KHR";
-    case VK_ERROR_OUT_OF_DATE_KHR: return "VK_ERROR_OUT_OF_DATE_KHR";
-    case VK_ERROR_INITIALIZATION_FAILED: return "VK_ERROR_INITIALIZATION_FAILED";
-    case VK_ERROR_EXTENSION_NOT_PRESENT: return "VK_ERROR_EXTENSION_NOT_PRESENT";
-    case VK_ERROR_LAYER_NOT_PRESENT: return "VK_ERROR_LAYER_NOT_PRESENT";
-    default: return "VkResult " + std::to_string(static_cast<int>(r));
-  }
-}
+namespace vulkan = backends::vulkan;
 
 void check(VkResult r, const char* what) {
   if (r == VK_SUCCESS) return;
   if (r == VK_ERROR_DEVICE_LOST)
     throw std::runtime_error(std::string("display: the Vulkan device was lost (") + what + ")");
-  throw std::runtime_error(std::string("display: ") + what + " failed: " + vk_result_name(r));
+  throw std::runtime_error(std::string("display: ") + what + " failed: " + vulkan::to_string(r));
 }
 
 // ImGui's Vulkan backend reports its own call results here; it has no way to propagate them.
 void imgui_check(VkResult r) {
-  if (r != VK_SUCCESS) std::fprintf(stderr, "softgi-viewer: error: ImGui Vulkan call failed: %s\n", vk_result_name(r).c_str());
+  if (r != VK_SUCCESS) std::fprintf(stderr, "softgi-viewer: error: ImGui Vulkan call failed: %s\n", vulkan::to_string(r));
 }
 
 std::atomic<int> g_validation_messages{0};

@@ -304,14 +304,9 @@ Json Session::settings() const {
     for (const auto& [n, v] : p.params.values()) j[n] = v;
     return j;
   };
-  const scene::Camera& c = scene_.camera;
   Json j = {{"scene", spec_},
             {"fit_proxies", fit_proxies_},
-            {"camera",
-             {{"position", {c.position.x, c.position.y, c.position.z}},
-              {"target", {c.target.x, c.target.y, c.target.z}},
-              {"up", {c.up.x, c.up.y, c.up.z}},
-              {"fov_y_deg", c.fov_y_deg}}},
+            {"camera", app::camera_json(scene_.camera)},
             {"time", time_},
             {"playing", playing_},
             {"speed", speed_},
