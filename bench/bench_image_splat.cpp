@@ -69,7 +69,7 @@ void BM_Accumulation(benchmark::State& state, const std::string& scene_name, con
   req.width = req.height = kDisplay;
   req.time = 0.0;
   try {
-    be->render(*tech, sc, params, req);  // warm-up: tables, eta derivations, BVH, pipelines
+    be->recycle(be->render(*tech, sc, params, req));  // warm-up: tables, eta derivations, BVH, pipelines
   } catch (const std::exception& e) {
     state.SkipWithError((std::string("image_splat failed: ") + e.what()).c_str());
     return;
@@ -79,7 +79,7 @@ void BM_Accumulation(benchmark::State& state, const std::string& scene_name, con
   double ind_secs = 0.0, ind_pairs = 0.0, inside = 0.0;
   for (auto _ : state) {
     req.time += kFrameStep;
-    const render::FrameResult r = be->render(*tech, sc, params, req);
+    render::FrameResult r = be->render(*tech, sc, params, req);
     double t = 0.0;
     for (const auto& p : r.passes) {
       if (p.name == "accumulate_log" || p.name == "exponentiate") {
@@ -95,6 +95,7 @@ void BM_Accumulation(benchmark::State& state, const std::string& scene_name, con
       if (in != p.counters.end()) inside += in->second;
     }
     state.SetIterationTime(t);
+    be->recycle(std::move(r));
   }
   if (sums["accumulate_log"].pairs <= 0.0) {
     state.SkipWithError("the frame ran no accumulate_log pass with pairs (pass names or counters changed?)");
@@ -107,7 +108,7 @@ void BM_Accumulation(benchmark::State& state, const std::string& scene_name, con
   base.scene = scene_name;
   base.technique = "image_splat";
   base.backend = backend;
-  if (backend == backends::cpu::kBackendName) base.backend.append(" ").append(kernel).append(kernel == "auto" ? " = " : "").append(kernel == "auto" ? sx::to_string(isa) : "");
+  if (backend == backends::cpu::kBackendName) base.variant.append(kernel).append(kernel == "auto" ? " = " : "").append(kernel == "auto" ? sx::to_string(isa) : "");
   softgi::bench::report_passes(state, sums, fm, base);
   if (ind_secs > 0.0) {
     state.counters["ind_pairs/frame"] = ind_pairs / frames;

@@ -14,7 +14,8 @@
 //  - BM_CrowdHierarchy: hierarchy with ratio vectors against the flat list on `crowd`;
 //  - BM_Frame/<scene>/<backend>: whole frames on the CPU or Vulkan backend (`--backend`), the
 //    accumulation passes' pairs per second, GFLOP/s and share of the FMA peak, and the display
-//    passes' bytes moved (a lower bound) and share of the triad bandwidth (frame_bench.hpp).
+//    passes' bytes moved (a lower bound) and share of the triad bandwidth (frame_bench.hpp);
+//    BM_Frame/<scene>/<backend>/no_pool the same with the backend's frame pool off.
 // GCC 12 reports its own AVX-512 intrinsics as maybe uninitialised (see techniques/common/kernel.cpp).
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #pragma GCC diagnostic ignored "-Wuninitialized"
@@ -472,11 +473,18 @@ void BM_CrowdHierarchy(benchmark::State& state) {
 // frame_bench.hpp): accumulate_log's pairs per second, GFLOP/s and share of the FMA peak with
 // kernel_flops_per_pair (the GLSL kernel follows the CPU kernel's arithmetic), exponentiate's
 // receivers per second and GFLOP/s (its squares and products). Manual time: the two passes' walls.
-void BM_Frame(benchmark::State& state, const std::string& scene_name, const std::string& backend) {
+// pool = false: the backend's frame pool off (every frame allocates its buffers), for the
+// before/after of the display passes in one run.
+void BM_Frame(benchmark::State& state, const std::string& scene_name, const std::string& backend, bool pool) {
   constexpr int kFrameSide = 512;  // docs/backends.md's timing table
   constexpr double kStep = 1.0 / 30.0;
   render::Backend* be = softgi::bench::backend_or_skip(state, backend);
   if (!be) return;
+  be->frame_pool().set_mode(pool ? render::FramePool::Mode::On : render::FramePool::Mode::Off);
+  struct Restore {
+    render::Backend* be;
+    ~Restore() { be->frame_pool().set_mode(render::FramePool::Mode::On); }
+  } restore{be};
   const scene::Scene sc = scene::make_builtin(scene_name);
   auto tech = render::create_technique("shexp");
   const render::ParamSet params = render::default_params(*tech);
@@ -488,7 +496,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
   req.width = req.height = kFrameSide;
   req.time = 0.0;
   try {
-    be->render(*tech, sc, params, req);  // warm-up: tables, clusters, hierarchy, pipelines
+    be->recycle(be->render(*tech, sc, params, req));  // warm-up: tables, clusters, hierarchy, pipelines
   } catch (const std::exception& e) {
     state.SkipWithError((std::string("shexp failed: ") + e.what()).c_str());
     return;
@@ -498,7 +506,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
   double frame = 0.0;
   for (auto _ : state) {
     req.time += kStep;
-    const render::FrameResult r = be->render(*tech, sc, params, req);
+    render::FrameResult r = be->render(*tech, sc, params, req);
     for (const auto& p : r.passes) {
       wall[p.name] += p.wall_seconds;
       if (const auto c = p.counters.find("bytes_moved"); c != p.counters.end()) moved[p.name] += c->second;
@@ -511,6 +519,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
       }
     frame += r.total_seconds;
     state.SetIterationTime(t);
+    be->recycle(std::move(r));
   }
   if (sums["accumulate_log"].pairs <= 0.0) {
     state.SkipWithError("the frame ran no accumulate_log pass with pairs (pass names or counters changed?)");
@@ -523,6 +532,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
   base.scene = scene_name;
   base.technique = "shexp";
   base.backend = backend;
+  if (!pool) base.variant = "(no frame pool)";
   softgi::bench::report_passes(state, sums, fm, base);
   softgi::bench::report_display_passes(state, wall, moved, static_cast<int>(state.iterations()), kFrameSide, kFrameSide, base);
 }
@@ -547,9 +557,11 @@ int main(int argc, char** argv) {
   return softgi::bench::frame_bench_main(argc, argv, [](const std::vector<std::string>& backends) {
     for (const std::string scene : {"character", "crowd"})
       for (const auto& b : backends)
-        benchmark::RegisterBenchmark(("BM_Frame/" + scene + "/" + b).c_str(), [=](benchmark::State& st) { BM_Frame(st, scene, b); })
-            ->Iterations(5)
-            ->UseManualTime()
-            ->Unit(benchmark::kMillisecond);
+        for (const bool pool : {false, true})
+          benchmark::RegisterBenchmark(("BM_Frame/" + scene + "/" + b + (pool ? "" : "/no_pool")).c_str(),
+                                       [=](benchmark::State& st) { BM_Frame(st, scene, b, pool); })
+              ->Iterations(5)
+              ->UseManualTime()
+              ->Unit(benchmark::kMillisecond);
   });
 }

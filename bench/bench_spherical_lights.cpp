@@ -47,7 +47,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
   req.width = req.height = kDisplay;
   req.time = 0.0;
   try {
-    be->render(*tech, sc, p, req);  // warm-up: precomputation, tables, BVH, pipelines
+    be->recycle(be->render(*tech, sc, p, req));  // warm-up: precomputation, tables, BVH, pipelines
   } catch (const std::exception& e) {
     state.SkipWithError((std::string("spherical_lights failed: ") + e.what()).c_str());
     return;
@@ -55,7 +55,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
   double frame = 0.0, ind = 0.0, pairs = 0.0, flops = 0.0;
   for (auto _ : state) {
     req.time += kFrameStep;
-    const render::FrameResult r = be->render(*tech, sc, p, req);
+    render::FrameResult r = be->render(*tech, sc, p, req);
     frame += r.total_seconds;
     for (const auto& pr : r.passes) {
       if (pr.name != "accumulate_indirect") continue;
@@ -66,6 +66,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
       if (f != pr.counters.end()) flops += f->second;
     }
     state.SetIterationTime(r.total_seconds);
+    be->recycle(std::move(r));
   }
   const double frames = static_cast<double>(state.iterations());
   state.counters["frame_ms"] = frame / frames * 1e3;

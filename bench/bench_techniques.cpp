@@ -66,7 +66,7 @@ void BM_Technique(benchmark::State& state, const std::string& scene_name, const 
   req.width = req.height = side;
   req.time = 0.0;
   try {
-    be->render(*tech, sc, params, req);
+    be->recycle(be->render(*tech, sc, params, req));
   } catch (const std::exception& e) {
     out.error = e.what();
     state.SkipWithError((technique + " failed: " + e.what()).c_str());
@@ -76,13 +76,14 @@ void BM_Technique(benchmark::State& state, const std::string& scene_name, const 
   double up = 0.0, down = 0.0, pruned = 0.0;
   for (auto _ : state) {
     req.time += kStep;
-    const render::FrameResult r = be->render(*tech, sc, params, req);
+    render::FrameResult r = be->render(*tech, sc, params, req);
     state.SetIterationTime(r.total_seconds);
     out.frames.push_back(r.total_seconds);
     for (const auto& p : r.passes) pass_seconds[p.name] += p.wall_seconds;
     up += static_cast<double>(r.transfer.upload);
     down += static_cast<double>(r.transfer.download);
     pruned = static_cast<double>(r.pruned.size());
+    be->recycle(std::move(r));  // as a caller rendering a sequence does: the next frame reuses its buffers
   }
   const double n = static_cast<double>(state.iterations());
   for (const auto& [name, s] : pass_seconds) {

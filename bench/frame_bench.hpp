@@ -182,7 +182,10 @@ struct PassSums {
 
 // One row of the summary table printed after the run.
 struct Row {
-  std::string bench, scene, technique, backend, pass, source;
+  // backend: the registered name (it selects the peak the shares are of); variant: what the
+  // benchmark changed on it ("avx2", "(no frame pool)"), printed after it.
+  std::string bench, scene, technique, backend, variant, pass, source;
+  std::string backend_label() const { return variant.empty() ? backend : backend + " " + variant; }
   double ms = 0.0, wall_ms = 0.0, mrate = 0.0, gflops = -1.0, share = -1.0, share_hi = -1.0;
   const char* unit = "Mpairs/s";
 };
@@ -267,7 +270,8 @@ inline void report_passes(benchmark::State& state, const std::map<std::string, P
 // Display-resolution passes against the memory bandwidth (bandwidth.hpp): one row per pass with a
 // byte model, from the mean wall time of the timed frames.
 struct BandwidthRow {
-  std::string bench, scene, backend, pass;
+  std::string bench, scene, backend, variant, pass;  // as Row
+  std::string backend_label() const { return variant.empty() ? backend : backend + " " + variant; }
   double ms = 0.0, mbytes = 0.0, gbps = 0.0, share = 0.0;
 };
 inline std::vector<BandwidthRow>& bandwidth_rows() {
@@ -288,6 +292,7 @@ inline void report_display_passes(benchmark::State& state, const std::map<std::s
     r.bench = base.bench;
     r.scene = base.scene;
     r.backend = base.backend;
+    r.variant = base.variant;
     r.pass = pass;
     r.ms = seconds / frames * 1e3;
     r.mbytes = bytes * 1e-6;
@@ -305,7 +310,7 @@ inline void print_rows() {
     std::printf("\n| bench | scene | backend | display pass | wall ms/frame | MB moved (lower bound) | GB/s | share of the triad bandwidth |\n");
     std::printf("|---|---|---|---|---|---|---|---|\n");
     for (const BandwidthRow& r : bandwidth_rows())
-      std::printf("| %s | %s | %s | %s | %.2f | %.1f | %.2f | %.3f |\n", r.bench.c_str(), r.scene.c_str(), r.backend.c_str(), r.pass.c_str(),
+      std::printf("| %s | %s | %s | %s | %.2f | %.1f | %.2f | %.3f |\n", r.bench.c_str(), r.scene.c_str(), r.backend_label().c_str(), r.pass.c_str(),
                   r.ms, r.mbytes, r.gbps, r.share);
     std::printf("\nSTREAM triad: %.1f GB/s on 2 threads (the bandwidth rows' reference; 12 bytes per element)\n", bandwidth_gbps());
   }
@@ -319,7 +324,7 @@ inline void print_rows() {
       std::snprintf(sh, sizeof sh, "%.3f-%.3f", r.share, r.share_hi);
     else if (r.share >= 0.0)
       std::snprintf(sh, sizeof sh, ">= %.3f", r.share);
-    std::printf("| %s | %s | %s | %s | %.2f | %.2f | %.2f %s | %s | %s | %s |\n", r.bench.c_str(), r.scene.c_str(), r.backend.c_str(), r.pass.c_str(),
+    std::printf("| %s | %s | %s | %s | %.2f | %.2f | %.2f %s | %s | %s | %s |\n", r.bench.c_str(), r.scene.c_str(), r.backend_label().c_str(), r.pass.c_str(),
                 r.ms, r.wall_ms, r.mrate, r.unit, gf, sh, r.source.c_str());
   }
   double one = 0.0;  // best of five, as the 2-thread figure

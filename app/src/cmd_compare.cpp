@@ -223,7 +223,9 @@ std::vector<TechniqueRun> render_variants(const CompareSetup& cs, const CompareA
         // per-frame updates (proxy refits, BVH refits) of a running animation and no one-time setup.
         render::RenderRequest warm = req;
         warm.time = args.frame - kWarmupFrameSeconds;
-        run.first_frame_seconds = backend.render(t, sc, run.params, warm).total_seconds;
+        render::FrameResult first = backend.render(t, sc, run.params, warm);
+        run.first_frame_seconds = first.total_seconds;
+        backend.recycle(std::move(first));
         run.frame = backend.render(t, sc, run.params, req);
         print_frame_warnings("compare", run.frame);
         if (run.frame.final_image.width != w || run.frame.final_image.height != h)

@@ -369,12 +369,25 @@ class ExperimentRunner {
       req.outputs = {"final"};
       if (def.image == Compared::Indirect) req.outputs = {"final", "indirect"};
       req.time = def.time - frames * kFrameStep;
-      v.warmup_seconds = backend.render(*v.technique, sc, v.params, req).total_seconds;
+      {
+        render::FrameResult warm = backend.render(*v.technique, sc, v.params, req);
+        v.warmup_seconds = warm.total_seconds;
+        backend.recycle(std::move(warm));  // the timed frames reuse its buffers, as a sequence would
+      }
       std::vector<render::FrameResult> timed;
       for (int f = frames - 1; f >= 0; --f) {
         req.time = def.time - f * kFrameStep;
         timed.push_back(backend.render(*v.technique, sc, v.params, req));
         v.frame_seconds.push_back(timed.back().total_seconds);
+        if (f == 0) break;
+        // Only the last frame's images are measured: the others' buffers go back to the backend
+        // for the next frame, their pass records stay.
+        render::FrameResult images;
+        images.direct = std::move(timed.back().direct);
+        images.indirect = std::move(timed.back().indirect);
+        images.final_image = std::move(timed.back().final_image);
+        images.vertex_radiance = std::move(timed.back().vertex_radiance);
+        backend.recycle(std::move(images));
       }
       v.median_seconds = ex::median(v.frame_seconds);
       v.pass_median = pass_medians(timed);

@@ -526,13 +526,19 @@ Json Runner::Impl::run(const Job& job) {
     for (int f = 0; f < n_frames; ++f) {
       req.time = job.frame_time - (n_frames - 1 - f) * kFrameStep;
       render::FrameResult r = be.render(*technique, sc, params, req);
-      if (f < b.warmup_frames) continue;
+      if (f < b.warmup_frames) {
+        be.recycle(std::move(r));  // the timed frames reuse its buffers, as a sequence would
+        continue;
+      }
       totals.push_back(r.total_seconds);
       for (const auto& pr : r.passes) {
         if (!per_pass.count(pr.name)) pass_order.push_back(pr.name);
         per_pass[pr.name].push_back(pr.wall_seconds);
       }
-      if (f + 1 == n_frames) last = std::move(r);
+      if (f + 1 == n_frames)
+        last = std::move(r);
+      else
+        be.recycle(std::move(r));
     }
     p["seconds"] = median(totals);
     p["seconds_min"] = *std::min_element(totals.begin(), totals.end());

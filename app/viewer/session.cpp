@@ -260,6 +260,9 @@ void Session::render() {
     if (overlay_)
       for (const auto& o : p.technique->overlay_outputs()) req.outputs.push_back(o);
     try {
+      // The shown frame's buffers go to the backend's pool for this one (a failed render shows no
+      // image anyway).
+      backend().recycle(std::move(p.result));
       p.result = backend().render(*p.technique, scene_, p.params, req);
       if (p.result.final_image.empty()) throw std::runtime_error("the technique produced no final image");
       p.overlay = overlay_ ? p.technique->overlay(p.result) : render::OverlayGeometry{};

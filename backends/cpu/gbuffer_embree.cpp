@@ -227,7 +227,9 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
   stats.update_seconds = std::chrono::duration<double>(clock::now() - t0).count();
 
   const int W = (ctx.width + scale - 1) / scale, H = (ctx.height + scale - 1) / scale;
-  render::GBuffer gb = render::GBuffer::background(W, H, scale);
+  // Every pixel is written below (a hit by shade_hit, a miss by set_background): one pass over the
+  // planes, in last frame's buffers.
+  render::GBuffer gb = render::GBuffer::for_overwrite(W, H, scale, ctx.pool());
   const float fs = static_cast<float>(scale);
   const int tiles_x = (W + kTile - 1) / kTile, tiles = tiles_x * ((H + kTile - 1) / kTile);
   std::atomic<long long> hits{0};
@@ -256,7 +258,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
         const vec3 dir(rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z);
         const std::size_t i = pixel[k];
         if (!embree::is_hit(rh)) {
-          gb.view_dir[i] = dir;
+          gb.set_background(i, dir);
           continue;
         }
         const int oi = es.object_of(rh.hit.geomID);

@@ -397,7 +397,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
   stats.triangles = static_cast<long long>(triangle_total);
   stats.draws = static_cast<long long>(draws.size());
 
-  render::GBuffer gb = render::GBuffer::background(bw, bh, scale);
+  render::GBuffer gb = render::GBuffer::background(bw, bh, scale, &fc.pool());
   const float fs = static_cast<float>(scale);
   auto ray = [&](int x, int y) {
     // (x + 0.5) * 1 is exact in float: at s = 1 this is pixel_center_direction(x, y), as on the CPU.

@@ -1,6 +1,7 @@
 // Upsampling of receiver-buffer results to display resolution: paper 000 ("image-space
 // accumulation"), section 4.2, eq. 11 (bilateral weights), and plain bilinear for comparison
 // (the paper's Figure 7).
+#include "softgi/render/frame_pool.hpp"
 #include "upsample.hpp"
 
 #include "softgi/render/gbuffer.hpp"
@@ -261,16 +262,24 @@ void check_io(const float* in, int channels, const float* out) {
 
 }  // namespace
 
-UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt) {
+UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt,
+                                 render::FramePool* pool) {
   check_options(opt);
   check_pair(coarse, fine);
   UpsampleWeights r;
   r.width = fine.width;
   r.height = fine.height;
   const std::size_t n = static_cast<std::size_t>(fine.width) * fine.height;
-  r.index.resize(n);
-  r.weight.resize(n);
-  r.miss.resize(n);
+  // Every pixel's entries are written below.
+  if (pool) {
+    r.index = pool->take_for_overwrite<std::array<std::int32_t, 4>>(n);
+    r.weight = pool->take_for_overwrite<std::array<float, 4>>(n);
+    r.miss = pool->take_for_overwrite<std::uint8_t>(n);
+  } else {
+    r.index.resize(n);
+    r.weight.resize(n);
+    r.miss.resize(n);
+  }
   tbb::parallel_for(tbb::blocked_range<int>(0, fine.height), [&](const tbb::blocked_range<int>& rows) {
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < fine.width; ++x) {
@@ -338,6 +347,9 @@ void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, 
   });
 }
 
-UpsampleKernels cpu_upsample_kernels() { return {upsample_weights, upsample_apply}; }
+UpsampleKernels cpu_upsample_kernels(render::FramePool* pool) {
+  return {[pool](const PlaneView& c, const PlaneView& f, const UpsampleOptions& o) { return upsample_weights(c, f, o, pool); },
+          upsample_apply};
+}
 
 }  // namespace softgi::techniques::common

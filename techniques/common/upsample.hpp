@@ -14,6 +14,7 @@
 
 namespace softgi::render {
 class FrameContext;
+class FramePool;
 struct GBuffer;
 }
 
@@ -73,7 +74,9 @@ struct UpsampleWeights {
 // be within less than coarse.scale of coarse width * coarse.scale, and likewise for height; ceil or
 // floor of display size / scale both pass), fine.scale > coarse.scale, null pointers, a depth that is
 // neither positive finite nor +inf, a non-finite normal on a hit, or bad options.
-UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt);
+// `pool`: where the per-pixel planes are taken from (render::FramePool), else allocated.
+UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt,
+                                 render::FramePool* pool = nullptr);
 
 // out[p * channels + c] = sum_k weight[p][k] * in[index[p][k] * channels + c] for every display
 // pixel with samples (misses included: their weights are the eq. 11 weights however small, or the
@@ -93,7 +96,7 @@ struct UpsampleKernels {
   std::function<UpsampleWeights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt)> weights;
   std::function<void(const UpsampleWeights& w, const float* in, int channels, float* out)> apply;
 };
-UpsampleKernels cpu_upsample_kernels();
+UpsampleKernels cpu_upsample_kernels(render::FramePool* pool = nullptr);
 // upsample_weights on the GPU (shaders/common/upsample_weights.comp): the same checks and result as
 // upsample_weights, in float (the CPU works in double). `measure` (optional): per display pixel the
 // unnormalised eq. 11 weight the miss decision compared with the threshold.

@@ -499,6 +499,8 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
   // Section 4.2: one set of eq. 11 weights serves O_p (n^2 channels) and the indirect shading (3).
   up->w = k.weights(plane(coarse), plane(fine), s.upsample);
   const std::size_t np = fine.object.size();
+  up->surface = ctx.pool().take_for_overwrite<std::int32_t>(np);
+  up->surface.clear();  // its capacity stays
   for (std::size_t i = 0; i < np; ++i)
     if (fine.hit(i)) up->surface.push_back(static_cast<std::int32_t>(i));
   if (ctx.has(kOcclusion) && ctx.is_deferred(kOcclusion)) {
@@ -514,9 +516,19 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
   if (ctx.has(kIndirectNorm)) {
     const auto& ind = *ctx.get<std::shared_ptr<const Field>>(kIndirectNorm);
     const std::vector<float> in = to_pixels(r, ind.v.data(), 3);
-    up->indirect.assign(np * 3, 0.0f);
+    up->indirect = ctx.pool().take(np * 3, 0.0f);
     k.apply(up->w, in.data(), 3, up->indirect.data());
   }
+  // The per-pixel planes go back to the pool at the end of the frame, unless the caller asked for
+  // this resource and holds it.
+  ctx.on_release([up](render::FramePool& pool) {
+    if (up.use_count() > 1) return;
+    pool.give(std::move(up->w.index));
+    pool.give(std::move(up->w.weight));
+    pool.give(std::move(up->w.miss));
+    pool.give(std::move(up->surface));
+    pool.give(std::move(up->indirect));
+  });
   auto& rec = ctx.record();
   std::size_t hits = 0;
   for (std::size_t i = 0; i < np; ++i) hits += fine.hit(i);
@@ -644,7 +656,8 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   // Surface pixels with the eq. 11 interpolation of O_p; the robust misses are shaded apart below.
   const std::size_t np = fine.object.size();
   const std::size_t surface = up.surface.size();
-  std::vector<glm::vec3> es(surface), e(np);
+  std::vector<glm::vec3> es = ctx.pool().take_for_overwrite<glm::vec3>(surface);  // k.surface writes every one
+  std::vector<glm::vec3> e = ctx.pool().take(np, glm::vec3(0.0f));
   long long clamped = k.surface(shader, fine, up, es.data());
   for (std::size_t i = 0; i < surface; ++i) e[static_cast<std::size_t>(up.surface[i])] = es[i];
   if (rm && !rm->pixel.empty()) {
@@ -652,12 +665,14 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
     clamped += k.receivers(shader, rm->soa, shadowed ? rm->visibility.data() : nullptr, em.data());
     for (std::size_t i = 0; i < rm->pixel.size(); ++i) e[rm->pixel[i]] = em[i];
   }
-  Image img(fine.width, fine.height);
+  Image img = ctx.pool().image_for_overwrite(fine.width, fine.height);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
     // Background: the environment as seen, as the reference draws it (render/vertex_image.hpp).
     for (std::size_t i = br.begin(); i != br.end(); ++i)
       img.rgb[i] = fine.hit(i) ? e[i] : render::background_radiance(ctx.scene.environment, fine.view_dir[i]);
   });
+  ctx.pool().give(std::move(es));
+  ctx.pool().give(std::move(e));
 
   // Section 4.2's cheap fallback: misses take the bilinear interpolation of the shaded coarse receivers.
   std::size_t interpolated = 0;
@@ -699,8 +714,13 @@ void pass_shade_indirect(const Settings& s, FrameContext& ctx) {
   std::shared_ptr<const RobustMisses> rm;
   if (ctx.has(kRobust)) rm = ctx.get<std::shared_ptr<const RobustMisses>>(kRobust);
   const std::size_t np = fine.object.size();
-  std::vector<float> v = up.indirect;
-  if (v.size() != np * 3) v.assign(np * 3, 0.0f);
+  std::vector<float> v;
+  if (up.indirect.size() == np * 3) {
+    v = ctx.pool().take_for_overwrite<float>(np * 3);
+    std::copy(up.indirect.begin(), up.indirect.end(), v.begin());
+  } else {
+    v = ctx.pool().take(np * 3, 0.0f);
+  }
   std::size_t robust = 0, interpolated = 0;
   if (rm && !rm->indirect.empty()) {
     for (std::size_t k = 0; k < rm->pixel.size(); ++k)
@@ -715,7 +735,7 @@ void pass_shade_indirect(const Settings& s, FrameContext& ctx) {
     upsample_apply_bilinear(up.w, plane(coarse), plane(fine), in.data(), 3, v.data(), &up.w.miss);
     for (std::size_t i = 0; i < np; ++i) interpolated += up.w.miss[i] && fine.hit(i);
   }
-  Image img(fine.width, fine.height);
+  Image img = ctx.pool().image(fine.width, fine.height);
   long long negative = 0;
   for (std::size_t i = 0; i < np; ++i) {
     if (!fine.hit(i)) continue;
@@ -730,6 +750,7 @@ void pass_shade_indirect(const Settings& s, FrameContext& ctx) {
   rec.counters["interpolated_pixels"] = static_cast<double>(interpolated);
   rec.counters["pixels_clamped"] = static_cast<double>(negative);
   rec.bytes = img.rgb.size() * sizeof(glm::vec3);
+  ctx.pool().give(std::move(v));
   ctx.put<Image>(render::kIndirect, std::move(img));
 }
 
@@ -897,7 +918,7 @@ class ImageSplat final : public render::Technique {
     g.add({"upsample", {render::kGBuffer, render::kReceiverGBuffer, kReceivers}, {kOcclusion, kIndirectNorm}, {kUpsampled},
            s.upsample.mode == UpsampleMode::Bilateral ? "bilateral upsampling of O_p and the indirect shading (section 4.2, eq. 11)"
                                                       : "bilinear upsampling of O_p and the indirect shading (Figure 7)",
-           with_kernels([s](FrameContext& c) { pass_upsample(s, c, cpu_upsample_kernels()); }, dev_upsample)});
+           with_kernels([s](FrameContext& c) { pass_upsample(s, c, cpu_upsample_kernels(&c.pool())); }, dev_upsample)});
     if (s.fallback == UpsampleFallback::Robust)
       g.add({"robust_misses", {render::kGBuffer, kUpsampled, kTables}, {kIndirectTables}, {kRobust},
              "display pixels no coarse sample matches, accumulated from the full proxy list (section 4.2)",

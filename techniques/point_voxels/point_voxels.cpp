@@ -513,7 +513,7 @@ void pass_indirect(FrameContext& ctx) {
     sp[i] = gathered[i].glossy_term();
   }
   const auto up = upsample_fields(gg, fine, {{&e[0].x, 3}, {&sp[0].x, 3}});
-  Image img(fine.width, fine.height);
+  Image img = ctx.pool().image(fine.width, fine.height);
   for (std::size_t i = 0; i < img.rgb.size(); ++i) {
     if (!fine.hit(i)) continue;
     const Receiver r = receiver_at(ctx, fine, i);
@@ -534,7 +534,7 @@ void pass_direct(FrameContext& ctx) {
     const auto& F = *ctx.get<std::shared_ptr<const SkyLight>>(kFilteredSky);
     sky = upsample_fields(ctx.get<GBuffer>(kMarchGBuffer), g, {{&F.irradiance[0].x, 3}, {F.escaped.data(), 1}});
   }
-  Image img(g.width, g.height);
+  Image img = ctx.pool().image_for_overwrite(g.width, g.height);  // every pixel is written below
   const std::size_t np = img.rgb.size();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 256), [&](const tbb::blocked_range<std::size_t>& br) {
     for (std::size_t i = br.begin(); i < br.end(); ++i) {

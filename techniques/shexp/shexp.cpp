@@ -552,16 +552,14 @@ void pass_to_image(FrameContext& ctx) {
   const auto& shading = *ctx.get<std::shared_ptr<const Shading>>(kShading);
   // Background: the environment as seen, the function the reference draws its background with.
   const render::BackgroundFn bg = render::environment_background(ctx.scene.environment);
-  Image img = render::interpolate_vertex_values(gb, ctx.posed, shading.irradiance, bg);
   // Irradiance is interpolated per vertex (section 8: vertex-rate shading); albedo is per pixel, so
   // textures keep their detail.
+  Image img = render::interpolate_vertex_values(gb, ctx.posed, shading.irradiance, bg,
+                                                ctx.pool().image_for_overwrite(gb.width, gb.height), true);
   const std::size_t np = img.rgb.size();
-  for (std::size_t i = 0; i < np; ++i)
-    if (gb.object[i] >= 0) img.rgb[i] *= gb.albedo[i];
   auto& rec = ctx.record();
   rec.counters["pixels"] = static_cast<double>(np);
   rec.bytes = np * sizeof(glm::vec3);
-  ctx.result.direct = img;
   ctx.put<Image>(render::kDirect, std::move(img));
 }
 

@@ -710,9 +710,8 @@ Image vertex_image(FrameContext& ctx, const Shading& sh, const Receivers& r, boo
     for (std::size_t v = 0; v < r.index[o].size(); ++v) per_vertex[o][v] = sh.value[r.index[o][v]];
   }
   const render::BackgroundFn bg = background ? render::environment_background(ctx.scene.environment) : render::BackgroundFn{};
-  Image img = render::interpolate_vertex_values(gb, ctx.posed, per_vertex, bg);
-  for (std::size_t i = 0; i < img.rgb.size(); ++i)
-    if (gb.object[i] >= 0) img.rgb[i] *= gb.albedo[i];
+  Image img = render::interpolate_vertex_values(gb, ctx.posed, per_vertex, bg, ctx.pool().image_for_overwrite(gb.width, gb.height),
+                                                true);
   ctx.record().counters["pixels"] = static_cast<double>(img.rgb.size());
   ctx.record().bytes = img.rgb.size() * sizeof(glm::vec3);
   return img;
@@ -722,13 +721,7 @@ void pass_to_image(FrameContext& ctx, bool indirect) {
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
   const auto& sh = *ctx.get<std::shared_ptr<const Shading>>(indirect ? kIndirectShading : kDirectShading);
   Image img = vertex_image(ctx, sh, r, !indirect);
-  if (indirect) {
-    ctx.result.indirect = img;
-    ctx.put<Image>(render::kIndirect, std::move(img));
-  } else {
-    ctx.result.direct = img;
-    ctx.put<Image>(render::kDirect, std::move(img));
-  }
+  ctx.put<Image>(indirect ? render::kIndirect : render::kDirect, std::move(img));
 }
 
 std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const render::ParamSet& params, int w, int h) {

@@ -21,7 +21,12 @@ std::size_t GBuffer::bytes() const {
          barycentric.size() * sizeof(glm::vec2);
 }
 
-GBuffer GBuffer::background(int w, int h, int scale) {
+GBuffer GBuffer::background(int w, int h, int scale, FramePool* pool) {
+  if (pool) {
+    GBuffer gb = for_overwrite(w, h, scale, *pool);
+    for (std::size_t i = 0; i < gb.object.size(); ++i) gb.set_background(i, glm::vec3(0.0f));
+    return gb;
+  }
   GBuffer gb;
   gb.width = w;
   gb.height = h;
@@ -132,10 +137,7 @@ void add_compose_pass(PassGraph& g) {
     if (ind && ind->rgb.size() != d.rgb.size())
       throw std::logic_error("compose: direct is " + std::to_string(d.width) + "x" + std::to_string(d.height) + ", indirect " +
                              std::to_string(ind->width) + "x" + std::to_string(ind->height));
-    Image out;
-    out.width = d.width;
-    out.height = d.height;
-    out.rgb.resize(d.rgb.size());
+    Image out = ctx.pool().image_for_overwrite(d.width, d.height);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, d.rgb.size(), std::size_t(1) << 14), [&](const tbb::blocked_range<std::size_t>& r) {
       if (ind)
         for (std::size_t i = r.begin(); i != r.end(); ++i) out.rgb[i] = d.rgb[i] + ind->rgb[i];

@@ -332,12 +332,21 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
   std::set<std::string> empty;
   PassGraph graph = technique.plan(scene, params, empty);
   CompiledGraph compiled = graph.compile(request.outputs, empty);
-  // Before anything large is allocated (the posed scene included).
-  check_frame_memory(estimate_compiled(technique, scene, params, graph, compiled, w, h), memory_limits(), memory_device_name());
+  // Before anything large is allocated (the posed scene included). The pool's buffers count as used
+  // memory in the limits; when the frame does not fit beside them, they are freed and it is asked
+  // again.
+  const FrameMemory need = estimate_compiled(technique, scene, params, graph, compiled, w, h);
+  try {
+    check_frame_memory(need, memory_limits(), memory_device_name());
+  } catch (const FrameMemoryError&) {
+    if (pool_.stats().held_bytes == 0) throw;
+    pool_.clear();
+    check_frame_memory(need, memory_limits(), memory_device_name());
+  }
   scene::PosedScene posed = scene::evaluate(scene, request.time);
   result.pruned = compiled.pruned;
   result.warnings = compiled.warnings;
-  FrameContext ctx(scene, posed, params, w, h, result, device());
+  FrameContext ctx(scene, posed, params, w, h, result, device(), &pool_);
   for (int i : compiled.order) {
     const PassDesc& pass = graph.passes()[i];
     result.passes.push_back(PassRecord{pass.name});
@@ -356,9 +365,20 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
     if (o != kDirect && o != kIndirect && o != kFinal && ctx.has(o)) result.resources[o] = ctx.get_any(o);
   const TransferBytes moved1 = transfer_total();
   result.transfer = {moved1.upload - moved0.upload, moved1.download - moved0.download};
+  ctx.release_to_pool();
+  pool_.end_frame();
   result.total_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.peak_rss_bytes = peak_rss_bytes();
   return result;
+}
+
+void Backend::recycle(FrameResult&& frame) {
+  pool_.give(std::move(frame.direct));
+  pool_.give(std::move(frame.indirect));
+  pool_.give(std::move(frame.final_image));
+  for (auto& v : frame.vertex_radiance) pool_.give(std::move(v));
+  for (auto& [name, value] : frame.resources) pool_.give_any(value);
+  frame = FrameResult();
 }
 
 FrameMemory Backend::estimate_compiled(Technique& technique, const scene::Scene& scene, const ParamSet& params,

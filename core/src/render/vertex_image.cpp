@@ -10,11 +10,18 @@ namespace softgi::render {
 
 Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& posed,
                                 const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background) {
+  return interpolate_vertex_values(gb, posed, per_vertex, background, Image(), false);
+}
+
+Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& posed,
+                                const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background,
+                                Image storage, bool times_albedo) {
   const std::size_t n = static_cast<std::size_t>(gb.width) * gb.height;
   if (gb.width < 0 || gb.height < 0 || gb.object.size() != n || gb.primitive.size() != n || gb.barycentric.size() != n ||
-      gb.view_dir.size() != n)
+      gb.view_dir.size() != n || (times_albedo && gb.albedo.size() != n))
     throw std::invalid_argument("interpolate_vertex_values: G-buffer of " + std::to_string(gb.width) + "x" +
-                                std::to_string(gb.height) + " has incomplete object/primitive/barycentric/view_dir planes");
+                                std::to_string(gb.height) + " has incomplete object/primitive/barycentric/view_dir" +
+                                (times_albedo ? "/albedo" : "") + " planes");
   // The checks a visible pixel needs, made where the loop reads it (one pass over the G-buffer): its
   // object, that object's mesh and per-vertex values (once per run of pixels of one object), its
   // triangle. Objects no pixel sees need no values.
@@ -32,7 +39,10 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
                                   " per-vertex values for " + std::to_string(obj.positions.size()) + " vertices");
   };
 
-  Image out(gb.width, gb.height);
+  Image out = std::move(storage);
+  out.width = gb.width;
+  out.height = gb.height;
+  out.rgb.resize(n);  // every pixel is written below
   tbb::parallel_for(tbb::blocked_range<int>(0, gb.height), [&](const tbb::blocked_range<int>& rows) {
     int checked = -1;
     for (int y = rows.begin(); y != rows.end(); ++y)
@@ -55,7 +65,8 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
         const glm::uvec3 tri = mesh.triangles[t];
         const std::vector<glm::vec3>& v = per_vertex[o];
         const glm::vec2 b = gb.barycentric[i];
-        out.rgb[i] = (1.0f - b.x - b.y) * v[tri.x] + b.x * v[tri.y] + b.y * v[tri.z];
+        const glm::vec3 e = (1.0f - b.x - b.y) * v[tri.x] + b.x * v[tri.y] + b.y * v[tri.z];
+        out.rgb[i] = times_albedo ? e * gb.albedo[i] : e;
       }
   });
   return out;

@@ -99,6 +99,12 @@ class Backend {
   // a frame that does not fit is a FrameMemoryError naming the resource, its size and the limit.
   virtual FrameResult render(Technique& technique, const scene::Scene& scene, const ParamSet& params,
                              const RenderRequest& request);
+  // Hands a frame back when the caller is done with it: its images and buffers go to the backend's
+  // FramePool, where the next frame's passes take them instead of allocating (and page-faulting)
+  // new ones. A caller rendering a sequence calls it once per frame; not calling it only costs time.
+  void recycle(FrameResult&& frame);
+  // The pool render() takes frames' buffers from and leaves them in (FramePool).
+  FramePool& frame_pool() { return pool_; }
   // The frame's large resources on this backend, planned and compiled as render() would; runs no pass.
   FrameMemory estimate_memory(Technique& technique, const scene::Scene& scene, const ParamSet& params,
                               const RenderRequest& request);
@@ -127,6 +133,7 @@ class Backend {
   FrameMemory estimate_compiled(Technique& technique, const scene::Scene& scene, const ParamSet& params, const PassGraph& graph,
                                 const CompiledGraph& compiled, int width, int height);
   std::size_t memory_limit_ = 0;
+  FramePool pool_;
 };
 
 // Runs no pass implementation; records which passes would run (for graph tests).

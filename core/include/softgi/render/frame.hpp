@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "softgi/image.hpp"
+#include "softgi/render/frame_pool.hpp"
 #include "softgi/render/params.hpp"
 #include "softgi/render/pass_graph.hpp"
 #include "softgi/scene/scene.hpp"
@@ -74,9 +75,12 @@ class Device {
 // Typed blackboard of a frame's resources plus what passes report.
 class FrameContext {
  public:
+  // `pool`: the executing backend's FramePool, where passes take their large buffers and where
+  // release_to_pool() leaves them; null: a pool of the frame's own (nothing carries over).
   FrameContext(const scene::Scene& scene, const scene::PosedScene& posed, const ParamSet& params, int width,
-               int height, FrameResult& result, Device* device = nullptr)
-      : scene(scene), posed(posed), params(params), width(width), height(height), result(result), device(device) {}
+               int height, FrameResult& result, Device* device = nullptr, FramePool* pool = nullptr)
+      : scene(scene), posed(posed), params(params), width(width), height(height), result(result), device(device),
+        pool_(pool ? pool : &own_pool_) {}
   // Deferred resources refer to their frame: a frame is neither copied nor moved.
   FrameContext(const FrameContext&) = delete;
   FrameContext& operator=(const FrameContext&) = delete;
@@ -136,6 +140,22 @@ class FrameContext {
     return it->second;
   }
   bool has(const std::string& name) const { return resources_.count(name) != 0 || deferred_.count(name) != 0; }
+  // Where passes take display-resolution buffers (FramePool::image_for_overwrite, take): last
+  // frame's, when the backend keeps a pool.
+  FramePool& pool() { return *pool_; }
+  // Gives every host resource of a type the pool knows to the pool (after the frame's outputs have
+  // been moved out) and forgets the deferred ones.
+  void release_to_pool() {
+    for (auto& [name, value] : resources_) pool_->give_any(value);
+    resources_.clear();
+    deferred_.clear();
+    for (auto& fn : on_release_) fn(*pool_);
+    on_release_.clear();
+  }
+  // Runs `fn` with the pool in release_to_pool, after the resources are released: for a pass's own
+  // structure that the pool does not know, whose buffers `fn` gives back when nothing else holds it
+  // (a shared_ptr the lambda keeps, with use_count() 1).
+  void on_release(std::function<void(FramePool&)> fn) { on_release_.push_back(std::move(fn)); }
   // The record of the pass being executed (counters, bytes).
   PassRecord& record() { return result.passes.back(); }
   // Adds a frame warning (FrameResult::warnings) once, however many passes report it.
@@ -149,6 +169,9 @@ class FrameContext {
   std::map<std::string, std::any> resources_;
   std::map<std::string, std::function<void()>> deferred_;
   std::map<std::string, std::any> device_;
+  std::vector<std::function<void(FramePool&)>> on_release_;
+  FramePool own_pool_;
+  FramePool* pool_;
 };
 
 // Peak resident set size of this process (VmHWM), 0 where unavailable.

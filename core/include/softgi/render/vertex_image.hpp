@@ -36,6 +36,13 @@ using BackgroundFn = std::function<glm::vec3(const glm::vec3& ray_dir)>;
 Image interpolate_vertex_values(const GBuffer& gbuffer, const scene::PosedScene& posed,
                                 const std::vector<std::vector<glm::vec3>>& per_vertex,
                                 const BackgroundFn& background = {});
+// The same, written into `storage`'s buffer (resized, every pixel overwritten): a pass hands in
+// FramePool::image_for_overwrite so that last frame's image is reused. times_albedo: surface pixels
+// are multiplied by the G-buffer's albedo in the same pass (vertex-rate irradiance, pixel-rate
+// albedo, so that textures keep their detail).
+Image interpolate_vertex_values(const GBuffer& gbuffer, const scene::PosedScene& posed,
+                                const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background,
+                                Image storage, bool times_albedo);
 
 // The background of every image, techniques' and reference's alike: the environment's radiance
 // along the camera ray, Environment::radiance(ray_dir).
