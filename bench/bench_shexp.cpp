@@ -503,13 +503,17 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
   }
   std::map<std::string, softgi::bench::PassSums> sums;
   std::map<std::string, double> wall, moved;  // every pass, for the display passes' bandwidth
-  double frame = 0.0;
+  double frame = 0.0, bvh = 0.0, trace = 0.0, resolve = 0.0;  // the CPU G-buffer's split: BVH update, trace, resolve
   for (auto _ : state) {
     req.time += kStep;
     render::FrameResult r = be->render(*tech, sc, params, req);
     for (const auto& p : r.passes) {
       wall[p.name] += p.wall_seconds;
       if (const auto c = p.counters.find("bytes_moved"); c != p.counters.end()) moved[p.name] += c->second;
+      if (p.name != "gbuffer") continue;
+      if (const auto c = p.counters.find("bvh_update_seconds"); c != p.counters.end()) bvh += c->second;
+      if (const auto c = p.counters.find("trace_seconds"); c != p.counters.end()) trace += c->second;
+      if (const auto c = p.counters.find("resolve_seconds"); c != p.counters.end()) resolve += c->second;
     }
     double t = 0.0;
     for (const auto& p : r.passes)
@@ -526,6 +530,11 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
     return;
   }
   state.counters["frame_ms"] = frame / static_cast<double>(state.iterations()) * 1e3;
+  if (trace > 0.0) {
+    state.counters["gbuffer_bvh_ms"] = bvh / static_cast<double>(state.iterations()) * 1e3;
+    state.counters["gbuffer_trace_ms"] = trace / static_cast<double>(state.iterations()) * 1e3;
+    state.counters["gbuffer_resolve_ms"] = resolve / static_cast<double>(state.iterations()) * 1e3;
+  }
   state.counters["receivers"] = sums["accumulate_log"].receivers / static_cast<double>(state.iterations());
   softgi::bench::Row base;
   base.bench = "shexp";
