@@ -13,12 +13,14 @@ find_package(glm CONFIG REQUIRED)
 find_package(TinyGLTF CONFIG REQUIRED)
 find_package(draco CONFIG REQUIRED)   # tinygltf is built without Draco: KHR_draco_mesh_compression is decoded by softgi
 find_package(embree 3 CONFIG REQUIRED)
-find_package(OpenImageIO CONFIG REQUIRED)
-# Debian's OpenImageIO target lists /usr/include/opencv4, which does not exist; drop it or generation fails.
-get_target_property(_softgi_oiio_inc OpenImageIO::OpenImageIO INTERFACE_INCLUDE_DIRECTORIES)
-if(_softgi_oiio_inc)
-  list(REMOVE_ITEM _softgi_oiio_inc /usr/include/opencv4)
-  set_target_properties(OpenImageIO::OpenImageIO PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_softgi_oiio_inc}")
+if(SOFTGI_WITH_OIIO)
+  find_package(OpenImageIO CONFIG REQUIRED)
+  # Debian's OpenImageIO target lists /usr/include/opencv4, which does not exist; drop it or generation fails.
+  get_target_property(_softgi_oiio_inc OpenImageIO::OpenImageIO INTERFACE_INCLUDE_DIRECTORIES)
+  if(_softgi_oiio_inc)
+    list(REMOVE_ITEM _softgi_oiio_inc /usr/include/opencv4)
+    set_target_properties(OpenImageIO::OpenImageIO PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_softgi_oiio_inc}")
+  endif()
 endif()
 if(SOFTGI_BUILD_APP AND SOFTGI_BUILD_VIEWER)
   # Debian's libimgui-dev: one static library with the GLFW and Vulkan backends, found by pkg-config.

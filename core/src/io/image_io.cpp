@@ -1,7 +1,6 @@
-// Image files through OpenImageIO 2.4. The only translation unit that includes OIIO.
+// Image files: checks, colour transfer and atomic writes, over the codec of image_codec.hpp
+// (OpenImageIO, or the built-in one in a build without it).
 #include "softgi/io/image_io.hpp"
-
-#include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cctype>
@@ -16,40 +15,18 @@
 #include <system_error>
 #include <vector>
 
+#include "image_codec.hpp"
+
 namespace softgi::io {
 namespace {
 
 namespace fs = std::filesystem;
 
-// Larger sides are treated as corrupt headers rather than images: a 32768-wide lat-long map is
-// already 8x the finest environment map in the asset set.
-constexpr int kMaxSide = 32768;
-// 2^28 pixels (3 GiB as float RGB) is the most one image may hold.
-constexpr std::int64_t kMaxPixels = std::int64_t(1) << 28;
 // Largest finite half; larger values would become +inf in a half EXR.
 constexpr float kHalfMax = 65504.0f;
 
-[[noreturn]] void fail(const std::string& path, const std::string& reason) {
-  throw std::runtime_error(path + ": " + reason);
-}
-
-std::string trim(std::string s) {
-  while (!s.empty() && (s.back() == '\n' || s.back() == ' ' || s.back() == '\r')) s.pop_back();
-  return s.empty() ? std::string("unknown error") : s;
-}
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
-
-void check_size(const std::string& path, int w, int h) {
-  if (w < 1 || h < 1 || w > kMaxSide || h > kMaxSide ||
-      std::int64_t(w) * std::int64_t(h) > kMaxPixels) {
-    fail(path, "absurd image size " + std::to_string(w) + "x" + std::to_string(h) + " (each side must be in [1, " +
-                   std::to_string(kMaxSide) + "], at most " + std::to_string(kMaxPixels) + " pixels)");
-  }
-}
+using codec::check_size;
+using codec::fail;
 
 void check_image(const std::string& path, const Image& img) {
   check_size(path, img.width, img.height);
@@ -92,30 +69,21 @@ std::uint8_t to_byte(float v) {
   return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
 }
 
-// Writes `pixels` (one row after another, `channels` values of `type` each) to PATH.tmp in the
-// given format, then renames over PATH, so an existing file is never left half-written.
-// `buffer_type` is the type of `pixels`; OIIO converts to spec.format (float -> half) while writing.
-void write_atomic(const std::string& path, const char* format, const OIIO::ImageSpec& spec, OIIO::TypeDesc buffer_type,
-                  const void* pixels) {
+// Writes PATH.tmp with `write` (a codec function), then renames over PATH, so an existing file is
+// never left half-written and a failed write leaves nothing behind.
+template <class Write>
+void write_atomic(const std::string& path, Write&& write) {
   if (path.empty()) throw std::runtime_error("cannot write an image to an empty path");
   const std::string tmp = path + ".tmp";
-  auto out = OIIO::ImageOutput::create(format);
-  if (!out) fail(path, std::string("OpenImageIO has no '") + format + "' writer: " + trim(OIIO::geterror()));
-  if (!out->open(tmp, spec)) {
-    std::string reason = trim(out->geterror());
+  try {
+    write(tmp);
+  } catch (const std::exception& e) {
     std::error_code ec;
     fs::remove(tmp, ec);
-    fail(path, "cannot open for writing (" + tmp + "): " + reason);
-  }
-  const bool ok = out->write_image(buffer_type, pixels);
-  std::string reason = ok ? std::string() : trim(out->geterror());
-  const bool closed = out->close();
-  if (ok && !closed) reason = trim(out->geterror());
-  out.reset();
-  if (!ok || !closed) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    fail(path, "write failed: " + reason);
+    // The codec names the temporary file; the caller asked for `path`.
+    std::string reason = e.what();
+    if (reason.rfind(tmp + ": ", 0) == 0) reason = reason.substr(tmp.size() + 2);
+    fail(path, reason + " (writing " + tmp + ")");
   }
   std::error_code ec;
   fs::rename(tmp, path, ec);
@@ -130,9 +98,7 @@ void write_png8(const std::string& path, const Image& img, float exposure, bool 
   check_image(path, img);
   check_finite(path, img);
   const std::vector<std::uint8_t> bytes = display_bytes(img, exposure, encode_srgb);
-  OIIO::ImageSpec spec(img.width, img.height, 3, OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:ColorSpace", "sRGB");
-  write_atomic(path, "png", spec, OIIO::TypeDesc::UINT8, bytes.data());
+  write_atomic(path, [&](const std::string& tmp) { codec::write_png(tmp, img.width, img.height, bytes.data()); });
 }
 
 }  // namespace
@@ -154,32 +120,18 @@ Image read_image(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) fail(path, "no such file");
   if (fs::is_directory(path, ec)) fail(path, "is a directory, not an image");
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) fail(path, "cannot read image: " + trim(OIIO::geterror()));
-  const OIIO::ImageSpec spec = in->spec();
-  if (spec.depth > 1) fail(path, "volume images (depth " + std::to_string(spec.depth) + ") are not supported");
-  if (spec.deep) fail(path, "deep images are not supported");
-  check_size(path, spec.width, spec.height);
-  if (spec.nchannels < 1 || spec.nchannels > 64) {
-    fail(path, "unsupported channel count " + std::to_string(spec.nchannels));
-  }
-  // Only the channels used below are decoded, so a header declaring 64 channels costs no more than
-  // RGB; the buffer is left uninitialised (read_image writes every pixel it reports read), so a
-  // few-byte file declaring the largest size allowed does not touch gigabytes before it fails.
-  const int nch = std::min(spec.nchannels, 3);
-  const std::size_t count = std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(nch);
-  std::unique_ptr<float[]> data(new (std::nothrow) float[count]);
-  if (!data) fail(path, "cannot allocate " + std::to_string(count * sizeof(float)) + " bytes for its pixels");
-  if (!in->read_image(0, 0, 0, nch, OIIO::TypeDesc::FLOAT, data.get())) {
-    fail(path, "cannot decode pixels: " + trim(in->geterror()));
-  }
+  const codec::Decoded d = codec::read(path);
+  check_size(path, d.width, d.height);
+  const int nch = std::min(d.channels, 3);
+  if (nch < 1 || d.data.size() != std::size_t(d.width) * std::size_t(d.height) * std::size_t(nch))
+    fail(path, "decoder returned " + std::to_string(d.data.size()) + " values for " + std::to_string(d.width) + "x" +
+                   std::to_string(d.height) + " pixels of " + std::to_string(nch) + " channel(s)");
+  const float* data = d.data.data();
   // Decides how stored values map to linear radiance. 8/16-bit files without a colour-space tag are
   // assumed sRGB (PNG, JPEG convention); float files are linear.
-  const std::string cs = lower(spec.get_string_attribute("oiio:ColorSpace"));
-  const float gamma = spec.get_float_attribute("oiio:Gamma", 0.0f);
-  const bool is_float = spec.format.basetype == OIIO::TypeDesc::FLOAT || spec.format.basetype == OIIO::TypeDesc::HALF ||
-                        spec.format.basetype == OIIO::TypeDesc::DOUBLE;
-  enum class Transfer { Linear, Srgb, Gamma } transfer = is_float ? Transfer::Linear : Transfer::Srgb;
+  const std::string& cs = d.color_space;
+  const float gamma = d.gamma;
+  enum class Transfer { Linear, Srgb, Gamma } transfer = d.is_float ? Transfer::Linear : Transfer::Srgb;
   if (cs.find("linear") != std::string::npos || cs == "scene_linear" || cs == "acescg") {
     transfer = Transfer::Linear;
   } else if (cs == "srgb") {
@@ -190,10 +142,10 @@ Image read_image(const std::string& path) {
     transfer = Transfer::Linear;
   }
 
-  Image img(spec.width, spec.height);
-  for (int y = 0; y < spec.height; ++y) {
-    for (int x = 0; x < spec.width; ++x) {
-      const float* p = &data[(std::size_t(y) * std::size_t(spec.width) + std::size_t(x)) * std::size_t(nch)];
+  Image img(d.width, d.height);
+  for (int y = 0; y < d.height; ++y) {
+    for (int x = 0; x < d.width; ++x) {
+      const float* p = &data[(std::size_t(y) * std::size_t(d.width) + std::size_t(x)) * std::size_t(nch)];
       // One or two channels (grey, grey + alpha) replicate the first; more take the first three.
       glm::vec3 c = nch >= 3 ? glm::vec3(p[0], p[1], p[2]) : glm::vec3(p[0]);
       for (int k = 0; k < 3; ++k) {
@@ -210,7 +162,6 @@ Image read_image(const std::string& path) {
       img.at(x, y) = c;
     }
   }
-  in->close();
   return img;
 }
 
@@ -268,20 +219,16 @@ EnvironmentMap read_environment_map(const std::string& path, float max_radiance)
 void write_exr(const std::string& path, const Image& img, bool half) {
   check_image(path, img);
   check_finite(path, img);
-  OIIO::ImageSpec spec(img.width, img.height, 3, half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
-  spec.channelnames = {"R", "G", "B"};
-  spec.attribute("compression", "zip");
-  spec.attribute("oiio:ColorSpace", "Linear");
-  if (!half) {
-    write_atomic(path, "openexr", spec, OIIO::TypeDesc::FLOAT, img.rgb.data());
-    return;
+  const float* rgb = &img.rgb[0].x;
+  std::vector<float> clamped;
+  if (half) {
+    // Values beyond the half range are clamped to the largest finite half rather than becoming inf.
+    clamped.resize(img.rgb.size() * 3);
+    for (std::size_t i = 0; i < img.rgb.size(); ++i)
+      for (int k = 0; k < 3; ++k) clamped[3 * i + std::size_t(k)] = std::clamp(img.rgb[i][k], -kHalfMax, kHalfMax);
+    rgb = clamped.data();
   }
-  // Values beyond the half range are clamped to the largest finite half rather than becoming inf.
-  std::vector<float> clamped(img.rgb.size() * 3);
-  for (std::size_t i = 0; i < img.rgb.size(); ++i) {
-    for (int k = 0; k < 3; ++k) clamped[3 * i + std::size_t(k)] = std::clamp(img.rgb[i][k], -kHalfMax, kHalfMax);
-  }
-  write_atomic(path, "openexr", spec, OIIO::TypeDesc::FLOAT, clamped.data());
+  write_atomic(path, [&](const std::string& tmp) { codec::write_exr(tmp, img.width, img.height, rgb, half); });
 }
 
 void write_png(const std::string& path, const Image& img, float exposure) {
@@ -294,5 +241,7 @@ void write_png(const std::string& path, const Image& img, float exposure) {
 }
 
 void write_png_display(const std::string& path, const Image& img) { write_png8(path, img, 1.0f, false); }
+
+const char* image_codec_name() { return codec::name(); }
 
 }  // namespace softgi::io

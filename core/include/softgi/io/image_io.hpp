@@ -1,4 +1,6 @@
-// Image files through OpenImageIO (the only translation unit that includes OIIO: core/src/io/image_io.cpp).
+// Image files, through OpenImageIO (core/src/io/image_codec_oiio.cpp, the only translation unit that
+// includes it), or in a build without it (SOFTGI_WITH_OIIO=OFF) through the built-in codec, which
+// reads uncompressed OpenEXR only and writes uncompressed OpenEXR and PNG.
 #pragma once
 
 #include <cstddef>
@@ -42,5 +44,7 @@ void write_png(const std::string& path, const Image& img, float exposure = 1.0f)
 std::vector<std::uint8_t> display_bytes(const Image& img, float exposure = 1.0f, bool encode_srgb = true, int channels = 3);
 // 8-bit PNG of already display-referred RGB in [0, 1] (false-colour maps).
 void write_png_display(const std::string& path, const Image& img);
+// What reads and writes image files in this build ("OpenImageIO 2.4.x", or the built-in codec).
+const char* image_codec_name();
 
 }  // namespace softgi::io
