@@ -43,7 +43,7 @@ command -v clang++ >/dev/null || { echo "fuzz.sh: clang++ not found (Debian pack
 mkdir -p "$BUILD/obj"
 # A generated Ninja file gives incremental, header-tracked rebuilds without touching the CMake build.
 CXXFLAGS="-std=c++20 -g -O1 -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined"
-DEFS="-DSOFTGI_SOURCE_DIR=\\\"$ROOT\\\" -DSOFTGI_FUZZ_DATA_DIR=\\\"$ROOT/tests/fuzz/data\\\""
+DEFS="-DSOFTGI_SOURCE_DIR=\\\"$ROOT\\\" -DSOFTGI_FUZZ_DATA_DIR=\\\"$ROOT/tests/fuzz/data\\\" -DSOFTGI_WITH_OIIO=1"
 INCS="-I$ROOT/core/include -isystem /usr/include/eigen3 -isystem /usr/include/Imath"
 LIBS="-lOpenImageIO -lOpenImageIO_Util -ltinygltf -ldraco -ltbb -lpthread"
 {

@@ -1,6 +1,9 @@
 // image_codec.hpp through OpenImageIO 2.4: the only translation unit that includes it.
 #include "image_codec.hpp"
 
+#ifndef SOFTGI_WITH_OIIO
+#error "SOFTGI_WITH_OIIO must be defined to 1 (OpenImageIO) or 0 (the built-in codec)"
+#endif
 #if SOFTGI_WITH_OIIO
 #include <OpenImageIO/imageio.h>
 
