@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "measured_limit.hpp"
 #include "softgi/render/technique.hpp"
 
 namespace softgi::bench {
@@ -51,16 +52,13 @@ inline double triad_gbps(int threads) {
   return static_cast<double>(n) * 12.0 / sec * 1e-9;
 }
 
-inline double& bandwidth_storage() {
-  static double bw = 0.0;
+inline MeasuredLimit& bandwidth_limit() {
+  static MeasuredLimit bw;
   return bw;
 }
 // The best of five 2-thread triads, measured once per process (raised by BM_StreamTriad/2).
 inline double bandwidth_gbps() {
-  double& bw = bandwidth_storage();
-  if (bw <= 0.0)
-    for (int i = 0; i < 5; ++i) bw = std::max(bw, triad_gbps(2));
-  return bw;
+  return bandwidth_limit().get([] { return triad_gbps(2); });
 }
 
 // BM_StreamTriad/<threads>: the best of its iterations; at 2 threads, the bandwidth that shares are
@@ -71,7 +69,7 @@ inline void BM_StreamTriad(benchmark::State& state) {
   double best = 0.0;
   for (auto _ : state) best = std::max(best, triad_gbps(threads));
   state.counters["GB/s"] = best;
-  if (threads == 2) bandwidth_storage() = std::max(bandwidth_storage(), best);
+  if (threads == 2) bandwidth_limit().raise(best);
 }
 
 // Bytes a display-resolution pass must move at the least for a width x height frame, for passes

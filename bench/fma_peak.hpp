@@ -12,6 +12,8 @@
 #include <thread>
 #include <vector>
 
+#include "measured_limit.hpp"
+
 namespace softgi::bench {
 
 inline constexpr int kFmaChains = 12;  // independent accumulators: > latency (4) x FMA ports (2)
@@ -63,18 +65,15 @@ inline double fma_gflops(int threads, long iters) {
 }
 
 // The best of five 2-thread runs, measured once per process (raised by record_peak).
-inline double& peak_storage() {
-  static double peak = 0.0;
+inline MeasuredLimit& fma_peak_limit() {
+  static MeasuredLimit peak;
   return peak;
 }
 inline double peak_gflops() {
-  double& p = peak_storage();
-  if (p <= 0.0)
-    for (int i = 0; i < 5; ++i) p = std::max(p, fma_gflops(2, 20'000'000));
-  return p;
+  return fma_peak_limit().get([] { return fma_gflops(2, 20'000'000); });
 }
 // A BM_FmaPeak run with 2 threads that saw more raises the peak later shares are taken of.
-inline void record_peak(double gflops_two_threads) { peak_storage() = std::max(peak_storage(), gflops_two_threads); }
+inline void record_peak(double gflops_two_threads) { fma_peak_limit().raise(gflops_two_threads); }
 
 // The benchmark body each frame-level benchmark registers as BM_FmaPeak (Args 1 and 2 threads):
 // the best of its iterations, and at 2 threads the peak the shares of peak are taken against.

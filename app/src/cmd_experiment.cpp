@@ -377,17 +377,18 @@ class ExperimentRunner {
       std::vector<render::FrameResult> timed;
       for (int f = frames - 1; f >= 0; --f) {
         req.time = def.time - f * kFrameStep;
-        timed.push_back(backend.render(*v.technique, sc, v.params, req));
-        v.frame_seconds.push_back(timed.back().total_seconds);
-        if (f == 0) break;
-        // Only the last frame's images are measured: the others' buffers go back to the backend
-        // for the next frame, their pass records stay.
-        render::FrameResult images;
-        images.direct = std::move(timed.back().direct);
-        images.indirect = std::move(timed.back().indirect);
-        images.final_image = std::move(timed.back().final_image);
-        images.vertex_radiance = std::move(timed.back().vertex_radiance);
-        backend.recycle(std::move(images));
+        render::FrameResult frame = backend.render(*v.technique, sc, v.params, req);
+        v.frame_seconds.push_back(frame.total_seconds);
+        if (f == 0) {
+          timed.push_back(std::move(frame));
+          break;
+        }
+        // Only the last frame's images are measured: the others keep their pass records, and their
+        // buffers go back to the backend for the next frame.
+        render::FrameResult records;
+        records.passes = std::move(frame.passes);
+        timed.push_back(std::move(records));
+        backend.recycle(std::move(frame));
       }
       v.median_seconds = ex::median(v.frame_seconds);
       v.pass_median = pass_medians(timed);
