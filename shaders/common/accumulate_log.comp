@@ -6,7 +6,8 @@
 // the CPU's own floats, uploaded.
 #extension GL_GOOGLE_include_directive : require
 // [[unroll]] on the loops over bands and coefficients: their trip counts are the specialisation
-// constant N, so after specialisation the driver unrolls them and keeps acc[] in registers.
+// constant N. The basis steps are written out (SH_BASIS_UNROLLED, sh_basis.glsl) since a driver may
+// not unroll them even so, and acc[] stays in registers only where every index is a constant.
 #extension GL_EXT_control_flow_attributes : require
 #include "softgi_shared.h"
 #define SHEXP_BASIS_BINDING kAccBindBasis
@@ -16,13 +17,17 @@
 layout(constant_id = 0) const uint N = 4;           // accumulation order
 layout(constant_id = 1) const uint RULE = kRuleContinuous;
 layout(local_size_x = kAccumulateGroup) in;
+const uint W4 = (N + 3u) / 4u;  // vec4s of band weights per blocker (kAccWeightStride(N) / 4)
 
 layout(std430, set = 0, binding = kAccBindReceivers) readonly buffer Receivers { float rec[]; };
 layout(std430, set = 0, binding = kAccBindReceiverList) readonly buffer ReceiverList { uint rlist[]; };
 layout(std430, set = 0, binding = kAccBindListRange) readonly buffer ListRange { uvec2 ranges[]; };
 layout(std430, set = 0, binding = kAccBindBlockers) readonly buffer Blockers { vec4 blockers[]; };
-layout(std430, set = 0, binding = kAccBindWeights) readonly buffer Weights { float weights[]; };
-layout(std430, set = 0, binding = kAccBindTable) readonly buffer Table { float table[]; };
+// The band weights in rows of kAccWeightStride floats per blocker and the table's (value, slope)
+// pairs are read as vectors: one load per vector rather than per float, which is what costs on
+// drivers that load a storage buffer lane by lane (llvmpipe).
+layout(std430, set = 0, binding = kAccBindWeights) readonly buffer Weights { vec4 weights4[]; };
+layout(std430, set = 0, binding = kAccBindTable) readonly buffer Table { vec2 table2[]; };
 layout(std430, set = 0, binding = kAccBindOut) buffer Out { float outv[]; };
 layout(push_constant) uniform Push {
   uint count;       // receivers in all (the planes of rec are this long)
@@ -89,38 +94,33 @@ void main() {
     const float u = theta * pc.scale;
     const int k = clamp(int(u), 0, int(pc.rows) - 2);
     const float fr = u - float(k);
-    const uint row = uint(k) * 2u * N;
-    float fl[kAccumMaxOrder];
-    [[unroll]] for (uint l = 0; l < N; ++l) fl[l] = (fr * table[row + 2 * l + 1] + table[row + 2 * l]) * weights[b * N + l];  // W of eq. 38
-    const vec3 s = v * inv;
-    // Basis by recurrence, accumulated as in kernel_block.
-    float C[kAccumMaxOrder], S[kAccumMaxOrder];
-    C[0] = 1.0;
-    S[0] = 0.0;
-    [[unroll]] for (uint m = 1; m < N; ++m) {
-      C[m] = C[m - 1] * s.x - S[m - 1] * s.y;
-      S[m] = S[m - 1] * s.x + C[m - 1] * s.y;
+    const uint row = uint(k) * N;
+    float w[4u * ((kAccumMaxOrder + 3u) / 4u)];
+    [[unroll]] for (uint q = 0; q < W4; ++q) {
+      const vec4 x = weights4[b * W4 + q];
+      w[4u * q] = x.x;
+      w[4u * q + 1u] = x.y;
+      w[4u * q + 2u] = x.z;
+      w[4u * q + 3u] = x.w;
     }
-    [[unroll]] for (uint m = 0; m < N; ++m) {
-      float q_prev = 0.0, qv = basis_qmm(m);
-      [[unroll]] for (uint l = m; l < N; ++l) {
-        if (l == m + 1) {
-          q_prev = qv;
-          qv = basis_a1(m) * (s.z * qv);
-        } else if (l > m + 1) {
-          const float next = basis_A(l, m) * (s.z * qv) - basis_B(l, m) * q_prev;
-          q_prev = qv;
-          qv = next;
-        }
-        const uint i0 = l * l + l;
-        if (m == 0) {
-          acc[i0] += fl[l] * qv;
-        } else {
-          const float g = fl[l] * qv;
-          acc[i0 + m] += g * C[m];
-          acc[i0 - m] += g * S[m];
-        }
-      }
+    float fl[kAccumMaxOrder];
+    [[unroll]] for (uint l = 0; l < N; ++l) {
+      const vec2 t = table2[row + l];  // (value, slope) of band l
+      fl[l] = (fr * t.y + t.x) * w[l];  // W of eq. 38
+    }
+    // Basis by recurrence, accumulated as in kernel_block.
+    {
+      const vec3 sh_dir = v * inv;
+#define SH_BASIS_PUT(l, m, q)                       \
+  if ((m) == 0u) {                                  \
+    acc[(l) * (l) + (l)] += fl[l] * (q);            \
+  } else {                                          \
+    const float g = fl[l] * (q);                    \
+    acc[(l) * (l) + (l) + (m)] += g * sh_C[m];      \
+    acc[(l) * (l) + (l) - (m)] += g * sh_S[m];      \
+  }
+      SH_BASIS_UNROLLED(N)
+#undef SH_BASIS_PUT
     }
   }
   [[unroll]] for (uint c = 0; c < N * N; ++c) outv[i * N * N + c] = acc[c];

@@ -13,10 +13,10 @@ const float kAccumPi = 3.14159265358979324;
 // kernel_body.hpp asin01.
 float accum_asin01(float x) {
   const float x2 = x * x, x4 = x2 * x2;
-  const float p01 = basis_c[kBasisAsin + 1] * x + basis_c[kBasisAsin + 0];
-  const float p23 = basis_c[kBasisAsin + 3] * x + basis_c[kBasisAsin + 2];
-  const float p45 = basis_c[kBasisAsin + 5] * x + basis_c[kBasisAsin + 4];
-  const float p67 = basis_c[kBasisAsin + 7] * x + basis_c[kBasisAsin + 6];
+  const float p01 = basis_c(kBasisAsin + 1) * x + basis_c(kBasisAsin + 0);
+  const float p23 = basis_c(kBasisAsin + 3) * x + basis_c(kBasisAsin + 2);
+  const float p45 = basis_c(kBasisAsin + 5) * x + basis_c(kBasisAsin + 4);
+  const float p67 = basis_c(kBasisAsin + 7) * x + basis_c(kBasisAsin + 6);
   const float p = (p67 * x2 + p45) * x4 + (p23 * x2 + p01);
   const float omx = max(1.0 - x, 0.0);
   const float s = omx * inversesqrt(max(omx, 1e-30));

@@ -55,9 +55,9 @@ SOFTGI_CONST_UINT(kAccBindReceivers, 0u)     // float[6 * count]: px, py, pz, nx
 SOFTGI_CONST_UINT(kAccBindReceiverList, 1u)  // uint per receiver: index of its blocker list
 SOFTGI_CONST_UINT(kAccBindListRange, 2u)     // uvec2 per list: (first blocker, count)
 SOFTGI_CONST_UINT(kAccBindBlockers, 3u)      // vec4 per blocker: centre, radius
-SOFTGI_CONST_UINT(kAccBindWeights, 4u)       // float[order] per blocker: eq. 37 band weights
+SOFTGI_CONST_UINT(kAccBindWeights, 4u)       // per blocker: eq. 37 band weights, order rounded up to a multiple of 4 floats
 SOFTGI_CONST_UINT(kAccBindTable, 5u)         // ZhTable::data: rows * 2 * order floats
-SOFTGI_CONST_UINT(kAccBindBasis, 6u)         // basis recurrence constants (see shexp_vulkan.cpp)
+SOFTGI_CONST_UINT(kAccBindBasis, 6u)         // basis recurrence constants (a uniform buffer; see sh_basis.glsl)
 SOFTGI_CONST_UINT(kAccBindOut, 7u)           // float[count * order^2]
 
 // exponentiate bindings (set 0)

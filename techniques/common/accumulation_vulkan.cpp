@@ -171,12 +171,12 @@ void exp_series_counts(std::uint32_t method, int degree, double& squares, double
 
 PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int order, std::size_t min_rows, float w_fill,
                                   const std::string& technique, const std::string& order_name) {
-  const std::size_t n = static_cast<std::size_t>(order);
+  const std::size_t n = static_cast<std::size_t>(order), ws = weight_stride(order);
   std::size_t total = 0;
   for (const auto& l : lists) total += l.size();
   PackedBlockers p;
   p.sph.assign(std::max(min_rows, total) * 4, 0.0f);
-  p.w.assign(std::max(min_rows, total) * n, w_fill);
+  p.w.assign(std::max(min_rows, total) * ws, w_fill);
   p.ranges.assign(2 * std::max(min_rows, lists.size()), 0);
   std::size_t at = 0;
   for (std::size_t li = 0; li < lists.size(); ++li) {
@@ -191,7 +191,7 @@ PackedBlockers pack_blocker_lists(const std::vector<BlockerList>& lists, int ord
       p.sph[4 * at + 1] = b.cy[j];
       p.sph[4 * at + 2] = b.cz[j];
       p.sph[4 * at + 3] = b.r[j];
-      if (!b.w.empty()) std::copy(b.w.begin() + j * n, b.w.begin() + (j + 1) * n, p.w.begin() + at * n);
+      if (!b.w.empty()) std::copy(b.w.begin() + j * n, b.w.begin() + (j + 1) * n, p.w.begin() + at * ws);
     }
   }
   return p;
@@ -201,9 +201,9 @@ std::uint32_t accumulate_log_chunk(const vk::DeviceInfo& d, int order) {
   const std::uint32_t budget = loop_budget(d);
   if (budget == std::numeric_limits<std::uint32_t>::max()) return budget;
   const std::uint32_t n = static_cast<std::uint32_t>(order);
-  // The blocker loop itself, the band weights (n), the cos/sin recurrence (n - 1), the outer (n) and
-  // inner (n (n + 1) / 2) basis loops.
-  const std::uint32_t per_blocker = 2u * (1u + n + (n - 1u) + n + n * (n + 1u) / 2u);
+  // The blocker loop itself, the weight vectors ((n + 3) / 4) and the band weights (n), should the
+  // driver leave those two loops rolled; the basis steps are written out, no loops (sh_basis.glsl).
+  const std::uint32_t per_blocker = 2u * (1u + (n + 3u) / 4u + n);
   return std::max<std::uint32_t>(1u, budget / per_blocker);
 }
 
@@ -322,7 +322,9 @@ std::vector<float> download_field_column(vk::Context& dev, const DeviceField& fi
 const vk::Buffer& basis_constants(vk::Context& dev) {
   DeviceConstants& c = device_constants(dev);
   std::lock_guard<std::mutex> lock(c.m);
-  if (!c.basis) c.basis = dev.upload_vector(basis_recurrence_constants(), kStorage, "basis recurrence constants");
+  // A uniform buffer (sh_basis.glsl reads it as a uniform block); kBasisFloats is a multiple of 4.
+  if (!c.basis)
+    c.basis = dev.upload_vector(basis_recurrence_constants(), kStorage | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, "basis recurrence constants");
   return c.basis;
 }
 

@@ -162,10 +162,15 @@ const vk::Buffer& basis_constants(vk::Context& dev);
 const PlanBuffers& product_plan_buffers(vk::Context& dev, int order);
 
 
+// Floats of band weights per blocker in PackedBlockers::w: the order rounded up to a multiple of 4
+// (accumulate_log.comp reads them as vec4s; the padding holds w_fill and is never read as a weight).
+constexpr std::size_t weight_stride(int order) { return 4 * ((static_cast<std::size_t>(order) + 3) / 4); }
+
 // Blocker lists concatenated as accumulate_log.comp reads them: spheres (cx, cy, cz, r), band
-// weights (`order` per sphere; `w_fill` for a list without weights) and a (first, count) range per
-// list. At least `min_rows` spheres and lists are allocated (zero-filled). A non-empty list of
-// another order is a logic error: "<technique> vulkan: a blocker list of order X for <order_name> n".
+// weights (`order` per sphere in rows of weight_stride(order) floats; `w_fill` for a list without
+// weights) and a (first, count) range per list. At least `min_rows` spheres and lists are allocated
+// (zero-filled). A non-empty list of another order is a logic error: "<technique> vulkan: a blocker
+// list of order X for <order_name> n".
 struct PackedBlockers {
   std::vector<float> sph, w;
   std::vector<std::uint32_t> ranges;

@@ -102,7 +102,7 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   for (const auto& l : bins.shadow) total += l.size();
   const std::string pass = "accumulate_log";
   check_fits(dev, total * 4 * sizeof(float), std::to_string(total) + " tile-proxy pairs (binned spheres)", pass);
-  check_fits(dev, total * n * sizeof(float), "the band weights of " + std::to_string(total) + " binned spheres", pass);
+  check_fits(dev, total * weight_stride(n) * sizeof(float), "the band weights of " + std::to_string(total) + " binned spheres", pass);
   check_fits(dev, count * n2 * sizeof(float), "the log vectors of " + std::to_string(count) + " receivers", pass);
   check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", pass);
 

@@ -93,7 +93,7 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx) {
   std::size_t total = 0;
   for (const auto& l : cuts.lists) total += l.size();
   check_fits(dev, total * 4 * sizeof(float), std::to_string(total) + " blocker spheres in the cuts", "accumulate_log");
-  check_fits(dev, total * na * sizeof(float), "the band weights of " + std::to_string(total) + " blockers", "accumulate_log");
+  check_fits(dev, total * weight_stride(na) * sizeof(float), "the band weights of " + std::to_string(total) + " blockers", "accumulate_log");
   check_fits(dev, count * n2a * sizeof(float), "the log vectors of " + std::to_string(count) + " receivers", "accumulate_log");
   check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", "accumulate_log");
 

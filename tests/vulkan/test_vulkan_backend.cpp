@@ -371,15 +371,18 @@ TEST(VulkanBackend, UnknownDeviceListsTheDevices) {
 // accumulate_log's loops over a receiver's blockers count against a driver's loop-iteration limit
 // (llvmpipe: 65535 per invocation, every loop of the blocker's body included); one list of 8000
 // blockers was cut short there, silently, past about 2800 blockers at order 3 (two thirds of the sum
-// missing). The host now sums long lists in chunks, one dispatch each: 6000 blockers give the CPU's
-// log visibility at orders 3 and 6 (3 and 8 chunks under llvmpipe's limit),
-// and under a tighter limit (20000: more chunks) the sums are the same to the bit (the same float
-// additions in the same order). The blockers lie on a shell around the scene, each a small cap, so
-// that every one adds to the sum. Tolerance: the parity tests' accumulate bound, on the largest value.
+// missing) while the basis steps were loops. The host sums long lists in chunks, one dispatch each.
+// The list here, 70000 blockers, is longer than that limit allows one invocation whatever the
+// blocker's body costs (at least one iteration), so one dispatch would lose its tail: the chunks
+// give the CPU's log visibility at orders 3 and 6, and under a tighter limit (20000: more chunks)
+// the sums are the same to the bit (the same float additions in the same order). Only the receivers
+// of cluster 0 read the long list (the others an empty one), which keeps the test short. The
+// blockers lie on a shell around the scene, each a small cap, so that every one adds to the sum
+// of some receivers. Tolerance: the parity tests' accumulate bound, on the largest value.
 TEST(VulkanBackend, LongBlockerListsAreSummedInChunksUnderTheLoopLimit) {
   const scene::Scene sc = scene::make_builtin("cornell");  // its 6092 vertices keep the test short
   auto tech = sx::create();
-  const std::size_t n = 6000;
+  const std::size_t n = 70000;
   auto run = [&](backends::vulkan::Context* ctx, const std::string& backend, int order, double* chunks) {
     render::ParamSet params = render::default_params(*tech);
     params.set("order", std::to_string(order));
@@ -395,8 +398,11 @@ TEST(VulkanBackend, LongBlockerListsAreSummedInChunksUnderTheLoopLimit) {
     auto cuts = std::make_shared<sx::Cuts>();
     sx::BlockerList big;
     big.order = order;
-    for (std::size_t i = 0; i < n; ++i) {
-      const double z = 1.0 - (2.0 * i + 1.0) / n, ph = 2.399963229728653 * i;  // Fibonacci sphere
+    for (std::size_t j = 0; j < n; ++j) {
+      // Fibonacci sphere, its points taken in a stride (7919 is prime to n) so that any tail of the
+      // list is spread over the whole shell, some of it above every receiver's horizon.
+      const std::size_t i = (j * 7919) % n;
+      const double z = 1.0 - (2.0 * i + 1.0) / n, ph = 2.399963229728653 * i;
       const double rr = std::sqrt(1.0 - z * z);
       big.cx.push_back(static_cast<float>(6.0 * rr * std::cos(ph)));
       big.cy.push_back(static_cast<float>(6.0 * z + 0.5));
@@ -405,8 +411,12 @@ TEST(VulkanBackend, LongBlockerListsAreSummedInChunksUnderTheLoopLimit) {
     }
     big.w.assign(n * order, 1.0f);
     cuts->lists.push_back(std::move(big));
+    sx::BlockerList none;
+    none.order = order;
+    cuts->lists.push_back(std::move(none));
     const auto& rec = *fc.get<std::shared_ptr<const sx::Receivers>>("shexp.receivers");
-    cuts->list_of_cluster.assign(rec.clusters.size(), 0);
+    cuts->list_of_cluster.assign(rec.clusters.size(), 1);
+    cuts->list_of_cluster.at(0) = 0;
     fc.put<std::shared_ptr<const sx::Cuts>>("shexp.cuts", cuts);
     frame.run(frame.pass("accumulate_log"), backend);
     if (chunks) *chunks = fc.record().counters.at("blocker_chunks");
