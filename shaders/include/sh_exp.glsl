@@ -25,8 +25,15 @@
 #endif
 
 layout(std430, set = 0, binding = SH_EXP_BIND_OL) readonly buffer ShExpOl { float ol[]; };  // norms, a, b (ol_count each)
-layout(std430, set = 0, binding = SH_EXP_BIND_SQ_INDEX) readonly buffer ShExpSqIndex { uint sq_begin[]; };
-layout(std430, set = 0, binding = SH_EXP_BIND_SQ_TERMS) readonly buffer ShExpSqTerms { uvec2 sq_terms[]; };  // (j | k << 16, v bits)
+// The squares' plan is in uniform buffers (softgi_shared.h kPlanSq*): every lane reads the same term
+// at the same time, and a driver that loads storage buffers lane by lane with a bounds check each
+// (llvmpipe) gathers a uniform buffer in one vector load instead; the squarings are most of HYB's
+// work. std140 pads array elements to 16 bytes, so the words travel as uvec4s.
+layout(std140, set = 0, binding = SH_EXP_BIND_SQ_INDEX) uniform ShExpSqIndex { uvec4 sq_begin4[kPlanSqIndexMax / 4u]; };
+layout(std140, set = 0, binding = SH_EXP_BIND_SQ_TERMS) uniform ShExpSqTerms {
+  uvec4 sq_jk4[kPlanSqTermsMax / 4u];  // j | k << 16
+  uvec4 sq_v4[kPlanSqTermsMax / 4u];   // v bits
+};
 #ifdef SH_EXP_PRODUCTS
 layout(std430, set = 0, binding = SH_EXP_BIND_PR_INDEX) readonly buffer ShExpPrIndex { uvec2 pr_range[]; };  // (begin, offdiag_end); end = next begin
 layout(std430, set = 0, binding = SH_EXP_BIND_PR_TERMS) readonly buffer ShExpPrTerms { uvec2 pr_terms[]; };
@@ -49,9 +56,10 @@ float exp_g[kAccumMaxCoeffs], exp_t[kAccumMaxCoeffs];
 void sh_square(in float a[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) {
   for (uint i = 0; i < SH_EXP_N * SH_EXP_N; ++i) {
     float acc = 0.0;
-    for (uint q = sq_begin[i]; q < sq_begin[i + 1]; ++q) {
-      const uvec2 term = sq_terms[q];
-      acc += uintBitsToFloat(term.y) * (a[term.x & 0xffffu] * a[term.x >> 16]);
+    const uint q_end = sq_begin4[(i + 1u) >> 2u][(i + 1u) & 3u];
+    for (uint q = sq_begin4[i >> 2u][i & 3u]; q < q_end; ++q) {
+      const uint jk = sq_jk4[q >> 2u][q & 3u];
+      acc += uintBitsToFloat(sq_v4[q >> 2u][q & 3u]) * (a[jk & 0xffffu] * a[jk >> 16]);
     }
     o[i] = acc;
   }

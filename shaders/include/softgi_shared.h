@@ -42,6 +42,12 @@ SOFTGI_CONST_UINT(kExpOl, 1u)
 SOFTGI_CONST_UINT(kExpPsStar, 2u)  // PS*-p: the factored series (eq. 22) of the scaled vector, then squarings
 SOFTGI_CONST_UINT(kExpPs, 3u)      // PS-p: the plain product series (eq. 17), no DC isolation, no scaling
 SOFTGI_CONST_UINT(kExpMaxDegree, 30u)  // the largest series degree p (the ps_degree parameter's range)
+// ProductPlan squares as sh_exp.glsl reads them, two uniform buffers: the begin offsets (n^2 + 1
+// used) in kPlanSqIndexMax words; the terms' (j | k << 16) words, then their v bits, kPlanSqTermsMax
+// words each (order 8 has 6588 terms: 53 KiB, under the 64 KiB maxUniformBufferRange of lavapipe
+// and most GPUs).
+SOFTGI_CONST_UINT(kPlanSqIndexMax, 68u)
+SOFTGI_CONST_UINT(kPlanSqTermsMax, 6592u)
 // Status words of the exponentiate pass.
 SOFTGI_CONST_UINT(kExpStatusSquarings, 0u)
 SOFTGI_CONST_UINT(kExpStatusBadInput, 1u)    // first receiver with a non-finite log coefficient + 1 (atomicMin of i + 1; 0xffffffff none)

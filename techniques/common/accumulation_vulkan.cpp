@@ -136,8 +136,19 @@ PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const st
   pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
   const std::string o = technique + " product plan " + std::to_string(p.order);
   PlanBuffers b;
-  b.sq_begin = dev.upload_vector(begin, kStorage, o + " squares index");
-  b.sq_terms = dev.upload_vector(pack_terms(p.sq_j, p.sq_k, p.sq_v), kStorage, o + " squares");
+  // The squares as sh_exp.glsl's uniform blocks hold them (softgi_shared.h kPlanSq*).
+  if (begin.size() > gpu::kPlanSqIndexMax || p.sq_v.size() > gpu::kPlanSqTermsMax)
+    throw std::logic_error(o + ": " + std::to_string(p.sq_v.size()) + " square terms exceed the shaders' " +
+                           std::to_string(gpu::kPlanSqTermsMax));
+  std::vector<std::uint32_t> sq_index(gpu::kPlanSqIndexMax, 0u), sq_terms(2 * gpu::kPlanSqTermsMax, 0u);
+  std::copy(begin.begin(), begin.end(), sq_index.begin());
+  for (std::size_t t = 0; t < p.sq_v.size(); ++t) {
+    sq_terms[t] = static_cast<std::uint32_t>(p.sq_j[t]) | (static_cast<std::uint32_t>(p.sq_k[t]) << 16);
+    sq_terms[gpu::kPlanSqTermsMax + t] = bits(p.sq_v[t]);
+  }
+  constexpr VkBufferUsageFlags kUniform = VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT;
+  b.sq_begin = dev.upload_vector(sq_index, kUniform, o + " squares index");
+  b.sq_terms = dev.upload_vector(sq_terms, kUniform, o + " squares");
   b.pr_range = dev.upload_vector(pr_range, kStorage, o + " products index");
   b.pr_terms = dev.upload_vector(pack_terms(p.pr_j, p.pr_k, p.pr_v), kStorage, o + " products");
   b.sq_count = static_cast<std::uint32_t>(p.sq_begin.back());
