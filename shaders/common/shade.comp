@@ -26,8 +26,9 @@ layout(local_size_x = kShadeGroup) in;
 layout(std430, set = 0, binding = kShadeBindReceivers) readonly buffer Receivers { float rec[]; };
 layout(std430, set = 0, binding = kShadeBindVis) readonly buffer Vis { float vis[]; };
 layout(std430, set = 0, binding = kShadeBindConsts) readonly buffer Consts { float consts[]; };  // L (3 n^2), hcoef, gwin
-layout(std430, set = 0, binding = kShadeBindPrIndex) readonly buffer PrIndex { uvec2 pr_range[]; };  // (begin, offdiag_end); end = next begin
-layout(std430, set = 0, binding = kShadeBindPrTerms) readonly buffer PrTerms { uvec2 pr_terms[]; };
+#define SH_PLAN_PR_BIND_INDEX kShadeBindPrIndex
+#define SH_PLAN_PR_BIND_TERMS kShadeBindPrTerms
+#include "sh_plan_products.glsl"
 layout(std430, set = 0, binding = kShadeBindOut) writeonly buffer Out { vec4 outv[]; };
 layout(std430, set = 0, binding = kShadeBindTapPixel) readonly buffer TapPixel { int tap_pixel[]; };
 layout(std430, set = 0, binding = kShadeBindTapIndex) readonly buffer TapIndex { ivec4 tap_index[]; };
@@ -146,18 +147,16 @@ void main() {
   vec3 e = vec3(0.0);
   for (uint k = 0; k < n2; ++k) {
     // (H * g)_k (eq. 3): off-diagonal terms v (H_j g_k + H_k g_j), then diagonal v H_j g_j.
-    const uvec2 rg = pr_range[k];
-    const uint end = pr_range[k + 1].x;
+    const uvec2 rg = pr_range_at(k);
+    const uint end = pr_range_at(k + 1u).x;
     float hg = 0.0;
     for (uint q = rg.x; q < rg.y; ++q) {
-      const uvec2 term = pr_terms[q];
-      const uint j = term.x & 0xffffu, kk = term.x >> 16;
-      hg += uintBitsToFloat(term.y) * (H[j] * g[kk] + H[kk] * g[j]);
+      const uint j = pr_j_at(q), kk = pr_k_at(q);
+      hg += pr_v_at(q) * (H[j] * g[kk] + H[kk] * g[j]);
     }
     for (uint q = rg.y; q < end; ++q) {
-      const uvec2 term = pr_terms[q];
-      const uint j = term.x & 0xffffu;
-      hg += uintBitsToFloat(term.y) * (H[j] * g[j]);
+      const uint j = pr_j_at(q);
+      hg += pr_v_at(q) * (H[j] * g[j]);
     }
     e += hg * vec3(consts[k], consts[n2 + k], consts[2 * n2 + k]);
   }

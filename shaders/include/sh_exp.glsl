@@ -35,8 +35,9 @@ layout(std140, set = 0, binding = SH_EXP_BIND_SQ_TERMS) uniform ShExpSqTerms {
   uvec4 sq_v4[kPlanSqTermsMax / 4u];   // v bits
 };
 #ifdef SH_EXP_PRODUCTS
-layout(std430, set = 0, binding = SH_EXP_BIND_PR_INDEX) readonly buffer ShExpPrIndex { uvec2 pr_range[]; };  // (begin, offdiag_end); end = next begin
-layout(std430, set = 0, binding = SH_EXP_BIND_PR_TERMS) readonly buffer ShExpPrTerms { uvec2 pr_terms[]; };
+#define SH_PLAN_PR_BIND_INDEX SH_EXP_BIND_PR_INDEX
+#define SH_PLAN_PR_BIND_TERMS SH_EXP_BIND_PR_TERMS
+#include "sh_plan_products.glsl"
 #endif
 #ifdef SH_EXP_SERIES
 layout(std430, set = 0, binding = SH_EXP_BIND_SERIES) readonly buffer ShExpSeries { float series[]; };
@@ -69,18 +70,16 @@ void sh_square(in float a[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) {
 // o = a * b (eq. 3): off-diagonal terms v (a_j b_k + a_k b_j), then diagonal v a_j b_j.
 void sh_product(in float a[kAccumMaxCoeffs], in float b[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) {
   for (uint i = 0; i < SH_EXP_N * SH_EXP_N; ++i) {
-    const uvec2 rg = pr_range[i];
-    const uint end = pr_range[i + 1].x;
+    const uvec2 rg = pr_range_at(i);
+    const uint end = pr_range_at(i + 1u).x;
     float acc = 0.0;
     for (uint q = rg.x; q < rg.y; ++q) {
-      const uvec2 term = pr_terms[q];
-      const uint j = term.x & 0xffffu, k = term.x >> 16;
-      acc += uintBitsToFloat(term.y) * (a[j] * b[k] + a[k] * b[j]);
+      const uint j = pr_j_at(q), k = pr_k_at(q);
+      acc += pr_v_at(q) * (a[j] * b[k] + a[k] * b[j]);
     }
     for (uint q = rg.y; q < end; ++q) {
-      const uvec2 term = pr_terms[q];
-      const uint j = term.x & 0xffffu;
-      acc += uintBitsToFloat(term.y) * (a[j] * b[j]);
+      const uint j = pr_j_at(q);
+      acc += pr_v_at(q) * (a[j] * b[j]);
     }
     o[i] = acc;
   }

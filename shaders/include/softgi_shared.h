@@ -48,6 +48,11 @@ SOFTGI_CONST_UINT(kExpMaxDegree, 30u)  // the largest series degree p (the ps_de
 // and most GPUs).
 SOFTGI_CONST_UINT(kPlanSqIndexMax, 68u)
 SOFTGI_CONST_UINT(kPlanSqTermsMax, 6592u)
+// ProductPlan products (sh_plan_products.glsl), two uniform buffers: (begin, offdiag_end) per output
+// and a last (end, end), 2 (n^2 + 1) words used of kPlanPrIndexMax; the terms' (j | k << 16) words,
+// then their v bits, kPlanPrTermsMax words each (the same count as the squares').
+SOFTGI_CONST_UINT(kPlanPrIndexMax, 132u)
+SOFTGI_CONST_UINT(kPlanPrTermsMax, 6592u)
 // Status words of the exponentiate pass.
 SOFTGI_CONST_UINT(kExpStatusSquarings, 0u)
 SOFTGI_CONST_UINT(kExpStatusBadInput, 1u)    // first receiver with a non-finite log coefficient + 1 (atomicMin of i + 1; 0xffffffff none)

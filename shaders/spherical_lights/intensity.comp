@@ -14,8 +14,9 @@ layout(std430, set = 0, binding = kSlIntBindRadiance) readonly buffer Radiance {
 layout(std430, set = 0, binding = kSlIntBindRanges) readonly buffer Ranges { uint sample_begin[]; };
 layout(std430, set = 0, binding = kSlIntBindBasis) readonly buffer Basis { float basis[]; };
 layout(std430, set = 0, binding = kSlIntBindAlbedo) readonly buffer Albedo { float albedo[]; };
-layout(std430, set = 0, binding = kSlIntBindPrIndex) readonly buffer PrIndex { uvec2 pr_range[]; };  // (begin, offdiag_end); end = next begin
-layout(std430, set = 0, binding = kSlIntBindPrTerms) readonly buffer PrTerms { uvec2 pr_terms[]; };
+#define SH_PLAN_PR_BIND_INDEX kSlIntBindPrIndex
+#define SH_PLAN_PR_BIND_TERMS kSlIntBindPrTerms
+#include "sh_plan_products.glsl"
 layout(std430, set = 0, binding = kSlIntBindOut) writeonly buffer Out { float outv[]; };
 layout(push_constant) uniform Push {
   uint first;  // first (SL, channel) of this dispatch: SL * 3 + channel
@@ -36,18 +37,16 @@ void main() {
   for (uint q = 0; q < n2; ++q) cs[q] = albedo[base + q];
   // Eq. 11: off-diagonal terms v (a_j b_k + a_k b_j), then diagonal v a_j b_j.
   for (uint i = 0; i < n2; ++i) {
-    const uvec2 rg = pr_range[i];
-    const uint end = pr_range[i + 1].x;
+    const uvec2 rg = pr_range_at(i);
+    const uint end = pr_range_at(i + 1u).x;
     float acc = 0.0;
     for (uint q = rg.x; q < rg.y; ++q) {
-      const uvec2 term = pr_terms[q];
-      const uint j = term.x & 0xffffu, k = term.x >> 16;
-      acc += uintBitsToFloat(term.y) * (ls[j] * cs[k] + ls[k] * cs[j]);
+      const uint j = pr_j_at(q), k = pr_k_at(q);
+      acc += pr_v_at(q) * (ls[j] * cs[k] + ls[k] * cs[j]);
     }
     for (uint q = rg.y; q < end; ++q) {
-      const uvec2 term = pr_terms[q];
-      const uint j = term.x & 0xffffu;
-      acc += uintBitsToFloat(term.y) * (ls[j] * cs[j]);
+      const uint j = pr_j_at(q);
+      acc += pr_v_at(q) * (ls[j] * cs[j]);
     }
     outv[base + i] = acc;
   }

@@ -99,12 +99,16 @@ OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::st
   return {dev.upload_vector(ol, kStorage, technique + " OL table"), static_cast<std::uint32_t>(m)};
 }
 
-std::vector<std::uint32_t> pack_terms(const std::vector<std::uint16_t>& j, const std::vector<std::uint16_t>& k, const std::vector<float>& v) {
-  std::vector<std::uint32_t> terms;
-  terms.reserve(2 * v.size());
+// Plan terms as the shaders' uniform blocks hold them: the (j | k << 16) words, then the v bits, `cap`
+// words each (zero beyond the plan's terms).
+std::vector<std::uint32_t> split_terms(const std::vector<std::uint16_t>& j, const std::vector<std::uint16_t>& k, const std::vector<float>& v,
+                                       std::size_t cap, const std::string& what) {
+  if (v.size() > cap)
+    throw std::logic_error(what + ": " + std::to_string(v.size()) + " terms exceed the shaders' " + std::to_string(cap));
+  std::vector<std::uint32_t> terms(2 * cap, 0u);
   for (std::size_t t = 0; t < v.size(); ++t) {
-    terms.push_back(static_cast<std::uint32_t>(j[t]) | (static_cast<std::uint32_t>(k[t]) << 16));
-    terms.push_back(bits(v[t]));
+    terms[t] = static_cast<std::uint32_t>(j[t]) | (static_cast<std::uint32_t>(k[t]) << 16);
+    terms[cap + t] = bits(v[t]);
   }
   return terms;
 }
@@ -135,22 +139,19 @@ PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const st
   pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
   pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
   const std::string o = technique + " product plan " + std::to_string(p.order);
-  PlanBuffers b;
-  // The squares as sh_exp.glsl's uniform blocks hold them (softgi_shared.h kPlanSq*).
-  if (begin.size() > gpu::kPlanSqIndexMax || p.sq_v.size() > gpu::kPlanSqTermsMax)
-    throw std::logic_error(o + ": " + std::to_string(p.sq_v.size()) + " square terms exceed the shaders' " +
-                           std::to_string(gpu::kPlanSqTermsMax));
-  std::vector<std::uint32_t> sq_index(gpu::kPlanSqIndexMax, 0u), sq_terms(2 * gpu::kPlanSqTermsMax, 0u);
-  std::copy(begin.begin(), begin.end(), sq_index.begin());
-  for (std::size_t t = 0; t < p.sq_v.size(); ++t) {
-    sq_terms[t] = static_cast<std::uint32_t>(p.sq_j[t]) | (static_cast<std::uint32_t>(p.sq_k[t]) << 16);
-    sq_terms[gpu::kPlanSqTermsMax + t] = bits(p.sq_v[t]);
-  }
   constexpr VkBufferUsageFlags kUniform = VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT;
+  PlanBuffers b;
+  // The plan as sh_exp.glsl's and sh_plan_products.glsl's uniform blocks hold it (softgi_shared.h
+  // kPlanSq*, kPlanPr*): indices padded, terms split into index words and value bits.
+  if (begin.size() > gpu::kPlanSqIndexMax || pr_range.size() > gpu::kPlanPrIndexMax)
+    throw std::logic_error(o + ": order " + std::to_string(p.order) + " beyond the shaders' plan index");
+  std::vector<std::uint32_t> sq_index(gpu::kPlanSqIndexMax, 0u);
+  std::copy(begin.begin(), begin.end(), sq_index.begin());
+  pr_range.resize(gpu::kPlanPrIndexMax, 0u);
   b.sq_begin = dev.upload_vector(sq_index, kUniform, o + " squares index");
-  b.sq_terms = dev.upload_vector(sq_terms, kUniform, o + " squares");
-  b.pr_range = dev.upload_vector(pr_range, kStorage, o + " products index");
-  b.pr_terms = dev.upload_vector(pack_terms(p.pr_j, p.pr_k, p.pr_v), kStorage, o + " products");
+  b.sq_terms = dev.upload_vector(split_terms(p.sq_j, p.sq_k, p.sq_v, gpu::kPlanSqTermsMax, o + " squares"), kUniform, o + " squares");
+  b.pr_range = dev.upload_vector(pr_range, kUniform, o + " products index");
+  b.pr_terms = dev.upload_vector(split_terms(p.pr_j, p.pr_k, p.pr_v, gpu::kPlanPrTermsMax, o + " products"), kUniform, o + " products");
   b.sq_count = static_cast<std::uint32_t>(p.sq_begin.back());
   b.pr_count = static_cast<std::uint32_t>(p.pr_begin.back());
   return b;

@@ -147,10 +147,9 @@ struct OlTable {
 };
 OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::string& technique);
 
-// ProductPlan terms in the shaders' form: (j | k << 16, bits(v)) pairs.
-std::vector<std::uint32_t> pack_terms(const std::vector<std::uint16_t>& j, const std::vector<std::uint16_t>& k, const std::vector<float>& v);
-// A ProductPlan as the shaders read it: squares as begin per output + packed terms; products as
-// (begin, offdiag_end) per output plus a final (end, end) + packed terms.
+// A ProductPlan as the shaders read it, in uniform buffers sized for the largest order (softgi_shared.h
+// kPlanSq*, kPlanPr*): squares as begin per output + terms; products as (begin, offdiag_end) per
+// output plus a final (end, end) + terms; terms as their (j | k << 16) words, then their v bits.
 struct PlanBuffers {
   vk::Buffer sq_begin, sq_terms, pr_range, pr_terms;
   std::uint32_t sq_count = 0, pr_count = 0;  // terms of one square, of one product
