@@ -1,12 +1,13 @@
-# softgi_add_shaders(TARGET SOURCES a.comp b.vert ... [INCLUDE_DIRS dirs])
+# softgi_add_shaders(TARGET SOURCES a.comp b.vert ... [INCLUDE_DIRS dirs] [DEPENDS generated includes])
 # Compiles each GLSL source with glslangValidator at build time (Vulkan 1.2 SPIR-V) into a generated
 # header <softgi/shaders/FOLDER/NAME_EXT.h> holding `const uint32_t FOLDER_NAME_EXT[]` (FOLDER: the
 # source's folder under shaders/, NAME_EXT: the file name with '.' replaced by '_'), so that two
 # folders may each have a shade.comp, and makes TARGET depend on them. Included GLSL headers are tracked through
-# glslangValidator's --depfile. shaders/include (softgi_shared.h) is always on the include path.
+# glslangValidator's --depfile; included GLSL that the build generates is named in DEPENDS, so that it
+# exists before the first compile. shaders/include (softgi_shared.h) is always on the include path.
 set(SOFTGI_SHADER_INCLUDE_DIR ${PROJECT_SOURCE_DIR}/shaders/include)
 function(softgi_add_shaders target)
-  cmake_parse_arguments(A "" "" "SOURCES;INCLUDE_DIRS" ${ARGN})
+  cmake_parse_arguments(A "" "" "SOURCES;INCLUDE_DIRS;DEPENDS" ${ARGN})
   set(_gen_root ${CMAKE_CURRENT_BINARY_DIR}/generated_shaders)
   set(_incs -I${SOFTGI_SHADER_INCLUDE_DIR})
   foreach(_d ${A_INCLUDE_DIRS})
@@ -27,6 +28,7 @@ function(softgi_add_shaders target)
       COMMAND Vulkan::glslangValidator -V --target-env vulkan1.2 --quiet ${_incs} --vn ${_var}
               --depfile ${_header}.d -o ${_header} ${_abs}
       MAIN_DEPENDENCY ${_abs}
+      DEPENDS ${A_DEPENDS}
       DEPFILE ${_header}.d
       WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}
       COMMENT "glslang ${_folder}/${_file} -> softgi/shaders/${_folder}/${_stem}.h"

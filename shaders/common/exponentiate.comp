@@ -15,8 +15,6 @@ layout(local_size_x = kExponentiateGroup) in;
 #define SH_EXP_N N
 #define SH_EXP_SERIES
 #define SH_EXP_BIND_OL kExpBindOl
-#define SH_EXP_BIND_SQ_INDEX kExpBindSqIndex
-#define SH_EXP_BIND_SQ_TERMS kExpBindSqTerms
 #define SH_EXP_BIND_PR_INDEX kExpBindPrIndex
 #define SH_EXP_BIND_PR_TERMS kExpBindPrTerms
 #define SH_EXP_BIND_SERIES kExpBindSeries
@@ -31,18 +29,18 @@ layout(push_constant) uniform Push {
   uint ol_count;  // knots of the OL table
   uint degree;    // series degree p (PS*, PS)
   uint budget;    // loop iterations an invocation may run (0xffffffff: no limit; see below)
-  uint sq_terms;  // terms of one square (ProductPlan)
-  uint pr_terms;  // terms of one product
+  uint pr_terms;  // terms of one product (ProductPlan)
 } pc;
 
 // Mesa's llvmpipe ends every loop of an invocation once its loops together have iterated 65535
 // times (one counter per SIMD batch), which would silently cut the squarings or the series short.
 // An upper bound of the batch's iterations (the subgroup's most squarings): the input and output
-// loops, the OL search, the series' products and squares, then the squarings (rows, terms, copy).
+// loops, the OL search, the series' products (rows, terms) and copies, then the squarings (a copy
+// each; the squares themselves are written out, no loops).
 uint loop_cost(int s) {
-  const uint n2 = N * N, step = 2u * n2 + max(pc.sq_terms, pc.pr_terms);
+  const uint n2 = N * N, step = 2u * n2 + pc.pr_terms;
   const uint series = METHOD == kExpPs || METHOD == kExpPsStar ? (pc.degree + 1u) * step : 0u;
-  return 5u * n2 + 16u + series + uint(s) * (2u * n2 + pc.sq_terms);
+  return 5u * n2 + 16u + series + uint(s) * (2u * n2);
 }
 
 void main() {

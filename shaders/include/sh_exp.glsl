@@ -10,13 +10,13 @@
 //   vector -- even powers x^2 = x*x, x^4 = x^2*x^2, x^6 = x^4*x^2, ..., the odd part as
 //   x * (sum of h_k x^(k-1)) -- times the DC factor, then the same squarings; and PS-p, the plain
 //   product series (eq. 17) of the whole f, term_k = term_(k-1) * f / k.
-// Products and squares follow ProductPlan (the core's triple-product tensor grouped by output), the
-// OL table and series coefficients are the CPU's floats; all uploaded.
+// Products and squares follow ProductPlan (the core's triple-product tensor grouped by output): the
+// squares as generated code, the products' terms uploaded; the OL table and series coefficients are
+// the CPU's floats, uploaded.
 //
 // Expects softgi_shared.h included and, before this file: SH_EXP_N (the order, a specialisation
-// constant), SH_EXP_BIND_OL, SH_EXP_BIND_SQ_INDEX, SH_EXP_BIND_SQ_TERMS; with SH_EXP_SERIES or
-// SH_EXP_PRODUCTS also SH_EXP_BIND_PR_INDEX and SH_EXP_BIND_PR_TERMS, with SH_EXP_SERIES also
-// SH_EXP_BIND_SERIES.
+// constant, at most 8), SH_EXP_BIND_OL; with SH_EXP_SERIES or SH_EXP_PRODUCTS also
+// SH_EXP_BIND_PR_INDEX and SH_EXP_BIND_PR_TERMS, with SH_EXP_SERIES also SH_EXP_BIND_SERIES.
 #ifndef SOFTGI_SH_EXP_GLSL
 #define SOFTGI_SH_EXP_GLSL
 
@@ -25,15 +25,9 @@
 #endif
 
 layout(std430, set = 0, binding = SH_EXP_BIND_OL) readonly buffer ShExpOl { float ol[]; };  // norms, a, b (ol_count each)
-// The squares' plan is in uniform buffers (softgi_shared.h kPlanSq*): every lane reads the same term
-// at the same time, and a driver that loads storage buffers lane by lane with a bounds check each
-// (llvmpipe) gathers a uniform buffer in one vector load instead; the squarings are most of HYB's
-// work. std140 pads array elements to 16 bytes, so the words travel as uvec4s.
-layout(std140, set = 0, binding = SH_EXP_BIND_SQ_INDEX) uniform ShExpSqIndex { uvec4 sq_begin4[kPlanSqIndexMax / 4u]; };
-layout(std140, set = 0, binding = SH_EXP_BIND_SQ_TERMS) uniform ShExpSqTerms {
-  uvec4 sq_jk4[kPlanSqTermsMax / 4u];  // j | k << 16
-  uvec4 sq_v4[kPlanSqTermsMax / 4u];   // v bits
-};
+// The squares are code: sh_square_unrolled.glsl, generated at build time from the CPU's ProductPlan
+// (shaders/gen/sh_square_glsl.cpp), every term written out with constant indices.
+#include "sh_square_unrolled.glsl"
 #ifdef SH_EXP_PRODUCTS
 #define SH_PLAN_PR_BIND_INDEX SH_EXP_BIND_PR_INDEX
 #define SH_PLAN_PR_BIND_TERMS SH_EXP_BIND_PR_TERMS
@@ -53,17 +47,17 @@ const uint kShExpDcOverflow = 2u;  // the DC factor exp(f_0 / sqrt(4 pi) / 2^s) 
 // The result of sh_exp and its scratch vector.
 float exp_g[kAccumMaxCoeffs], exp_t[kAccumMaxCoeffs];
 
-// o = a * a (eq. 3 with f = g = a).
+// o = a * a (eq. 3 with f = g = a): the order's generated function (SH_EXP_N is a specialisation
+// constant, so all but one branch vanish).
 void sh_square(in float a[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) {
-  for (uint i = 0; i < SH_EXP_N * SH_EXP_N; ++i) {
-    float acc = 0.0;
-    const uint q_end = sq_begin4[(i + 1u) >> 2u][(i + 1u) & 3u];
-    for (uint q = sq_begin4[i >> 2u][i & 3u]; q < q_end; ++q) {
-      const uint jk = sq_jk4[q >> 2u][q & 3u];
-      acc += uintBitsToFloat(sq_v4[q >> 2u][q & 3u]) * (a[jk & 0xffffu] * a[jk >> 16]);
-    }
-    o[i] = acc;
-  }
+  if (SH_EXP_N == 1u) sh_square_o1(a, o);
+  else if (SH_EXP_N == 2u) sh_square_o2(a, o);
+  else if (SH_EXP_N == 3u) sh_square_o3(a, o);
+  else if (SH_EXP_N == 4u) sh_square_o4(a, o);
+  else if (SH_EXP_N == 5u) sh_square_o5(a, o);
+  else if (SH_EXP_N == 6u) sh_square_o6(a, o);
+  else if (SH_EXP_N == 7u) sh_square_o7(a, o);
+  else sh_square_o8(a, o);
 }
 
 #ifdef SH_EXP_PRODUCTS

@@ -41,8 +41,7 @@ SOFTGI_SL_CONST_UINT(kSlIndBindWeight, 9u)      // WeightTable::w: rows x n (w_t
 SOFTGI_SL_CONST_UINT(kSlIndBindConsts, 10u)     // float[2 n]: H(N) band factors, then sqrt(4 pi/(2l+1))
 SOFTGI_SL_CONST_UINT(kSlIndBindBasis, 11u)      // shexp basis recurrence constants (asin included)
 SOFTGI_SL_CONST_UINT(kSlIndBindOl, 12u)         // OL table: norm grid, a, b
-SOFTGI_SL_CONST_UINT(kSlIndBindSqIndex, 13u)    // ProductPlan squares: begin offsets
-SOFTGI_SL_CONST_UINT(kSlIndBindSqTerms, 14u)    // ProductPlan squares: (j | k << 16, v) pairs
+// 13, 14: unused (the squares are generated code, shaders/include/sh_exp.glsl)
 SOFTGI_SL_CONST_UINT(kSlIndBindOut, 15u)        // vec4 per receiver: E/pi (rgb), unused
 SOFTGI_SL_CONST_UINT(kSlIndBindStatus, 16u)     // uint[kSlStatusWords]
 SOFTGI_SL_CONST_UINT(kSlIndBindEntrySl, 17u)    // uint per list entry: its SL (row of the intensities)

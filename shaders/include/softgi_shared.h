@@ -42,15 +42,10 @@ SOFTGI_CONST_UINT(kExpOl, 1u)
 SOFTGI_CONST_UINT(kExpPsStar, 2u)  // PS*-p: the factored series (eq. 22) of the scaled vector, then squarings
 SOFTGI_CONST_UINT(kExpPs, 3u)      // PS-p: the plain product series (eq. 17), no DC isolation, no scaling
 SOFTGI_CONST_UINT(kExpMaxDegree, 30u)  // the largest series degree p (the ps_degree parameter's range)
-// ProductPlan squares as sh_exp.glsl reads them, two uniform buffers: the begin offsets (n^2 + 1
-// used) in kPlanSqIndexMax words; the terms' (j | k << 16) words, then their v bits, kPlanSqTermsMax
-// words each (order 8 has 6588 terms: 53 KiB, under the 64 KiB maxUniformBufferRange of lavapipe
-// and most GPUs).
-SOFTGI_CONST_UINT(kPlanSqIndexMax, 68u)
-SOFTGI_CONST_UINT(kPlanSqTermsMax, 6592u)
 // ProductPlan products (sh_plan_products.glsl), two uniform buffers: (begin, offdiag_end) per output
 // and a last (end, end), 2 (n^2 + 1) words used of kPlanPrIndexMax; the terms' (j | k << 16) words,
-// then their v bits, kPlanPrTermsMax words each (the same count as the squares').
+// then their v bits, kPlanPrTermsMax words each (order 8 has 6588 terms: 53 KiB, under the 64 KiB
+// maxUniformBufferRange of lavapipe and most GPUs).
 SOFTGI_CONST_UINT(kPlanPrIndexMax, 132u)
 SOFTGI_CONST_UINT(kPlanPrTermsMax, 6592u)
 // Status words of the exponentiate pass.
@@ -75,8 +70,7 @@ SOFTGI_CONST_UINT(kAccBindOut, 7u)           // float[count * order^2]
 SOFTGI_CONST_UINT(kExpBindIn, 0u)        // log vectors, float[count * n^2]
 SOFTGI_CONST_UINT(kExpBindOut, 1u)       // visibility, float[count * n_out^2]
 SOFTGI_CONST_UINT(kExpBindOl, 2u)        // OL tables: norm grid, a, b (floats)
-SOFTGI_CONST_UINT(kExpBindSqIndex, 3u)   // ProductPlan squares: begin offsets
-SOFTGI_CONST_UINT(kExpBindSqTerms, 4u)   // ProductPlan squares: (j | k << 16, v) pairs
+// 3, 4: unused (the squares are generated code, shaders/include/sh_exp.glsl)
 SOFTGI_CONST_UINT(kExpBindPrIndex, 5u)   // ProductPlan products: begin, offdiag_end
 SOFTGI_CONST_UINT(kExpBindPrTerms, 6u)   // ProductPlan products: (j | k << 16, v) pairs
 SOFTGI_CONST_UINT(kExpBindStatus, 7u)    // uint[4]: squarings, products, non-finite receivers, overflow

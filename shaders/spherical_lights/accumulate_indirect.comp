@@ -35,8 +35,6 @@ layout(constant_id = 0) const uint N = 4;  // SH order
 #include "replacement_rule.glsl"
 #define SH_EXP_N N
 #define SH_EXP_BIND_OL kSlIndBindOl
-#define SH_EXP_BIND_SQ_INDEX kSlIndBindSqIndex
-#define SH_EXP_BIND_SQ_TERMS kSlIndBindSqTerms
 #include "sh_exp.glsl"
 layout(constant_id = 1) const uint RULE = kRuleContinuous;
 layout(constant_id = 2) const uint METHOD = kExpHyb;
@@ -73,7 +71,6 @@ layout(push_constant) uniform Push {
   float weight_scale; // w_theta table: (rows - 1) / (pi/2)
   uint budget;        // loop iterations one invocation may run in this pass (0xffffffff: no limit)
   uint resume;        // 0: the first pass; 1: continue from the state
-  uint sq_terms;      // terms of the square (ProductPlan): one squaring's inner iterations
 } pc;
 
 float hcoef(uint l) { return consts[l]; }
@@ -154,10 +151,10 @@ bool before(uint a, uint b) {
 }
 
 // Loop iterations, as llvmpipe counts them, of the loops below (upper bounds): sh_exp with s
-// squarings (the norm, the OL search, the start vector, then per squaring the rows, the terms and
-// the copy), one sphere's log vector or average radiance (the basis recurrence and the bands), and
-// the fixed loops of one SL's pair.
-uint cost_exp(int s) { return 2u * N * N + 16u + uint(s) * (2u * N * N + pc.sq_terms); }
+// squarings (the norm, the OL search, the start vector, then per squaring its copy; the squares
+// are written out), one sphere's log vector or average radiance (the basis recurrence and the
+// bands), and the fixed loops of one SL's pair.
+uint cost_exp(int s) { return 2u * N * N + 16u + uint(s) * (2u * N * N); }
 uint cost_sphere() { return 4u * N * N + 16u; }
 uint cost_pair_fixed() { return 6u * N * N + 3u * cost_sphere(); }
 

@@ -130,7 +130,6 @@ std::uint32_t loop_budget(const vk::DeviceInfo& d) {
 
 PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique) {
   const int n2 = p.order * p.order;
-  const std::vector<std::uint32_t> begin(p.sq_begin.begin(), p.sq_begin.end());
   std::vector<std::uint32_t> pr_range;
   for (int i = 0; i < n2; ++i) {
     pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[i]));
@@ -139,20 +138,15 @@ PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const st
   pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
   pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
   const std::string o = technique + " product plan " + std::to_string(p.order);
+  // The products as sh_plan_products.glsl's uniform blocks hold them (softgi_shared.h kPlanPr*): the
+  // index padded, the terms split into index words and value bits. (The squares are generated code.)
+  if (pr_range.size() > gpu::kPlanPrIndexMax)
+    throw std::logic_error(o + ": order " + std::to_string(p.order) + " beyond the shaders' plan index");
+  pr_range.resize(gpu::kPlanPrIndexMax, 0u);
   constexpr VkBufferUsageFlags kUniform = VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT;
   PlanBuffers b;
-  // The plan as sh_exp.glsl's and sh_plan_products.glsl's uniform blocks hold it (softgi_shared.h
-  // kPlanSq*, kPlanPr*): indices padded, terms split into index words and value bits.
-  if (begin.size() > gpu::kPlanSqIndexMax || pr_range.size() > gpu::kPlanPrIndexMax)
-    throw std::logic_error(o + ": order " + std::to_string(p.order) + " beyond the shaders' plan index");
-  std::vector<std::uint32_t> sq_index(gpu::kPlanSqIndexMax, 0u);
-  std::copy(begin.begin(), begin.end(), sq_index.begin());
-  pr_range.resize(gpu::kPlanPrIndexMax, 0u);
-  b.sq_begin = dev.upload_vector(sq_index, kUniform, o + " squares index");
-  b.sq_terms = dev.upload_vector(split_terms(p.sq_j, p.sq_k, p.sq_v, gpu::kPlanSqTermsMax, o + " squares"), kUniform, o + " squares");
   b.pr_range = dev.upload_vector(pr_range, kUniform, o + " products index");
   b.pr_terms = dev.upload_vector(split_terms(p.pr_j, p.pr_k, p.pr_v, gpu::kPlanPrTermsMax, o + " products"), kUniform, o + " products");
-  b.sq_count = static_cast<std::uint32_t>(p.sq_begin.back());
   b.pr_count = static_cast<std::uint32_t>(p.pr_begin.back());
   return b;
 }
@@ -255,19 +249,18 @@ vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline&
 vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
                                   std::uint32_t ol_count, int degree, const std::string& submit_name) {
   struct Push {
-    std::uint32_t first, end, ol_count, degree, budget, sq_terms, pr_terms;
+    std::uint32_t first, end, ol_count, degree, budget, pr_terms;
   };
   const std::uint32_t budget = loop_budget(dev.device_info());
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kExpBindIn, b.in),                vk::Bind::buffer_at(gpu::kExpBindOut, b.out),
-      vk::Bind::buffer_at(gpu::kExpBindOl, b.ol),                vk::Bind::buffer_at(gpu::kExpBindSqIndex, b.plan.sq_begin),
-      vk::Bind::buffer_at(gpu::kExpBindSqTerms, b.plan.sq_terms), vk::Bind::buffer_at(gpu::kExpBindPrIndex, b.plan.pr_range),
+      vk::Bind::buffer_at(gpu::kExpBindOl, b.ol),                vk::Bind::buffer_at(gpu::kExpBindPrIndex, b.plan.pr_range),
       vk::Bind::buffer_at(gpu::kExpBindPrTerms, b.plan.pr_terms), vk::Bind::buffer_at(gpu::kExpBindSeries, b.series),
       vk::Bind::buffer_at(gpu::kExpBindStatus, b.status)};
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("exponentiate");
     dispatch_chunks<Push>(rec, p, binds, count, gpu::kExponentiateGroup, [&](std::uint32_t first, std::uint32_t end) {
-      return Push{first, end, ol_count, static_cast<std::uint32_t>(degree), budget, b.plan.sq_count, b.plan.pr_count};
+      return Push{first, end, ol_count, static_cast<std::uint32_t>(degree), budget, b.plan.pr_count};
     });
     rec.end_timer();
     rec.barrier();

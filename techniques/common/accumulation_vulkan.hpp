@@ -147,12 +147,12 @@ struct OlTable {
 };
 OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::string& technique);
 
-// A ProductPlan as the shaders read it, in uniform buffers sized for the largest order (softgi_shared.h
-// kPlanSq*, kPlanPr*): squares as begin per output + terms; products as (begin, offdiag_end) per
-// output plus a final (end, end) + terms; terms as their (j | k << 16) words, then their v bits.
+// A ProductPlan's products as the shaders read them, in uniform buffers sized for the largest order
+// (softgi_shared.h kPlanPr*): (begin, offdiag_end) per output plus a final (end, end), and the terms
+// as their (j | k << 16) words, then their v bits. The squares are generated code (sh_exp.glsl).
 struct PlanBuffers {
-  vk::Buffer sq_begin, sq_terms, pr_range, pr_terms;
-  std::uint32_t sq_count = 0, pr_count = 0;  // terms of one square, of one product
+  vk::Buffer pr_range, pr_terms;
+  std::uint32_t pr_count = 0;  // terms of one product
 };
 PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique);
 // The basis-recurrence constants (basis_recurrence_constants) and each order's product plan, uploaded

@@ -350,7 +350,6 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
 
   upload_tables(dev, g, tp);
   const vk::Buffer& basis = basis_constants(dev);
-  const PlanBuffers& plan = product_plan_buffers(dev, n);
   const std::size_t before = dev.transfer_bytes().upload;
   // The vertex receivers are accumulate_log's: the same buffer and hash, so that a frame uploads them once.
   StageBuffers& rb = stage_buffers(g, Stage::Receivers);
@@ -389,7 +388,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   struct Push {
     std::uint32_t count, first, end, lights, log_rows, weight_rows, ol_count;
     float log_scale, weight_scale;
-    std::uint32_t budget, resume, sq_terms;
+    std::uint32_t budget, resume;
   };
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kSlIndBindReceivers, rb.inputs.receivers), vk::Bind::buffer_at(gpu::kSlIndBindSpheres, g.spheres),
@@ -398,8 +397,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
       vk::Bind::buffer_at(gpu::kSlIndBindInterList, g.inter_list),        vk::Bind::buffer_at(gpu::kSlIndBindIntensity, lc),
       vk::Bind::buffer_at(gpu::kSlIndBindLogTable, g.log_table),          vk::Bind::buffer_at(gpu::kSlIndBindWeight, g.weight_table),
       vk::Bind::buffer_at(gpu::kSlIndBindConsts, g.consts),               vk::Bind::buffer_at(gpu::kSlIndBindBasis, basis),
-      vk::Bind::buffer_at(gpu::kSlIndBindOl, g.ol),                       vk::Bind::buffer_at(gpu::kSlIndBindSqIndex, plan.sq_begin),
-      vk::Bind::buffer_at(gpu::kSlIndBindSqTerms, plan.sq_terms),         vk::Bind::buffer_at(gpu::kSlIndBindOut, g.ind_out),
+      vk::Bind::buffer_at(gpu::kSlIndBindOl, g.ol),                       vk::Bind::buffer_at(gpu::kSlIndBindOut, g.ind_out),
       vk::Bind::buffer_at(gpu::kSlIndBindStatus, g.ind_status),           vk::Bind::buffer_at(gpu::kSlIndBindEntrySl, g.entry_sl),
       vk::Bind::buffer_at(gpu::kSlIndBindRatio, g.ratio),                 vk::Bind::buffer_at(gpu::kSlIndBindRList, g.rlist),
       vk::Bind::buffer_at(gpu::kSlIndBindLists, g.list_range),           vk::Bind::buffer_at(gpu::kSlIndBindState, g.ind_state)};
@@ -414,7 +412,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
       rec.begin_timer("accumulate_indirect");
       dispatch_chunks<Push>(rec, p, binds, count, gpu::kSlIndirectGroup, [&](std::uint32_t first, std::uint32_t end) {
         return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(entries), static_cast<std::uint32_t>(t.log.rows),
-                    static_cast<std::uint32_t>(t.weight.rows), g.ol_count, t.log.scale, weight_scale, budget, passes > 0 ? 1u : 0u, plan.sq_count};
+                    static_cast<std::uint32_t>(t.weight.rows), g.ol_count, t.log.scale, weight_scale, budget, passes > 0 ? 1u : 0u};
       });
       rec.end_timer();
       rec.barrier();

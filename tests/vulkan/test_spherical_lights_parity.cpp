@@ -183,11 +183,6 @@ TEST_P(SphericalLightsParity, EveryVulkanPassMatchesTheCpuPass) {
         if (pass.name == "accumulate_indirect") {
           EXPECT_EQ(cc.at("eliminated_pairs"), gc.at("eliminated_pairs"));
           EXPECT_NEAR(cc.at("visibility_clamped"), gc.at("visibility_clamped"), 2.0 + 1e-3 * cc.at("pairs"));
-          // Where the driver limits loop iterations (llvmpipe), character's receivers sum their SLs
-          // with HYB over several resumed passes: the comparison above covers that path.
-          if (name == "character" && std::string(cs.exp) == "hyb" && ctx_->device_info().loop_iteration_limit != 0) {
-            EXPECT_GT(gc.at("passes"), 1.0);
-          }
         }
         std::printf("[sl parity] %-12s %-10s %-3s %-22s %6zu rows, worst relative difference %.3g (tolerance %.1g)\n", name.c_str(),
                     cs.blocking, cs.exp, pass.name.c_str(), cpu.size() / width, d.worst, tol_it->second);
@@ -225,7 +220,11 @@ INSTANTIATE_TEST_SUITE_P(BuiltinScenes, SphericalLightsParity, ::testing::Values
 // accumulate_indirect under a tight loop-iteration limit (set for the test, so it runs on every
 // driver) sums each receiver's SLs over several passes through the saved state; the split changes
 // no arithmetic, so the indirect shading is the same to the bit as in one pass under the driver's
-// own limit (none on a GPU; llvmpipe's 65535, within which spheres needs one pass).
+// own limit (none on a GPU; llvmpipe's 65535, within which spheres needs one pass). Together with
+// the parity tests (one pass against the CPU) this covers the resumed path against the CPU. The
+// limit leaves a pass 1500 iterations (loop_budget halves limits below 8192), one or two SL pairs
+// at order 4 by the shader's cost model (the squarings are written out, no loops; an SL pair's
+// bands and copies remain, about 800 iterations with its two exponentials).
 TEST(SphericalLightsVulkan, ResumedPassesGiveTheSameIndirectLight) {
   backends::register_cpu_backend();
   const scene::Scene sc = scene::make_builtin("spheres");
@@ -246,9 +245,10 @@ TEST(SphericalLightsVulkan, ResumedPassesGiveTheSameIndirectLight) {
     return r.indirect.rgb;
   };
   double many = 0.0, one = 0.0;
-  const std::vector<glm::vec3> split = run(8000, many);
+  constexpr std::uint32_t kTightLimit = 3000;
+  const std::vector<glm::vec3> split = run(kTightLimit, many);
   const std::vector<glm::vec3> whole = run(0, one);  // 0: the driver's own limit
-  EXPECT_GT(many, 2.0) << "a limit of 8000 iterations splits the SLs of the receivers over passes";
+  EXPECT_GT(many, 2.0) << "a limit of " << kTightLimit << " iterations splits the SLs of the receivers over passes";
   EXPECT_EQ(one, 1.0);
   ASSERT_EQ(split.size(), whole.size());
   std::size_t differ = 0;
