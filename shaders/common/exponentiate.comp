@@ -7,7 +7,7 @@
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #include "softgi_shared.h"
 
-layout(constant_id = 0) const uint N = 4;       // accumulation order
+layout(constant_id = 0) const uint N = SH_PLAN_FIXED_ORDER;       // accumulation order
 layout(constant_id = 1) const uint NOUT = 4;    // shading order (the result is truncated to it)
 layout(constant_id = 2) const uint METHOD = kExpHyb;
 layout(local_size_x = kExponentiateGroup) in;
@@ -15,8 +15,6 @@ layout(local_size_x = kExponentiateGroup) in;
 #define SH_EXP_N N
 #define SH_EXP_SERIES
 #define SH_EXP_BIND_OL kExpBindOl
-#define SH_EXP_BIND_PR_INDEX kExpBindPrIndex
-#define SH_EXP_BIND_PR_TERMS kExpBindPrTerms
 #define SH_EXP_BIND_SERIES kExpBindSeries
 #include "sh_exp.glsl"
 
@@ -29,16 +27,15 @@ layout(push_constant) uniform Push {
   uint ol_count;  // knots of the OL table
   uint degree;    // series degree p (PS*, PS)
   uint budget;    // loop iterations an invocation may run (0xffffffff: no limit; see below)
-  uint pr_terms;  // terms of one product (ProductPlan)
 } pc;
 
 // Mesa's llvmpipe ends every loop of an invocation once its loops together have iterated 65535
 // times (one counter per SIMD batch), which would silently cut the squarings or the series short.
 // An upper bound of the batch's iterations (the subgroup's most squarings): the input and output
-// loops, the OL search, the series' products (rows, terms) and copies, then the squarings (a copy
-// each; the squares themselves are written out, no loops).
+// loops, the OL search, the series' copies, then the squarings (a copy each; the products and
+// squares themselves are written out, no loops).
 uint loop_cost(int s) {
-  const uint n2 = N * N, step = 2u * n2 + pc.pr_terms;
+  const uint n2 = N * N, step = 2u * n2;
   const uint series = METHOD == kExpPs || METHOD == kExpPsStar ? (pc.degree + 1u) * step : 0u;
   return 5u * n2 + 16u + series + uint(s) * (2u * n2);
 }

@@ -14,7 +14,7 @@
 #extension GL_EXT_control_flow_attributes : require
 #include "softgi_shared.h"
 
-layout(constant_id = 0) const uint N = 4;  // shading order
+layout(constant_id = 0) const uint N = SH_PLAN_FIXED_ORDER;  // shading order
 #define SHEXP_BASIS_BINDING kShadeBindBasis
 #define SHEXP_BASIS_ORDER N
 #include "sh_basis.glsl"
@@ -26,8 +26,6 @@ layout(local_size_x = kShadeGroup) in;
 layout(std430, set = 0, binding = kShadeBindReceivers) readonly buffer Receivers { float rec[]; };
 layout(std430, set = 0, binding = kShadeBindVis) readonly buffer Vis { float vis[]; };
 layout(std430, set = 0, binding = kShadeBindConsts) readonly buffer Consts { float consts[]; };  // L (3 n^2), hcoef, gwin
-#define SH_PLAN_PR_BIND_INDEX kShadeBindPrIndex
-#define SH_PLAN_PR_BIND_TERMS kShadeBindPrTerms
 #include "sh_plan_products.glsl"
 layout(std430, set = 0, binding = kShadeBindOut) writeonly buffer Out { vec4 outv[]; };
 layout(std430, set = 0, binding = kShadeBindTapPixel) readonly buffer TapPixel { int tap_pixel[]; };
@@ -144,22 +142,11 @@ void main() {
     H[k] *= consts[3 * n2 + k];  // hcoef
     g[k] *= consts[4 * n2 + k];  // gwin
   }
+  // (H * g)_k (eq. 3), then dotted with the light.
+  float hg[kAccumMaxCoeffs];
+  sh_plan_product(H, g, hg);
   vec3 e = vec3(0.0);
-  for (uint k = 0; k < n2; ++k) {
-    // (H * g)_k (eq. 3): off-diagonal terms v (H_j g_k + H_k g_j), then diagonal v H_j g_j.
-    const uvec2 rg = pr_range_at(k);
-    const uint end = pr_range_at(k + 1u).x;
-    float hg = 0.0;
-    for (uint q = rg.x; q < rg.y; ++q) {
-      const uint j = pr_j_at(q), kk = pr_k_at(q);
-      hg += pr_v_at(q) * (H[j] * g[kk] + H[kk] * g[j]);
-    }
-    for (uint q = rg.y; q < end; ++q) {
-      const uint j = pr_j_at(q);
-      hg += pr_v_at(q) * (H[j] * g[j]);
-    }
-    e += hg * vec3(consts[k], consts[n2 + k], consts[2 * n2 + k]);
-  }
+  [[unroll]] for (uint k = 0; k < n2; ++k) e += hg[k] * vec3(consts[k], consts[n2 + k], consts[2 * n2 + k]);
   if (LIGHTS != 0) {
     for (uint li = 0; li < pc.light_count; ++li) {
       const vec4 cr = lights[2 * li];

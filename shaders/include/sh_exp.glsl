@@ -10,13 +10,12 @@
 //   vector -- even powers x^2 = x*x, x^4 = x^2*x^2, x^6 = x^4*x^2, ..., the odd part as
 //   x * (sum of h_k x^(k-1)) -- times the DC factor, then the same squarings; and PS-p, the plain
 //   product series (eq. 17) of the whole f, term_k = term_(k-1) * f / k.
-// Products and squares follow ProductPlan (the core's triple-product tensor grouped by output): the
-// squares as generated code, the products' terms uploaded; the OL table and series coefficients are
-// the CPU's floats, uploaded.
+// Products and squares follow ProductPlan (the core's triple-product tensor grouped by output) as
+// code generated at build time; the OL table and series coefficients are the CPU's floats, uploaded.
 //
-// Expects softgi_shared.h included and, before this file: SH_EXP_N (the order, a specialisation
-// constant, at most 8), SH_EXP_BIND_OL; with SH_EXP_SERIES or SH_EXP_PRODUCTS also
-// SH_EXP_BIND_PR_INDEX and SH_EXP_BIND_PR_TERMS, with SH_EXP_SERIES also SH_EXP_BIND_SERIES.
+// Expects softgi_shared.h included, the shader compiled for one order (SH_PLAN_FIXED_ORDER, cmake's
+// ORDER_VARIANTS) and, before this file: SH_EXP_N (the order, a specialisation constant that the
+// host sets to SH_PLAN_FIXED_ORDER), SH_EXP_BIND_OL; with SH_EXP_SERIES also SH_EXP_BIND_SERIES.
 #ifndef SOFTGI_SH_EXP_GLSL
 #define SOFTGI_SH_EXP_GLSL
 
@@ -29,8 +28,6 @@ layout(std430, set = 0, binding = SH_EXP_BIND_OL) readonly buffer ShExpOl { floa
 // (shaders/gen/sh_square_glsl.cpp), every term written out with constant indices.
 #include "sh_square_unrolled.glsl"
 #ifdef SH_EXP_PRODUCTS
-#define SH_PLAN_PR_BIND_INDEX SH_EXP_BIND_PR_INDEX
-#define SH_PLAN_PR_BIND_TERMS SH_EXP_BIND_PR_TERMS
 #include "sh_plan_products.glsl"
 #endif
 #ifdef SH_EXP_SERIES
@@ -47,37 +44,12 @@ const uint kShExpDcOverflow = 2u;  // the DC factor exp(f_0 / sqrt(4 pi) / 2^s) 
 // The result of sh_exp and its scratch vector.
 float exp_g[kAccumMaxCoeffs], exp_t[kAccumMaxCoeffs];
 
-// o = a * a (eq. 3 with f = g = a): the order's generated function (SH_EXP_N is a specialisation
-// constant, so all but one branch vanish).
-void sh_square(in float a[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) {
-  if (SH_EXP_N == 1u) sh_square_o1(a, o);
-  else if (SH_EXP_N == 2u) sh_square_o2(a, o);
-  else if (SH_EXP_N == 3u) sh_square_o3(a, o);
-  else if (SH_EXP_N == 4u) sh_square_o4(a, o);
-  else if (SH_EXP_N == 5u) sh_square_o5(a, o);
-  else if (SH_EXP_N == 6u) sh_square_o6(a, o);
-  else if (SH_EXP_N == 7u) sh_square_o7(a, o);
-  else sh_square_o8(a, o);
-}
+// o = a * a (eq. 3 with f = g = a): the generated code for the shader's order.
+void sh_square(in float a[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) { sh_square_fixed(a, o); }
 
 #ifdef SH_EXP_PRODUCTS
-// o = a * b (eq. 3): off-diagonal terms v (a_j b_k + a_k b_j), then diagonal v a_j b_j.
-void sh_product(in float a[kAccumMaxCoeffs], in float b[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) {
-  for (uint i = 0; i < SH_EXP_N * SH_EXP_N; ++i) {
-    const uvec2 rg = pr_range_at(i);
-    const uint end = pr_range_at(i + 1u).x;
-    float acc = 0.0;
-    for (uint q = rg.x; q < rg.y; ++q) {
-      const uint j = pr_j_at(q), k = pr_k_at(q);
-      acc += pr_v_at(q) * (a[j] * b[k] + a[k] * b[j]);
-    }
-    for (uint q = rg.y; q < end; ++q) {
-      const uint j = pr_j_at(q);
-      acc += pr_v_at(q) * (a[j] * b[j]);
-    }
-    o[i] = acc;
-  }
-}
+// o = a * b (eq. 3), generated code (sh_plan_products.glsl).
+void sh_product(in float a[kAccumMaxCoeffs], in float b[kAccumMaxCoeffs], out float o[kAccumMaxCoeffs]) { sh_product_fixed(a, b, o); }
 #endif
 
 void sh_exp_square_g() {

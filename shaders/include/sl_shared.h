@@ -22,8 +22,7 @@ SOFTGI_SL_CONST_UINT(kSlIntBindRadiance, 0u)  // float[3 * samples]: L_p per sam
 SOFTGI_SL_CONST_UINT(kSlIntBindRanges, 1u)    // uint[SLs + 1]: each SL's first sample point
 SOFTGI_SL_CONST_UINT(kSlIntBindBasis, 2u)     // float[samples * n^2]: (4 pi/N) Y_j per sample point (eq. 10)
 SOFTGI_SL_CONST_UINT(kSlIntBindAlbedo, 3u)    // float[SLs * 3 * n^2]: c_S, channel-major per SL
-SOFTGI_SL_CONST_UINT(kSlIntBindPrIndex, 4u)   // ProductPlan products: begin, offdiag_end
-SOFTGI_SL_CONST_UINT(kSlIntBindPrTerms, 5u)   // ProductPlan products: (j | k << 16, v) pairs
+// 4, 5: unused (the products are generated code, shaders/include/sh_plan_products.glsl)
 SOFTGI_SL_CONST_UINT(kSlIntBindOut, 6u)       // float[SLs * 3 * n^2]: L^c_S (eq. 11), channel-major per SL
 
 // accumulate_indirect.comp bindings (set 0): section 6. The SLs a receiver sums are the entries of

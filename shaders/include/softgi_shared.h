@@ -42,12 +42,6 @@ SOFTGI_CONST_UINT(kExpOl, 1u)
 SOFTGI_CONST_UINT(kExpPsStar, 2u)  // PS*-p: the factored series (eq. 22) of the scaled vector, then squarings
 SOFTGI_CONST_UINT(kExpPs, 3u)      // PS-p: the plain product series (eq. 17), no DC isolation, no scaling
 SOFTGI_CONST_UINT(kExpMaxDegree, 30u)  // the largest series degree p (the ps_degree parameter's range)
-// ProductPlan products (sh_plan_products.glsl), two uniform buffers: (begin, offdiag_end) per output
-// and a last (end, end), 2 (n^2 + 1) words used of kPlanPrIndexMax; the terms' (j | k << 16) words,
-// then their v bits, kPlanPrTermsMax words each (order 8 has 6588 terms: 53 KiB, under the 64 KiB
-// maxUniformBufferRange of lavapipe and most GPUs).
-SOFTGI_CONST_UINT(kPlanPrIndexMax, 132u)
-SOFTGI_CONST_UINT(kPlanPrTermsMax, 6592u)
 // Status words of the exponentiate pass.
 SOFTGI_CONST_UINT(kExpStatusSquarings, 0u)
 SOFTGI_CONST_UINT(kExpStatusBadInput, 1u)    // first receiver with a non-finite log coefficient + 1 (atomicMin of i + 1; 0xffffffff none)
@@ -70,9 +64,7 @@ SOFTGI_CONST_UINT(kAccBindOut, 7u)           // float[count * order^2]
 SOFTGI_CONST_UINT(kExpBindIn, 0u)        // log vectors, float[count * n^2]
 SOFTGI_CONST_UINT(kExpBindOut, 1u)       // visibility, float[count * n_out^2]
 SOFTGI_CONST_UINT(kExpBindOl, 2u)        // OL tables: norm grid, a, b (floats)
-// 3, 4: unused (the squares are generated code, shaders/include/sh_exp.glsl)
-SOFTGI_CONST_UINT(kExpBindPrIndex, 5u)   // ProductPlan products: begin, offdiag_end
-SOFTGI_CONST_UINT(kExpBindPrTerms, 6u)   // ProductPlan products: (j | k << 16, v) pairs
+// 3-6: unused (the squares and products are generated code, shaders/include/sh_exp.glsl)
 SOFTGI_CONST_UINT(kExpBindStatus, 7u)    // uint[4]: squarings, products, non-finite receivers, overflow
 SOFTGI_CONST_UINT(kExpBindSeries, 8u)    // PS*: 1/k! as float(1/double k!); PS: 1.0f/k (k = 0..degree)
 
@@ -80,8 +72,7 @@ SOFTGI_CONST_UINT(kExpBindSeries, 8u)    // PS*: 1/k! as float(1/double k!); PS:
 SOFTGI_CONST_UINT(kShadeBindReceivers, 0u)
 SOFTGI_CONST_UINT(kShadeBindVis, 1u)
 SOFTGI_CONST_UINT(kShadeBindConsts, 2u)   // L (3 n^2), hcoef (n^2), gwin (n^2)
-SOFTGI_CONST_UINT(kShadeBindPrIndex, 3u)
-SOFTGI_CONST_UINT(kShadeBindPrTerms, 4u)
+// 3, 4: unused (the products are generated code, shaders/include/sh_plan_products.glsl)
 SOFTGI_CONST_UINT(kShadeBindBasis, 5u)
 SOFTGI_CONST_UINT(kShadeBindOut, 6u)      // vec4 per receiver (rgb, unused)
 SOFTGI_CONST_UINT(kShadeBindTapPixel, 7u)    // gather: int per receiver, the display pixel whose taps it reads

@@ -27,7 +27,7 @@
 #include "softgi_shared.h"
 #include "sl_shared.h"
 
-layout(constant_id = 0) const uint N = 4;  // SH order
+layout(constant_id = 0) const uint N = SH_PLAN_FIXED_ORDER;  // SH order
 #define SHEXP_BASIS_BINDING kSlIndBindBasis
 #define SHEXP_BASIS_ORDER N
 #include "sh_basis.glsl"

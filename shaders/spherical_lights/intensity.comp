@@ -7,15 +7,13 @@
 #include "softgi_shared.h"
 #include "sl_shared.h"
 
-layout(constant_id = 0) const uint N = 4;  // SH order
+layout(constant_id = 0) const uint N = SH_PLAN_FIXED_ORDER;  // SH order
 layout(local_size_x = kSlIntensityGroup) in;
 
 layout(std430, set = 0, binding = kSlIntBindRadiance) readonly buffer Radiance { float lp[]; };
 layout(std430, set = 0, binding = kSlIntBindRanges) readonly buffer Ranges { uint sample_begin[]; };
 layout(std430, set = 0, binding = kSlIntBindBasis) readonly buffer Basis { float basis[]; };
 layout(std430, set = 0, binding = kSlIntBindAlbedo) readonly buffer Albedo { float albedo[]; };
-#define SH_PLAN_PR_BIND_INDEX kSlIntBindPrIndex
-#define SH_PLAN_PR_BIND_TERMS kSlIntBindPrTerms
 #include "sh_plan_products.glsl"
 layout(std430, set = 0, binding = kSlIntBindOut) writeonly buffer Out { float outv[]; };
 layout(push_constant) uniform Push {
@@ -36,18 +34,7 @@ void main() {
   const uint base = (sl * 3 + c) * n2;
   for (uint q = 0; q < n2; ++q) cs[q] = albedo[base + q];
   // Eq. 11: off-diagonal terms v (a_j b_k + a_k b_j), then diagonal v a_j b_j.
-  for (uint i = 0; i < n2; ++i) {
-    const uvec2 rg = pr_range_at(i);
-    const uint end = pr_range_at(i + 1u).x;
-    float acc = 0.0;
-    for (uint q = rg.x; q < rg.y; ++q) {
-      const uint j = pr_j_at(q), k = pr_k_at(q);
-      acc += pr_v_at(q) * (ls[j] * cs[k] + ls[k] * cs[j]);
-    }
-    for (uint q = rg.y; q < end; ++q) {
-      const uint j = pr_j_at(q);
-      acc += pr_v_at(q) * (ls[j] * cs[j]);
-    }
-    outv[base + i] = acc;
-  }
+  float prod[kAccumMaxCoeffs];
+  sh_plan_product(ls, cs, prod);
+  for (uint i = 0; i < n2; ++i) outv[base + i] = prod[i];
 }

@@ -99,19 +99,6 @@ OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::st
   return {dev.upload_vector(ol, kStorage, technique + " OL table"), static_cast<std::uint32_t>(m)};
 }
 
-// Plan terms as the shaders' uniform blocks hold them: the (j | k << 16) words, then the v bits, `cap`
-// words each (zero beyond the plan's terms).
-std::vector<std::uint32_t> split_terms(const std::vector<std::uint16_t>& j, const std::vector<std::uint16_t>& k, const std::vector<float>& v,
-                                       std::size_t cap, const std::string& what) {
-  if (v.size() > cap)
-    throw std::logic_error(what + ": " + std::to_string(v.size()) + " terms exceed the shaders' " + std::to_string(cap));
-  std::vector<std::uint32_t> terms(2 * cap, 0u);
-  for (std::size_t t = 0; t < v.size(); ++t) {
-    terms[t] = static_cast<std::uint32_t>(j[t]) | (static_cast<std::uint32_t>(k[t]) << 16);
-    terms[cap + t] = bits(v[t]);
-  }
-  return terms;
-}
 
 void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name) {
   static const float kUnused = 0.0f;
@@ -122,34 +109,19 @@ void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& ho
   }
 }
 
+std::span<const std::uint32_t> order_variant(std::span<const std::uint32_t> w, int order, const std::string& what) {
+  if (w.empty())
+    throw std::logic_error(what + ": no shader compiled for SH order " + std::to_string(order) + " (orders 1.." +
+                           std::to_string(gpu::kAccumMaxOrder) + ")");
+  return w;
+}
+
 std::uint32_t loop_budget(const vk::DeviceInfo& d) {
   constexpr std::uint32_t kMargin = 4096;
   if (d.loop_iteration_limit == 0) return std::numeric_limits<std::uint32_t>::max();
   return d.loop_iteration_limit > 2 * kMargin ? d.loop_iteration_limit - kMargin : d.loop_iteration_limit / 2;
 }
 
-PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique) {
-  const int n2 = p.order * p.order;
-  std::vector<std::uint32_t> pr_range;
-  for (int i = 0; i < n2; ++i) {
-    pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[i]));
-    pr_range.push_back(static_cast<std::uint32_t>(p.pr_offdiag_end[i]));
-  }
-  pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
-  pr_range.push_back(static_cast<std::uint32_t>(p.pr_begin[n2]));
-  const std::string o = technique + " product plan " + std::to_string(p.order);
-  // The products as sh_plan_products.glsl's uniform blocks hold them (softgi_shared.h kPlanPr*): the
-  // index padded, the terms split into index words and value bits. (The squares are generated code.)
-  if (pr_range.size() > gpu::kPlanPrIndexMax)
-    throw std::logic_error(o + ": order " + std::to_string(p.order) + " beyond the shaders' plan index");
-  pr_range.resize(gpu::kPlanPrIndexMax, 0u);
-  constexpr VkBufferUsageFlags kUniform = VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT;
-  PlanBuffers b;
-  b.pr_range = dev.upload_vector(pr_range, kUniform, o + " products index");
-  b.pr_terms = dev.upload_vector(split_terms(p.pr_j, p.pr_k, p.pr_v, gpu::kPlanPrTermsMax, o + " products"), kUniform, o + " products");
-  b.pr_count = static_cast<std::uint32_t>(p.pr_begin.back());
-  return b;
-}
 
 std::vector<float> exp_series(std::uint32_t method, int degree) {
   if (degree < 1 || degree > static_cast<int>(gpu::kExpMaxDegree))
@@ -249,18 +221,17 @@ vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline&
 vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
                                   std::uint32_t ol_count, int degree, const std::string& submit_name) {
   struct Push {
-    std::uint32_t first, end, ol_count, degree, budget, pr_terms;
+    std::uint32_t first, end, ol_count, degree, budget;
   };
   const std::uint32_t budget = loop_budget(dev.device_info());
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kExpBindIn, b.in),                vk::Bind::buffer_at(gpu::kExpBindOut, b.out),
-      vk::Bind::buffer_at(gpu::kExpBindOl, b.ol),                vk::Bind::buffer_at(gpu::kExpBindPrIndex, b.plan.pr_range),
-      vk::Bind::buffer_at(gpu::kExpBindPrTerms, b.plan.pr_terms), vk::Bind::buffer_at(gpu::kExpBindSeries, b.series),
+      vk::Bind::buffer_at(gpu::kExpBindOl, b.ol),                vk::Bind::buffer_at(gpu::kExpBindSeries, b.series),
       vk::Bind::buffer_at(gpu::kExpBindStatus, b.status)};
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("exponentiate");
     dispatch_chunks<Push>(rec, p, binds, count, gpu::kExponentiateGroup, [&](std::uint32_t first, std::uint32_t end) {
-      return Push{first, end, ol_count, static_cast<std::uint32_t>(degree), budget, b.plan.pr_count};
+      return Push{first, end, ol_count, static_cast<std::uint32_t>(degree), budget};
     });
     rec.end_timer();
     rec.barrier();
@@ -278,7 +249,6 @@ namespace {
 struct DeviceConstants {
   std::mutex m;
   vk::Buffer basis;
-  std::map<int, PlanBuffers> plans;
 };
 DeviceConstants& device_constants(vk::Context& dev) {
   return *dev.cached<DeviceConstants>("common.constants", [] { return std::make_shared<DeviceConstants>(); });
@@ -333,13 +303,6 @@ const vk::Buffer& basis_constants(vk::Context& dev) {
   return c.basis;
 }
 
-const PlanBuffers& product_plan_buffers(vk::Context& dev, int order) {
-  DeviceConstants& c = device_constants(dev);
-  std::lock_guard<std::mutex> lock(c.m);
-  auto it = c.plans.find(order);
-  if (it != c.plans.end()) return it->second;
-  return c.plans.emplace(order, upload_product_plan(dev, ProductPlan::get(order), "order " + std::to_string(order))).first->second;
-}
 
 std::size_t AccumulationInputs::upload(vk::Context& dev, const ReceiverSoA& soa, const std::vector<std::uint32_t>& rl,
                                        const PackedBlockers& packed, const std::string& technique) {

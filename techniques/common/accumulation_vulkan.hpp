@@ -30,6 +30,9 @@ namespace vk = backends::vulkan;
 
 constexpr VkBufferUsageFlags kStorage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
 
+// The SPIR-V of a shader compiled once per SH order (cmake/SoftgiShaders.cmake ORDER_VARIANTS: its
+// `_for(order)`), checked: an order it was not compiled for is a logic error naming `what`.
+std::span<const std::uint32_t> order_variant(std::span<const std::uint32_t> w, int order, const std::string& what);
 // A compiled SPIR-V array (the generated softgi/shaders/*_comp.h headers) as a span.
 template <std::size_t N>
 std::span<const std::uint32_t> words(const std::uint32_t (&a)[N]) {
@@ -147,18 +150,10 @@ struct OlTable {
 };
 OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::string& technique);
 
-// A ProductPlan's products as the shaders read them, in uniform buffers sized for the largest order
-// (softgi_shared.h kPlanPr*): (begin, offdiag_end) per output plus a final (end, end), and the terms
-// as their (j | k << 16) words, then their v bits. The squares are generated code (sh_exp.glsl).
-struct PlanBuffers {
-  vk::Buffer pr_range, pr_terms;
-  std::uint32_t pr_count = 0;  // terms of one product
-};
-PlanBuffers upload_product_plan(vk::Context& dev, const ProductPlan& p, const std::string& technique);
-// The basis-recurrence constants (basis_recurrence_constants) and each order's product plan, uploaded
-// once per device and shared by every pass that runs the shared shaders (they never change).
+// The basis-recurrence constants (basis_recurrence_constants), uploaded once per device and shared by
+// every pass that runs the shared shaders (they never change). (The product plans are code: the
+// shaders' squares and products are generated from ProductPlan at build time, sh_exp.glsl.)
 const vk::Buffer& basis_constants(vk::Context& dev);
-const PlanBuffers& product_plan_buffers(vk::Context& dev, int order);
 
 
 // Floats of band weights per blocker in PackedBlockers::w: the order rounded up to a multiple of 4
@@ -216,9 +211,7 @@ void exp_series_counts(std::uint32_t method, int degree, double& squares, double
 // afterwards, naming the receiver. `log` holds the n2 input coefficients per receiver;
 // `receiver_name(i)` names receiver i in the non-finite-input message.
 struct ExponentiateBuffers {
-  const vk::Buffer &in, &out, &ol;
-  const PlanBuffers& plan;
-  const vk::Buffer &series, &status;
+  const vk::Buffer &in, &out, &ol, &series, &status;
 };
 vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p, const ExponentiateBuffers& b, std::size_t count,
                                   std::uint32_t ol_count, int degree, const std::string& submit_name);

@@ -70,7 +70,6 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   if (dcoarse && (dcoarse->order != n || dcoarse->floats % static_cast<std::size_t>(n2) != 0))
     throw std::logic_error("shade on vulkan: the device field to gather from is not of order " + std::to_string(n));
   const std::uint32_t vis_mode = ga ? gpu::kShadeVisGather : (b.g || dvis ? gpu::kShadeVisReceiver : gpu::kShadeVisNone);
-  const PlanBuffers& plan = product_plan_buffers(dev, n);
   const vk::Buffer& basis = basis_constants(dev);
   upload_receivers(dev, g.shade_rec, soa, "shade receivers", &g.rec_hash);
   // Visibility: per receiver, or the coarse field of a gather (uploaded unless it is on the device).
@@ -143,7 +142,7 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
 
   vk::ComputePipeline& p = pipeline(dev, g.pipelines,
                                     "common.shade.n" + std::to_string(n) + ".vis" + std::to_string(vis_mode) + (lights ? ".lights" : ""),
-                                    words(spv::common_shade_comp), {{0, static_cast<std::uint32_t>(n)}, {1, vis_mode}, {2, lights ? 1u : 0u}});
+                                    order_variant(spv::common_shade_comp_for(n), n, "shade"), {{0, static_cast<std::uint32_t>(n)}, {1, vis_mode}, {2, lights ? 1u : 0u}});
   struct Push {
     std::uint32_t count, first, end, flags, light_count, rows_theta, rows_f;
     float theta_floor;
@@ -154,8 +153,7 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   const std::uint32_t rt = lights ? static_cast<std::uint32_t>(lt->rows_theta) : 2u, rf = lights ? static_cast<std::uint32_t>(lt->rows_f) : 2u;
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kShadeBindReceivers, g.shade_rec),       vk::Bind::buffer_at(gpu::kShadeBindVis, dvis ? *dvis->buffer : dcoarse ? *dcoarse->buffer : g.shade_vis),
-      vk::Bind::buffer_at(gpu::kShadeBindConsts, g.shade_consts),       vk::Bind::buffer_at(gpu::kShadeBindPrIndex, plan.pr_range),
-      vk::Bind::buffer_at(gpu::kShadeBindPrTerms, plan.pr_terms),       vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
+      vk::Bind::buffer_at(gpu::kShadeBindConsts, g.shade_consts),       vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
       vk::Bind::buffer_at(gpu::kShadeBindOut, g.shade_out),             vk::Bind::buffer_at(gpu::kShadeBindTapPixel, g.shade_tap_pixel),
       vk::Bind::buffer_at(gpu::kShadeBindTapIndex, taps.index ? *taps.index : g.shade_tap_index),
       vk::Bind::buffer_at(gpu::kShadeBindTapWeight, taps.weight ? *taps.weight : g.shade_tap_weight),

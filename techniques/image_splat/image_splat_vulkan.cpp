@@ -42,7 +42,6 @@ struct GpuState {
   std::mutex m;
   PipelineCache pipelines;
   vk::Buffer basis;
-  std::map<int, PlanBuffers> plans;             // common::ProductPlan per order
   std::vector<float> log_host;                   // the floats in log_table (uploaded when they change)
   vk::Buffer log_table;
   std::weak_ptr<const sh::ShTables> ol_src;      // the ShTables whose OL table is in `ol`
@@ -164,7 +163,6 @@ void vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const Sha
   check_fits(dev, count * n2 * sizeof(float), "the log vectors of " + std::to_string(count) + " receivers", "exponentiate");
 
   ol_table(dev, g, t.sh);
-  const PlanBuffers& plan = product_plan_buffers(dev, n);
   if (!dlog) put(dev, g.exp_in, hlog->v, "image_splat exp input");
   const vk::Buffer& exp_in = dlog ? *dlog->buffer : g.exp_in;
   dev.ensure_buffer(g.exp_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Device, "image_splat occlusion");
@@ -174,11 +172,11 @@ void vulkan_exponentiate(render::FrameContext& ctx, const Settings& s, const Sha
   put(dev, g.series, exp_series(method, s.ps_degree), "image_splat exp series");
   // Accumulation order = shading order: the log vector is exponentiated at the shadow order n.
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "image_splat.exponentiate.n" + std::to_string(n) + ".m" + std::to_string(method),
-                                    words(spv::common_exponentiate_comp),
+                                    order_variant(spv::common_exponentiate_comp_for(n), n, "image_splat exponentiate"),
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(n)}, {2, method}});
   vk::SubmitResult res;
   if (count)
-    res = run_exponentiate(dev, p, {exp_in, g.exp_out, g.ol, plan, g.series, g.status}, count, g.ol_count, s.ps_degree,
+    res = run_exponentiate(dev, p, {exp_in, g.exp_out, g.ol, g.series, g.status}, count, g.ol_count, s.ps_degree,
                            "image_splat exponentiate");
 
   std::uint32_t status[gpu::kExpStatusWords];

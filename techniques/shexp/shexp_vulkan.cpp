@@ -148,7 +148,6 @@ void vulkan_exponentiate(const Settings& s, render::FrameContext& ctx) {
     throw std::logic_error("shexp exponentiate on vulkan: the log vectors do not match the " + std::to_string(count) + " receivers");
 
   upload_tables(dev, g, tp);
-  const PlanBuffers& plan = product_plan_buffers(dev, na);
   if (!dlog) {
     dev.ensure_buffer(g.exp_in, std::max<std::size_t>(1, hlog->v.size()) * sizeof(float), kStorage, vk::MemoryKind::Device, "shexp exp input");
     dev.upload(g.exp_in, hlog->v.data(), hlog->v.size() * sizeof(float));
@@ -160,10 +159,10 @@ void vulkan_exponentiate(const Settings& s, render::FrameContext& ctx) {
   const std::uint32_t method = s.mode == Mode::HYB ? gpu::kExpHyb : s.mode == Mode::OL ? gpu::kExpOl : s.mode == Mode::PSStar ? gpu::kExpPsStar : gpu::kExpPs;
   put(dev, g.series, exp_series(method, s.ps_degree), "shexp exp series");
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "shexp.exponentiate.n" + std::to_string(na) + ".out" + std::to_string(s.order) + ".m" + std::to_string(method),
-                                    words(spv::common_exponentiate_comp),
+                                    order_variant(spv::common_exponentiate_comp_for(na), na, "shexp exponentiate"),
                                     {{0, static_cast<std::uint32_t>(na)}, {1, static_cast<std::uint32_t>(s.order)}, {2, method}});
   const vk::SubmitResult res =
-      run_exponentiate(dev, p, {exp_in, g.exp_out, g.ol, plan, g.series, g.status}, count, g.ol_count, s.ps_degree, "shexp exponentiate");
+      run_exponentiate(dev, p, {exp_in, g.exp_out, g.ol, g.series, g.status}, count, g.ol_count, s.ps_degree, "shexp exponentiate");
 
   std::uint32_t status[gpu::kExpStatusWords];
   dev.download(g.status, status, sizeof status);

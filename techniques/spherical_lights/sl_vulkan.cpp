@@ -176,7 +176,6 @@ void vulkan_exponentiate(const Settings& s, render::FrameContext& ctx, Stage sta
   check_fits(dev, floats * sizeof(float), "the log vectors of " + std::to_string(count) + " " + stage_name(stage), pass);
 
   upload_tables(dev, g, tp);
-  const PlanBuffers& plan = product_plan_buffers(dev, n);
   if (!dlog) {
     dev.ensure_buffer(sb.exp_in, std::max<std::size_t>(1, floats) * sizeof(float), kStorage, vk::MemoryKind::Device,
                       "spherical_lights exp input");
@@ -188,9 +187,9 @@ void vulkan_exponentiate(const Settings& s, render::FrameContext& ctx, Stage sta
   reset_exp_status(dev, g.exp_status, "spherical_lights exp status");
   if (!g.series) put(dev, g.series, exp_series(gpu::kExpPsStar, 2), "spherical_lights exp series (unused)");
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "sl.exponentiate.n" + std::to_string(n) + ".m" + std::to_string(method),
-                                    words(spv::common_exponentiate_comp),
+                                    order_variant(spv::common_exponentiate_comp_for(n), n, "spherical_lights exponentiate"),
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(n)}, {2, method}});
-  const vk::SubmitResult res = run_exponentiate(dev, p, {in, sb.vis, g.ol, plan, g.series, g.exp_status}, count, g.ol_count, 2,
+  const vk::SubmitResult res = run_exponentiate(dev, p, {in, sb.vis, g.ol, g.series, g.exp_status}, count, g.ol_count, 2,
                                                 "spherical_lights exponentiate");
   std::uint32_t status[gpu::kExpStatusWords];
   dev.download(g.exp_status, status, sizeof status);
@@ -237,10 +236,9 @@ void vulkan_intensity(const Settings& s, render::FrameContext& ctx) {
   put_if_changed(dev, g.albedo, g.albedo_hash, albedo, "spherical_lights albedo SH");
   upload_bytes_if_changed(dev, g.radiance, g.radiance_hash, lp.value.data(), samples * sizeof(glm::vec3), "spherical_lights sample radiance");
   const std::size_t uploaded = dev.transfer_bytes().upload - before;
-  const PlanBuffers& plan = product_plan_buffers(dev, n);
   dev.ensure_buffer(g.intensity, std::max<std::size_t>(1, m * 3 * n2) * sizeof(float), kStorage, vk::MemoryKind::Device,
                     "spherical_lights intensity");
-  vk::ComputePipeline& p = pipeline(dev, g.pipelines, "sl.intensity.n" + std::to_string(n), words(spv::spherical_lights_intensity_comp),
+  vk::ComputePipeline& p = pipeline(dev, g.pipelines, "sl.intensity.n" + std::to_string(n), order_variant(spv::spherical_lights_intensity_comp_for(n), n, "spherical_lights intensity"),
                                     {{0, static_cast<std::uint32_t>(n)}});
   struct Push {
     std::uint32_t first, end;
@@ -248,7 +246,6 @@ void vulkan_intensity(const Settings& s, render::FrameContext& ctx) {
   const std::vector<vk::Bind> binds = {
       vk::Bind::buffer_at(gpu::kSlIntBindRadiance, g.radiance),  vk::Bind::buffer_at(gpu::kSlIntBindRanges, g.ranges),
       vk::Bind::buffer_at(gpu::kSlIntBindBasis, g.basis),        vk::Bind::buffer_at(gpu::kSlIntBindAlbedo, g.albedo),
-      vk::Bind::buffer_at(gpu::kSlIntBindPrIndex, plan.pr_range), vk::Bind::buffer_at(gpu::kSlIntBindPrTerms, plan.pr_terms),
       vk::Bind::buffer_at(gpu::kSlIntBindOut, g.intensity)};
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("intensity_update");
@@ -383,7 +380,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
   vk::ComputePipeline& p = pipeline(dev, g.pipelines,
                                     "sl.indirect.n" + std::to_string(n) + ".rule" + std::to_string(static_cast<int>(s.rule)) + ".m" +
                                         std::to_string(method) + ".b" + std::to_string(blocking),
-                                    words(spv::spherical_lights_accumulate_indirect_comp),
+                                    order_variant(spv::spherical_lights_accumulate_indirect_comp_for(n), n, "spherical_lights accumulate_indirect"),
                                     {{0, static_cast<std::uint32_t>(n)}, {1, static_cast<std::uint32_t>(s.rule)}, {2, method}, {3, blocking}});
   struct Push {
     std::uint32_t count, first, end, lights, log_rows, weight_rows, ol_count;
