@@ -98,10 +98,9 @@ bool light_dot(vec3 p, vec3 n, vec3 c, float R, float g[kAccumMaxCoeffs], out fl
   const vec3 axis = sc.y * n + sc.x * tang;
   float Y[kAccumMaxCoeffs];
   sh_basis_eval(axis, Y);
-  [[unroll]] for (uint l = 0; l < N; ++l) {
-    const float kl = k[l] * omega;
-    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) dsum += (kl * Y[q]) * g[q];
-  }
+  float kl[kAccumMaxOrder];
+  [[unroll]] for (uint l = 0; l < N; ++l) kl[l] = k[l] * omega;
+  [[unroll]] for (uint q = 0; q < N * N; ++q) dsum += (kl[kShBand[q]] * Y[q]) * g[q];
   return true;
 }
 

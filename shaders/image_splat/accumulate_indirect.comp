@@ -79,9 +79,7 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
   const vec3 np = vec3(cb * x1 - sb * z1, y1, sb * x1 + cb * z1);
   float hp[kAccumMaxCoeffs];
   sh_basis_eval(np, hp);
-  [[unroll]] for (uint l = 0; l < N; ++l) {
-    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) hp[q] *= hc(l);
-  }
+  [[unroll]] for (uint q = 0; q < N * N; ++q) hp[q] *= hc(kShBand[q]);
   // f = R L~ = Q Rz(-beta) Q^T Rz(-phi) L~, band by band; band l of Q at the running offset
   // (TableView::qoff, checked on the host).
   vec3 f[kAccumMaxOrder * kAccumMaxOrder];
@@ -195,10 +193,8 @@ void main() {
     float y[kAccumMaxCoeffs];
     sh_basis_eval(d, y);
     vec3 B[kAccumMaxOrder];
-    [[unroll]] for (uint l = 0; l < N; ++l) {
-      B[l] = vec3(0.0);
-      [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) B[l] += y[q] * vec3(lt(q, 0), lt(q, 1), lt(q, 2));
-    }
+    [[unroll]] for (uint l = 0; l < N; ++l) B[l] = vec3(0.0);
+    [[unroll]] for (uint q = 0; q < N * N; ++q) B[kShBand[q]] += y[q] * vec3(lt(q, 0), lt(q, 1), lt(q, 2));
     vec3 kap = vec3(0.0);
     [[unroll]] for (uint l = 0; l < N; ++l) kap += fac[l] * B[l];
     acc += albedo[j].xyz * (kap * vdoth);  // diffuse proxy: radiance albedo / pi L~

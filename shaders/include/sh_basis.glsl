@@ -8,6 +8,12 @@
 layout(std140, set = 0, binding = SHEXP_BASIS_BINDING) uniform BasisConsts { vec4 basis_v[kBasisFloats / 4u]; };
 
 float basis_c(uint i) { return basis_v[i >> 2u][i & 3u]; }
+
+// The band l of coefficient q = l^2 + l + m. Loops over bands with an inner loop over each band's
+// coefficients are written as one loop over q with this table: a loop with a constant trip count
+// is unrolled where the nested one (its inner bounds depend on the outer index) may stay rolled
+// (llvmpipe), leaving the per-coefficient arrays indexed at run time and kept in memory.
+const uint kShBand[64] = uint[64](0u, 1u, 1u, 1u, 2u, 2u, 2u, 2u, 2u, 3u, 3u, 3u, 3u, 3u, 3u, 3u, 4u, 4u, 4u, 4u, 4u, 4u, 4u, 4u, 4u, 5u, 5u, 5u, 5u, 5u, 5u, 5u, 5u, 5u, 5u, 5u, 6u, 6u, 6u, 6u, 6u, 6u, 6u, 6u, 6u, 6u, 6u, 6u, 6u, 7u, 7u, 7u, 7u, 7u, 7u, 7u, 7u, 7u, 7u, 7u, 7u, 7u, 7u, 7u);
 float basis_qmm(uint m) { return basis_c(kBasisQmm + m); }
 float basis_a1(uint m) { return basis_c(kBasisA1 + m); }
 float basis_A(uint l, uint m) { return basis_c(kBasisA + l * kAccumMaxOrder + m); }

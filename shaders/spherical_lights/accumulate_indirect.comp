@@ -96,12 +96,10 @@ void sl_log_vector(vec4 adj, vec3 P, out float G[kAccumMaxCoeffs]) {
   const int kr = min(int(min(u, float(pc.log_rows - 1))), int(pc.log_rows) - 2);
   const float fr = u - float(kr);
   const uint row = uint(kr) * 2u * N;
-  float Y[kAccumMaxCoeffs];
+  float Y[kAccumMaxCoeffs], F[kAccumMaxOrder];
   sh_basis_eval(d / dist, Y);
-  [[unroll]] for (uint l = 0; l < N; ++l) {
-    const float F = log_table[row + 2 * l] + fr * log_table[row + 2 * l + 1];
-    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) G[q] = F * Y[q];
-  }
+  [[unroll]] for (uint l = 0; l < N; ++l) F[l] = log_table[row + 2 * l] + fr * log_table[row + 2 * l + 1];
+  [[unroll]] for (uint q = 0; q < N * N; ++q) G[q] = F[kShBand[q]] * Y[q];
 }
 
 // Eqs. 16-18: the SL's average radiance towards P (WeightTable::lookup, the rotated ZH dot product).
@@ -122,12 +120,13 @@ vec3 sl_average_radiance(uint k, vec3 P) {
   float Y[kAccumMaxCoeffs];
   sh_basis_eval(dl, Y);
   const uint n2 = N * N, base = entry_sl[k] * 3 * n2;
-  vec3 acc = vec3(0.0);
+  float wl[kAccumMaxOrder];
   [[unroll]] for (uint l = 0; l < N; ++l) {
     const float a = weight[uint(kw) * N + l], b = weight[uint(kw + 1) * N + l];
-    const float wl = (a + f * (b - a)) * zh_rot(l);
-    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) acc += (wl * Y[q]) * vec3(lc[base + q], lc[base + n2 + q], lc[base + 2 * n2 + q]);
+    wl[l] = (a + f * (b - a)) * zh_rot(l);
   }
+  vec3 acc = vec3(0.0);
+  [[unroll]] for (uint q = 0; q < n2; ++q) acc += (wl[kShBand[q]] * Y[q]) * vec3(lc[base + q], lc[base + n2 + q], lc[base + 2 * n2 + q]);
   // Eq. 26: a parent of the hierarchy scaled by its reflection ratio.
   return acc * ratio[k].xyz;
 }
@@ -176,9 +175,7 @@ void main() {
   }
   float hn[kAccumMaxCoeffs];
   sh_basis_eval(Nrm, hn);
-  [[unroll]] for (uint l = 0; l < N; ++l) {
-    [[unroll]] for (uint q = l * l; q < (l + 1) * (l + 1); ++q) hn[q] *= hcoef(l);
-  }
+  [[unroll]] for (uint q = 0; q < N * N; ++q) hn[q] *= hcoef(kShBand[q]);
   // The active SLs' order keys and their distances from p.
   const uvec2 list = lists[rlist[i]];
   lb_ = list.x;
