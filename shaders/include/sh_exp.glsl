@@ -25,7 +25,7 @@
 
 layout(std430, set = 0, binding = SH_EXP_BIND_OL) readonly buffer ShExpOl { float ol[]; };  // norms, a, b (ol_count each)
 // The squares are code: sh_square_unrolled.glsl, generated at build time from the CPU's ProductPlan
-// (shaders/gen/sh_square_glsl.cpp), every term written out with constant indices.
+// (shaders/gen/sh_plan_glsl.cpp), every term written out with constant indices.
 #include "sh_square_unrolled.glsl"
 #ifdef SH_EXP_PRODUCTS
 #include "sh_plan_products.glsl"
