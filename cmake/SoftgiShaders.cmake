@@ -12,6 +12,20 @@
 # shaders whose products are written out per order (shaders/gen/sh_plan_glsl.cpp) carry only their
 # own order's code that way, which keeps SPIR-V and the driver's compile small.
 set(SOFTGI_SHADER_INCLUDE_DIR ${PROJECT_SOURCE_DIR}/shaders/include)
+# One glslangValidator run: SOURCE -> HEADER holding `const uint32_t VAR[]`, with the include flags
+# INCS, extra flags FLAGS (-D...) and the generated includes DEPENDS.
+function(_softgi_glslang)
+  cmake_parse_arguments(G "" "SOURCE;HEADER;VAR;COMMENT" "INCS;FLAGS;DEPENDS" ${ARGN})
+  add_custom_command(OUTPUT ${G_HEADER}
+    COMMAND Vulkan::glslangValidator -V --target-env vulkan1.2 --quiet ${G_INCS} ${G_FLAGS} --vn ${G_VAR}
+            --depfile ${G_HEADER}.d -o ${G_HEADER} ${G_SOURCE}
+    MAIN_DEPENDENCY ${G_SOURCE}
+    DEPENDS ${G_DEPENDS}
+    DEPFILE ${G_HEADER}.d
+    WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}
+    COMMENT "${G_COMMENT}"
+    VERBATIM)
+endfunction()
 function(softgi_add_shaders target)
   cmake_parse_arguments(A "" "" "SOURCES;INCLUDE_DIRS;DEPENDS;ORDER_VARIANTS" ${ARGN})
   set(_variant_abs)
@@ -40,15 +54,9 @@ function(softgi_add_shaders target)
       set(_cases "")
       foreach(_order RANGE 1 8)
         set(_vheader ${_out_dir}/${_stem}_o${_order}.h)
-        add_custom_command(OUTPUT ${_vheader}
-          COMMAND Vulkan::glslangValidator -V --target-env vulkan1.2 --quiet ${_incs} -DSH_PLAN_FIXED_ORDER=${_order}
-                  --vn ${_var}_o${_order} --depfile ${_vheader}.d -o ${_vheader} ${_abs}
-          MAIN_DEPENDENCY ${_abs}
-          DEPENDS ${A_DEPENDS}
-          DEPFILE ${_vheader}.d
-          WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}
-          COMMENT "glslang ${_folder}/${_file} (order ${_order}) -> softgi/shaders/${_folder}/${_stem}_o${_order}.h"
-          VERBATIM)
+        _softgi_glslang(SOURCE ${_abs} HEADER ${_vheader} VAR ${_var}_o${_order} INCS ${_incs}
+                        FLAGS -DSH_PLAN_FIXED_ORDER=${_order} DEPENDS ${A_DEPENDS}
+                        COMMENT "glslang ${_folder}/${_file} (order ${_order}) -> softgi/shaders/${_folder}/${_stem}_o${_order}.h")
         list(APPEND _headers ${_vheader})
         string(APPEND _index "#include \"softgi/shaders/${_folder}/${_stem}_o${_order}.h\"\n")
         string(APPEND _cases "    case ${_order}: return {${_var}_o${_order}, sizeof ${_var}_o${_order} / sizeof ${_var}_o${_order}[0]};\n")
@@ -59,15 +67,8 @@ function(softgi_add_shaders target)
       list(APPEND _headers ${_header})
       continue()
     endif()
-    add_custom_command(OUTPUT ${_header}
-      COMMAND Vulkan::glslangValidator -V --target-env vulkan1.2 --quiet ${_incs} --vn ${_var}
-              --depfile ${_header}.d -o ${_header} ${_abs}
-      MAIN_DEPENDENCY ${_abs}
-      DEPENDS ${A_DEPENDS}
-      DEPFILE ${_header}.d
-      WORKING_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}
-      COMMENT "glslang ${_folder}/${_file} -> softgi/shaders/${_folder}/${_stem}.h"
-      VERBATIM)
+    _softgi_glslang(SOURCE ${_abs} HEADER ${_header} VAR ${_var} INCS ${_incs} DEPENDS ${A_DEPENDS}
+                    COMMENT "glslang ${_folder}/${_file} -> softgi/shaders/${_folder}/${_stem}.h")
     list(APPEND _headers ${_header})
   endforeach()
   target_sources(${target} PRIVATE ${_headers})

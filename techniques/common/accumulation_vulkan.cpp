@@ -22,12 +22,6 @@ vk::ComputePipeline& pipeline(vk::Context& dev, PipelineCache& cache, const std:
   return *it->second;
 }
 
-std::uint32_t bits(float v) {
-  std::uint32_t u;
-  std::memcpy(&u, &v, sizeof u);
-  return u;
-}
-
 std::string mib(std::size_t bytes) {
   std::ostringstream os;
   os.precision(4);
@@ -83,8 +77,6 @@ void upload_receivers(vk::Context& dev, vk::Buffer& buf, const ReceiverSoA& soa,
   if (hash) *hash = h;
 }
 
-
-
 OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::string& technique) {
   const auto &xs = sht.ol_norm(), &as = sht.ol_a(), &bs = sht.ol_b();
   std::size_t m = 0;  // sh::ShTables: "keep the prefix of the sweep where the norm increases"
@@ -98,7 +90,6 @@ OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::st
   }
   return {dev.upload_vector(ol, kStorage, technique + " OL table"), static_cast<std::uint32_t>(m)};
 }
-
 
 void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name) {
   static const float kUnused = 0.0f;
@@ -121,7 +112,6 @@ std::uint32_t loop_budget(const vk::DeviceInfo& d) {
   if (d.loop_iteration_limit == 0) return std::numeric_limits<std::uint32_t>::max();
   return d.loop_iteration_limit > 2 * kMargin ? d.loop_iteration_limit - kMargin : d.loop_iteration_limit / 2;
 }
-
 
 std::vector<float> exp_series(std::uint32_t method, int degree) {
   if (degree < 1 || degree > static_cast<int>(gpu::kExpMaxDegree))
@@ -302,7 +292,6 @@ const vk::Buffer& basis_constants(vk::Context& dev) {
     c.basis = dev.upload_vector(basis_recurrence_constants(), kStorage | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, "basis recurrence constants");
   return c.basis;
 }
-
 
 std::size_t AccumulationInputs::upload(vk::Context& dev, const ReceiverSoA& soa, const std::vector<std::uint32_t>& rl,
                                        const PackedBlockers& packed, const std::string& technique) {

@@ -44,7 +44,6 @@ using PipelineCache = std::map<std::string, std::unique_ptr<vk::ComputePipeline>
 vk::ComputePipeline& pipeline(vk::Context& dev, PipelineCache& cache, const std::string& key, std::span<const std::uint32_t> spirv,
                               const std::vector<vk::SpecConstant>& spec);
 
-std::uint32_t bits(float v);          // a float's bit pattern, for mixed uint/float term buffers
 std::string mib(std::size_t bytes);  // "1.5 MiB"
 // Loop iterations a shader that counts its own may run per invocation on this device: the driver's
 // limit less a margin for the loops it does not count, or no limit (0xffffffff).
