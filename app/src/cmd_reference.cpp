@@ -1,5 +1,5 @@
 // `softgi reference`: the ray-traced one-bounce ground truth of a scene (docs/reference.md).
-//   softgi reference --scene NAME|FILE [--spp N] [--blockers geometry|proxies] [--light full|sh:N]
+//   softgi reference --scene NAME|FILE [--spp N] [--blockers geometry|proxies|proxies_only] [--light full|sh:N]
 //                    [--frame t] [--width W] [--height H] [--seed S] [--convergence] --out DIR
 // writes DIR/final.exr, direct.exr, indirect.exr, final.png and reference.json (and, with
 // --convergence, convergence.json: error against the final image at spp = 1, 2, 4, ..., N).
@@ -94,7 +94,8 @@ void run_reference(const ReferenceArgs& args) {
   reference::ReferenceOptions opt;
   if (args.blockers == "geometry") opt.blockers = reference::ReferenceOptions::Blockers::Geometry;
   else if (args.blockers == "proxies") opt.blockers = reference::ReferenceOptions::Blockers::Proxies;
-  else throw std::invalid_argument("--blockers must be 'geometry' or 'proxies', got '" + args.blockers + "'");
+  else if (args.blockers == "proxies_only") opt.blockers = reference::ReferenceOptions::Blockers::ProxiesOnly;
+  else throw std::invalid_argument("--blockers must be 'geometry', 'proxies' or 'proxies_only', got '" + args.blockers + "'");
   opt.light_sh_order = parse_light(args.light);
   opt.spp = args.spp;
   opt.time = args.time;
@@ -267,7 +268,7 @@ void register_reference(CLI::App& app) {
                   "render two halves, more samples each round, until the reference's noise adds at most this relMSE "
                   "(writes half_a.exr and half_b.exr)");
   sub->add_option("--max-spp", args->max_spp, "with --target-noise: the most samples per pixel (default 4096)");
-  sub->add_option("--blockers", args->blockers, "what casts shadows: geometry | proxies (default geometry)");
+  sub->add_option("--blockers", args->blockers, "what casts shadows: geometry | proxies (proxy spheres, and the objects without proxies) | proxies_only (the proxy spheres alone, the blockers a sphere-proxy technique sees) (default geometry)");
   sub->add_option("--light", args->light, "full | sh:N (the environment's order-N SH projection)");
   sub->add_option("--frame,--time", args->time, "animation time in seconds (default 0)");
   // The same range as `render` and `compare`: 0 is no size (omit the option for the camera's).

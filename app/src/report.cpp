@@ -39,7 +39,9 @@ constexpr double kFrameStep = 1.0 / 30.0;
 // reference's two halves (seed and half_b_seed(seed)), so that its noise counts as its error.
 constexpr unsigned kPathTracerSeedOffset = 0x2545F491u;
 // Bumped when what a job measures changes, so that resumed runs do not mix old and new results.
-constexpr int kJobVersion = 1;
+constexpr int kJobVersion = 2;
+// Key prefix of the references with the proxy spheres alone as blockers (+ the SH order).
+const std::string kProxiesOnlyKey = "proxies_only_sh";
 
 const double kEpsilon = metrics::MetricOptions{}.relmse_epsilon;
 
@@ -323,7 +325,7 @@ struct Runner::Impl {
     return surfaces.emplace(key, std::move(m)).first->second;
   }
 
-  // Reference `key` of a scene and frame: "full", "sh<n>" or "proxies_sh<n>", converged (two
+  // Reference `key` of a scene and frame: "full", "sh<n>" or "proxies_only_sh<n>", converged (two
   // halves) and kept in DIR; read back when DIR has it.
   const RefImages& reference(const std::string& spec, double t, const std::string& key) {
     const std::string label = scene_label(spec);
@@ -344,8 +346,8 @@ struct Runner::Impl {
     int w = 0, h = 0;
     size_of(sc, w, h);
     reference::ReferenceOptions opt;
-    opt.blockers = key.rfind("proxies_", 0) == 0 ? reference::ReferenceOptions::Blockers::Proxies
-                                                 : reference::ReferenceOptions::Blockers::Geometry;
+    opt.blockers = key.rfind(kProxiesOnlyKey, 0) == 0 ? reference::ReferenceOptions::Blockers::ProxiesOnly
+                                                      : reference::ReferenceOptions::Blockers::Geometry;
     const std::size_t sh = key.find("sh");
     opt.light_sh_order = sh == std::string::npos ? 0 : std::stoi(key.substr(sh + 2));
     opt.indirect = true;
@@ -371,8 +373,8 @@ struct Runner::Impl {
     }
     write_png_atomic(rdir / "final.png", c.result.final_image);
     const std::string label_text = key == "full" ? std::string("real geometry, full environment")
-                             : opt.blockers == reference::ReferenceOptions::Blockers::Proxies
-                                 ? "proxy spheres as blockers, order-" + std::to_string(opt.light_sh_order) + " SH light"
+                             : opt.blockers == reference::ReferenceOptions::Blockers::ProxiesOnly
+                                 ? "proxy spheres alone as blockers, order-" + std::to_string(opt.light_sh_order) + " SH light"
                                  : "real geometry, order-" + std::to_string(opt.light_sh_order) + " SH light";
     r.meta = {{"key", key},
               {"label", label_text},
@@ -462,7 +464,7 @@ void Runner::prepare_references(const std::vector<Job>& jobs, const std::functio
     const std::string n = std::to_string(sh_order_of(p));
     keys.insert("full");
     keys.insert("sh" + n);
-    if (!impl_->scene(j.scene).proxies.empty()) keys.insert("proxies_sh" + n);
+    if (t->shadow_blockers() == render::ShadowBlockers::SphereProxies) keys.insert(kProxiesOnlyKey + n);
   }
   int total = 0, k = 0;
   for (const auto& [sf, keys] : need) total += static_cast<int>(keys.size()) + 1;  // + the path tracer's curve
@@ -568,9 +570,13 @@ Json Runner::Impl::run(const Job& job) {
       budget_ci[name] = {e.ci_low, e.ci_high};
     };
     entry("sh_truncation", metrics::noise_corrected_relmse_between(shn.a[0], shn.b[0], full.a[0], full.b[0], surf, kEpsilon));
+    // The same problem as the technique's: its own blockers. For sphere-proxy techniques those are
+    // the proxy spheres alone (an object without proxies, a wall, shadows nothing for them, so it
+    // counts as proxy geometry, not as the technique's approximation); techniques that shadow with
+    // the scene's geometry, or proxies sampled from all of it, have no proxy-geometry entry.
     const RefImages* matching = &shn;
-    if (!sc.proxies.empty()) {
-      const RefImages& prox = reference(job.scene, job.frame_time, "proxies_sh" + std::to_string(order));
+    if (technique->shadow_blockers() == render::ShadowBlockers::SphereProxies) {
+      const RefImages& prox = reference(job.scene, job.frame_time, kProxiesOnlyKey + std::to_string(order));
       entry("proxy_geometry", metrics::noise_corrected_relmse_between(prox.a[0], prox.b[0], shn.a[0], shn.b[0], surf, kEpsilon));
       matching = &prox;
     } else {

@@ -242,6 +242,12 @@ const char* const kScript = R"HTML(</script>
 
     // (d) Error budget.
     sec.appendChild(el('h3', {text: 'Error budget'}));
+    sec.appendChild(el('p', {class: 'muted', text: 'Each source on its own, as a noise-corrected relMSE. Proxy geometry: the proxy ' +
+      'spheres alone as blockers (objects without proxies shadow and reflect nothing, as for a sphere-proxy technique) against ' +
+      'the real geometry; none for techniques that shadow with the scene\'s own geometry. SH truncation: the order-n SH light ' +
+      'against the full environment. Approximation: the technique against the reference of its own blockers and order-n SH ' +
+      'light. Resolution: the technique against itself at full receiver resolution. Errors of different signs cancel, so the ' +
+      'entries need not add up to the total.'}));
     const sources = [['proxy_geometry', 'proxy geometry'], ['sh_truncation', 'SH truncation'], ['approximation', 'approximation'], ['resolution', 'resolution']];
     sec.appendChild(table(['point'].concat(sources.map(function (s) { return s[1]; }), ['total']), good.map(function (p) {
       const b = p.budget || {};

@@ -820,6 +820,7 @@ std::vector<render::MemoryItem> memory_items(const render::ParamSet& params, int
 class ImageSplat final : public render::Technique {
  public:
   std::string name() const override { return "image_splat"; }
+  render::ShadowBlockers shadow_blockers() const override { return render::ShadowBlockers::SphereProxies; }
   std::string description() const override {
     return "image-space proxy accumulation (paper 000, Sloan et al. 2007): sphere proxies splatted to a low-resolution "
            "receiver buffer for SH soft shadows (log accumulation + exponential) and normalised indirect light, "

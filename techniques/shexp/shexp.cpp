@@ -613,6 +613,7 @@ std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const re
 class Shexp final : public render::Technique {
  public:
   std::string name() const override { return "shexp"; }
+  render::ShadowBlockers shadow_blockers() const override { return render::ShadowBlockers::SphereProxies; }
   std::string description() const override {
     return "SHEXP (paper 004, Ren et al. 2006): soft shadows of sphere-set blockers under low-frequency light by "
            "accumulating log visibility in SH and exponentiating; per-vertex receivers; no indirect light";

@@ -751,6 +751,7 @@ common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
 class SphericalLights final : public render::Technique {
  public:
   std::string name() const override { return "spherical_lights"; }
+  render::ShadowBlockers shadow_blockers() const override { return render::ShadowBlockers::SphereProxies; }
   std::string description() const override {
     return "spherical lights (paper 001, Guerrero, Jeschke and Wimmer 2008): proxy spheres as blockers and as SH "
            "secondary lights; shadowed one-bounce diffuse indirect light plus SHEXP-style soft shadows; per-vertex receivers";

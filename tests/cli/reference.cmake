@@ -41,7 +41,15 @@ expect_failure("--light" reference --scene spheres --light sh:0 --out ${WORK_DIR
 expect_failure("--light" reference --scene spheres --light sh:x --out ${WORK_DIR}/x ${args})
 expect_failure("--light" reference --scene spheres --light sh:9 --out ${WORK_DIR}/x ${args})
 expect_failure("--light" reference --scene spheres --light fulll --out ${WORK_DIR}/x ${args})
-expect_failure("--blockers" reference --scene spheres --blockers spheres --out ${WORK_DIR}/x ${args})
+expect_failure("--blockers must be 'geometry', 'proxies' or 'proxies_only'" reference --scene spheres --blockers spheres --out ${WORK_DIR}/x ${args})
+# Proxies mode stands for paper 004 Figure 7(b) and needs sphere sets; proxies_only on a scene without
+# them is what a sphere-proxy technique computes there (nothing shadows) and renders.
+expect_failure("has no proxy spheres" reference --scene thin_wall --blockers proxies --out ${WORK_DIR}/x ${args})
+execute_process(COMMAND ${SOFTGI} reference --scene thin_wall --blockers proxies_only --out ${WORK_DIR}/only ${args}
+  OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK_DIR}/only/final.exr)
+  message(FATAL_ERROR "softgi reference --blockers proxies_only on a scene without proxies failed (${rc}):\n${out}${err}")
+endif()
 expect_failure("--spp" reference --scene spheres --spp 0 --out ${WORK_DIR}/x -q)
 expect_failure("--spp" reference --scene spheres --spp -2 --out ${WORK_DIR}/x -q)
 expect_failure("--frame" reference --scene spheres --frame nan --out ${WORK_DIR}/x ${args})

@@ -372,7 +372,7 @@ class Renderer {
     setup_camera();
     device_ = embree::new_device(state_, "reference", false);
     build_geometry();
-    if (opt_.blockers == ReferenceOptions::Blockers::Proxies) build_proxies();
+    if (opt_.blockers != ReferenceOptions::Blockers::Geometry) build_proxies();
     check_embree("building the scene");
   }
   Renderer(const Renderer&) = delete;
@@ -395,7 +395,7 @@ class Renderer {
     direct = indirect = vec3(0.0f);
     Hit h;
     ++rays;
-    if (!intersect(camera_.position, dir, h)) {
+    if (!intersect(camera_.position, dir, h, geom_scene_.get(), geom_object_)) {
       // The background every technique draws too (render/vertex_image.hpp): the environment as
       // seen, whatever light model shades the surfaces.
       direct = render::background_radiance(scene_.environment, dir);
@@ -413,7 +413,10 @@ class Renderer {
     if (fr == vec3(0.0f)) return;
     Hit h2;
     ++rays;
-    if (!intersect(offset_origin(h.p, h.ng), wi, h2)) return;  // the sky is direct light, not a bounce
+    // The sky is direct light, not a bounce. In ProxiesOnly mode only the proxied objects reflect.
+    if (!intersect(offset_origin(h.p, h.ng), wi, h2, bounce_scene_ ? bounce_scene_.get() : geom_scene_.get(),
+                   bounce_scene_ ? bounce_object_ : geom_object_))
+      return;
     vec3 lo = env_direct_one_sample(h2, rng, rays) + lights_direct_one(h2, rng, rays);
     indirect = fr * glm::dot(h.ns, wi) / pdf * lo;
   }
@@ -441,9 +444,11 @@ class Renderer {
     rtcCommitScene(geom_scene_.get());
   }
 
-  // Shadow blockers in proxies mode: every proxy sphere, plus the real triangles of the objects that
-  // no proxy set stands for (ground, walls: paper 004 Figure 7(b) replaces only the blockers that
-  // have sphere sets).
+  // Shadow blockers in the proxy modes: every proxy sphere; in Proxies mode also the real triangles
+  // of the objects that no proxy set stands for (ground, walls: paper 004 Figure 7(b) replaces only
+  // the blockers that have sphere sets). In ProxiesOnly mode those objects are receivers alone, as
+  // for a sphere-proxy technique: they shadow nothing and reflect no light onto other surfaces, so
+  // bounce rays see only the proxied objects.
   void build_proxies() {
     std::vector<char> proxied(scene_.nodes.size(), 0);
     for (std::size_t k = 0; k < scene_.proxies.size() && k < posed_.proxies.size(); ++k) {
@@ -452,26 +457,40 @@ class Renderer {
       for (const auto& s : posed_.proxies[k])
         if (s.radius > 0.0f && finite3(s.center) && std::isfinite(s.radius)) proxies_.spheres.push_back(s);
     }
-    if (proxies_.spheres.empty())
+    // Proxies mode stands for Figure 7(b), which needs sphere sets. ProxiesOnly on a scene without
+    // them is what a sphere-proxy technique computes there: nothing shadows.
+    const bool only = opt_.blockers == ReferenceOptions::Blockers::ProxiesOnly;
+    if (proxies_.spheres.empty() && !only)
       throw std::invalid_argument("reference: blockers = proxies, but scene '" + scene_.name + "' has no proxy spheres");
     proxy_scene_.reset(rtcNewScene(device_.get()));
-    embree::GeometryHandle g(rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER));
-    check_embree("creating the proxy geometry");
-    rtcSetGeometryUserPrimitiveCount(g.get(), static_cast<unsigned>(proxies_.spheres.size()));
-    rtcSetGeometryUserData(g.get(), &proxies_);
-    rtcSetGeometryBoundsFunction(g.get(), proxy_bounds, nullptr);
-    rtcSetGeometryIntersectFunction(g.get(), proxy_intersect);
-    rtcSetGeometryOccludedFunction(g.get(), proxy_occluded);
-    rtcCommitGeometry(g.get());
-    rtcAttachGeometry(proxy_scene_.get(), g.get());
+    if (!proxies_.spheres.empty()) {
+      embree::GeometryHandle g(rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER));
+      check_embree("creating the proxy geometry");
+      rtcSetGeometryUserPrimitiveCount(g.get(), static_cast<unsigned>(proxies_.spheres.size()));
+      rtcSetGeometryUserData(g.get(), &proxies_);
+      rtcSetGeometryBoundsFunction(g.get(), proxy_bounds, nullptr);
+      rtcSetGeometryIntersectFunction(g.get(), proxy_intersect);
+      rtcSetGeometryOccludedFunction(g.get(), proxy_occluded);
+      rtcCommitGeometry(g.get());
+      rtcAttachGeometry(proxy_scene_.get(), g.get());
+    }
+    if (only) bounce_scene_.reset(rtcNewScene(device_.get()));
     for (std::size_t oi = 0; oi < posed_.objects.size(); ++oi) {
       const int node = posed_.objects[oi].node;
-      if (node >= 0 && node < static_cast<int>(proxied.size()) && proxied[node]) continue;
+      const bool has_proxies = node >= 0 && node < static_cast<int>(proxied.size()) && proxied[node];
+      if (has_proxies != only) continue;
       embree::GeometryHandle t = triangle_geometry(oi);
       if (!t) continue;
-      rtcAttachGeometry(proxy_scene_.get(), t.get());
+      if (!only) {
+        rtcAttachGeometry(proxy_scene_.get(), t.get());
+        continue;
+      }
+      const unsigned id = rtcAttachGeometry(bounce_scene_.get(), t.get());
+      if (bounce_object_.size() <= id) bounce_object_.resize(id + 1, -1);
+      bounce_object_[id] = static_cast<int>(oi);
     }
     rtcCommitScene(proxy_scene_.get());
+    if (only) rtcCommitScene(bounce_scene_.get());
   }
 
   // The one camera model (render/camera.hpp), so that with jitter off pixel (x, y) sees what the
@@ -486,13 +505,14 @@ class Renderer {
   }
 
   // --- tracing -------------------------------------------------------------------------------
-  bool intersect(const vec3& o, const vec3& d, Hit& h) const {
+  // First hit in `scene`, whose geometry ids name posed objects through `object_of`.
+  bool intersect(const vec3& o, const vec3& d, Hit& h, RTCScene scene, const std::vector<int>& object_of) const {
     RTCIntersectContext ctx;
     embree::init_context(ctx);
     RTCRayHit rh = embree::make_ray_hit(o, d);
-    rtcIntersect1(geom_scene_.get(), &ctx, &rh);
+    rtcIntersect1(scene, &ctx, &rh);
     if (!embree::is_hit(rh)) return false;
-    const scene::PosedObject& obj = posed_.objects[geom_object_[rh.hit.geomID]];
+    const scene::PosedObject& obj = posed_.objects[object_of[rh.hit.geomID]];
     const float u = rh.hit.u, v = rh.hit.v;
     const embree::Surface sf = embree::surface_at(obj, rh.hit.primID, u, v, d);  // the G-buffer's surface rules
     h.p = sf.p;
@@ -609,8 +629,10 @@ class Renderer {
   embree::DeviceState state_;     // outlives the device that reports to it
   ProxyGeometry proxies_;         // user data of the proxy geometry: outlives the scenes
   embree::DeviceHandle device_;   // declared before the scenes: released after them
-  embree::SceneHandle geom_scene_, proxy_scene_;
-  std::vector<int> geom_object_;
+  // Primary and bounce rays; shadow rays of the proxy modes; ProxiesOnly's bounce rays (the
+  // proxied objects alone). The vectors map a scene's geometry id to its posed object.
+  embree::SceneHandle geom_scene_, proxy_scene_, bounce_scene_;
+  std::vector<int> geom_object_, bounce_object_;
   render::PinholeCamera camera_;
 };
 

@@ -13,7 +13,13 @@ namespace softgi::reference {
 
 struct ReferenceOptions {
   int spp = 64;                 // samples per pixel
-  enum class Blockers { Geometry, Proxies } blockers = Blockers::Geometry;  // what casts shadows
+  // What casts shadows. Geometry: the scene's triangles. Proxies: every proxy sphere, plus the
+  // triangles of the objects no proxy set stands for (paper 004 Figure 7(b): only the blockers that
+  // have sphere sets are replaced). ProxiesOnly: the problem a sphere-proxy technique solves: the
+  // proxy spheres alone cast shadows, and an object without proxies (a wall, the ground) is a
+  // receiver only: it shadows nothing and reflects no light onto other surfaces. Bounce points are
+  // on the real triangles, of the proxied objects alone in ProxiesOnly mode.
+  enum class Blockers { Geometry, Proxies, ProxiesOnly } blockers = Blockers::Geometry;
   // Proxies mode: what a sphere becomes for a receiver near it (paper 004 section 6.2), the rules
   // the accumulation techniques apply (softgi/proxies/self_shadow.hpp); printed is rejected.
   proxies::ReplacementRule replacement_rule = proxies::kDefaultReplacementRule;

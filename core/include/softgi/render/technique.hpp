@@ -75,12 +75,20 @@ struct OverlayGeometry {
   bool scene_spheres = true;
 };
 
+// What casts a technique's shadows: what "the same problem, solved exactly" means when its error is
+// split by source (softgi report's error budget, docs/reports.md).
+enum class ShadowBlockers {
+  SceneGeometry,  // the scene's triangles, or proxies of its own sampled from all of them
+  SphereProxies,  // the scene's proxy sphere sets alone: an object without them shadows nothing
+};
+
 class Technique {
  public:
   virtual ~Technique() = default;
   virtual std::string name() const = 0;
   virtual std::string description() const = 0;
   virtual std::vector<ParamDesc> params() const = 0;
+  virtual ShadowBlockers shadow_blockers() const { return ShadowBlockers::SceneGeometry; }
   // The pass graph for this scene and settings. `empty` receives the resources that are empty for
   // this scene (no moving object, no re-radiating proxy, ...), so compile() leaves out their passes.
   virtual PassGraph plan(const scene::Scene& scene, const ParamSet& params, std::set<std::string>& empty) = 0;
