@@ -644,6 +644,49 @@ double curve_at(const Json& curve, double x, const char* xs, const char* ys) {
   return std::nan("");
 }
 
+// The equal-time comparison of a point (seconds, relMSE e) with the path tracer's curve. Inside the
+// curve: log-log interpolation. Beyond its end: the path tracer is the reference's own unbiased
+// estimator, so its expected noise-corrected relMSE is c / N at N samples per pixel (the variance
+// over the samples), c = N e at the curve's last point; and N samples take the last point's time
+// plus the marginal time per sample of its last step (a fixed cost per pass makes time not quite
+// proportional to N at a few samples). Such values are flagged as extrapolated. Faster than the
+// first point (one sample per pixel) there is no path-tracer image.
+Json equal_time(const Json& curve, double s, double e) {
+  double at_time = curve_at(curve, s, "seconds", "relmse");
+  double to_match = std::nan("");
+  for (std::size_t i = 1; i < curve.size() && !std::isfinite(to_match); ++i) {
+    const double y0 = curve[i - 1]["relmse"], y1 = curve[i]["relmse"];
+    if ((y0 >= e && e >= y1)) {
+      Json seg = Json::array({curve[i - 1], curve[i]});
+      to_match = curve_at(seg, e, "relmse", "seconds");
+    }
+  }
+  if (!std::isfinite(to_match) && curve.front()["relmse"].get<double>() <= e) to_match = curve.front()["seconds"];
+  const Json& last = curve.back();
+  const double t_last = last["seconds"], e_last = last["relmse"], n_last = last["spp"];
+  bool at_time_extrapolated = false, to_match_extrapolated = false;
+  if (curve.size() >= 2 && e_last > 0.0) {
+    const Json& prev = curve[curve.size() - 2];
+    const double dn = n_last - prev["spp"].get<double>(), dt = t_last - prev["seconds"].get<double>();
+    const double per_sample = dn > 0.0 && dt > 0.0 ? dt / dn : std::nan("");
+    const double c = n_last * e_last;
+    if (std::isfinite(per_sample)) {
+      if (!std::isfinite(at_time) && s > t_last) {
+        at_time = c / (n_last + (s - t_last) / per_sample);
+        at_time_extrapolated = true;
+      }
+      if (!std::isfinite(to_match) && e < e_last && e > 0.0) {
+        to_match = t_last + (c / e - n_last) * per_sample;
+        to_match_extrapolated = true;
+      }
+    }
+  }
+  return {{"pt_relmse_at_same_time", number_or_null(at_time)},
+          {"pt_seconds_to_match", number_or_null(to_match)},
+          {"pt_max_seconds", t_last},
+          {"extrapolated", {{"pt_relmse_at_same_time", at_time_extrapolated}, {"pt_seconds_to_match", to_match_extrapolated}}}};
+}
+
 }  // namespace
 
 Json assemble_results(const std::string& dir_text, const Settings& settings, const std::vector<Job>& plan,
@@ -709,21 +752,7 @@ Json assemble_results(const std::string& dir_text, const Settings& settings, con
         if (pt["frame_time"] != p["frame_time"]) continue;
         const Json& curve = pt["curve"];
         if (curve.empty()) continue;
-        // The curve is relMSE falling with seconds; where the technique's error is below the
-        // curve's last point, the path tracer does not reach it within the curve.
-        const double at_time = curve_at(curve, s, "seconds", "relmse");
-        double to_match = std::nan("");
-        for (std::size_t i = 1; i < curve.size() && !std::isfinite(to_match); ++i) {
-          const double y0 = curve[i - 1]["relmse"], y1 = curve[i]["relmse"];
-          if ((y0 >= e && e >= y1)) {
-            Json seg = Json::array({curve[i - 1], curve[i]});
-            to_match = curve_at(seg, e, "relmse", "seconds");
-          }
-        }
-        if (!std::isfinite(to_match) && curve.front()["relmse"].get<double>() <= e) to_match = curve.front()["seconds"];
-        p["equal_time"] = {{"pt_relmse_at_same_time", number_or_null(at_time)},
-                           {"pt_seconds_to_match", number_or_null(to_match)},
-                           {"pt_max_seconds", curve.back()["seconds"]}};
+        p["equal_time"] = equal_time(curve, s, e);
       }
     }
   }

@@ -230,14 +230,19 @@ const char* const kScript = R"HTML(</script>
 
     // (c) Equal time.
     sec.appendChild(el('h3', {text: 'Against the path tracer at equal time'}));
+    sec.appendChild(el('p', {class: 'muted', text: 'Values marked \u2248 lie beyond the end of the path tracer\'s measured curve: ' +
+      'extrapolated with its expected relMSE c / t (an unbiased estimator; c from the curve\'s last point).'}));
     sec.appendChild(table(['point', 'time (ms)', 'relMSE', 'path tracer relMSE at that time', 'path tracer time to match (ms)', 'speed-up'],
       good.map(function (p) {
         const q = p.equal_time || {};
-        const match = isNum(q.pt_seconds_to_match) ? ms(q.pt_seconds_to_match)
+        const x = q.extrapolated || {};
+        const approx = function (flag, text) { return flag ? '\u2248 ' + text : text; };
+        const match = isNum(q.pt_seconds_to_match) ? approx(x.pt_seconds_to_match, ms(q.pt_seconds_to_match))
                       : (isNum(q.pt_max_seconds) ? '> ' + ms(q.pt_max_seconds) : 'n/a');
-        const speed = isNum(q.pt_seconds_to_match) && p.seconds > 0 ? num(q.pt_seconds_to_match / p.seconds) + 'x' : 'n/a';
+        const speed = isNum(q.pt_seconds_to_match) && p.seconds > 0 ? approx(x.pt_seconds_to_match, num(q.pt_seconds_to_match / p.seconds) + 'x') : 'n/a';
         return el('tr', {}, [cell(p.id), cell(ms(p.seconds), 'num'), cell(num(p.errors.final.relmse), 'num'),
-                             cell(num(q.pt_relmse_at_same_time), 'num'), cell(match, 'num'), cell(speed, 'num')]);
+                             cell(isNum(q.pt_relmse_at_same_time) ? approx(x.pt_relmse_at_same_time, num(q.pt_relmse_at_same_time)) : 'n/a', 'num'),
+                             cell(match, 'num'), cell(speed, 'num')]);
       })));
 
     // (d) Error budget.
@@ -394,7 +399,8 @@ std::string csv_table(const Json& results) {
   for (const char* c : components)
     for (const char* f : fields) out << "," << c << "_" << f;
   out << ",budget_proxy_geometry,budget_sh_truncation,budget_approximation,budget_resolution,pt_relmse_at_same_time,"
-         "pt_seconds_to_match,pareto,non_default,command,error\r\n";
+         "pt_seconds_to_match,pt_relmse_at_same_time_extrapolated,pt_seconds_to_match_extrapolated,pareto,non_default,command,"
+         "error\r\n";
   for (const Json& p : at_path(results, {"points"})) {
     for (const char* k : {"id", "scene", "technique", "backend", "rung", "rungs", "frame_time", "seconds", "seconds_min", "seconds_max"})
       out << (std::string(k) == "id" ? "" : ",") << csv_value(at_path(p, {k}));
@@ -402,7 +408,9 @@ std::string csv_table(const Json& results) {
       for (const char* f : fields) out << "," << csv_value(at_path(p, {"errors", c, f}));
     for (const char* b : {"proxy_geometry", "sh_truncation", "approximation", "resolution"}) out << "," << csv_value(at_path(p, {"budget", b}));
     out << "," << csv_value(at_path(p, {"equal_time", "pt_relmse_at_same_time"})) << ","
-        << csv_value(at_path(p, {"equal_time", "pt_seconds_to_match"})) << "," << csv_value(at_path(p, {"pareto"}));
+        << csv_value(at_path(p, {"equal_time", "pt_seconds_to_match"})) << ","
+        << csv_value(at_path(p, {"equal_time", "extrapolated", "pt_relmse_at_same_time"})) << ","
+        << csv_value(at_path(p, {"equal_time", "extrapolated", "pt_seconds_to_match"})) << "," << csv_value(at_path(p, {"pareto"}));
     std::string nd;
     const Json& non_default = at_path(p, {"non_default"});
     if (non_default.is_object())
