@@ -65,13 +65,17 @@ reference::ReferenceResult cached_reference(const scene::Scene& scene, const ref
 reference::ConvergedReference cached_converged_reference(
     const scene::Scene& scene, const reference::ReferenceOptions& opt, const reference::ConvergeOptions& converge,
     const std::function<void(int round, int spp, double fraction)>& progress, bool& cached) {
-  if (!converge.mask.on.empty()) throw std::logic_error("cached_converged_reference: a masked convergence is not cached");
   reference::ReferenceOptions base = opt;
   base.spp = 0;  // the rounds choose it
   std::ostringstream conv;
   conv.precision(17);
   conv << " converged target " << converge.target_noise << " first " << converge.min_spp << " cap " << converge.max_spp
        << " epsilon " << converge.relmse_epsilon;
+  // The pixels the noise is measured over decide when the rounds stop: a masked convergence is keyed
+  // by the mask's content.
+  if (!converge.mask.on.empty())
+    conv << " mask " << converge.mask.width << "x" << converge.mask.height << " "
+         << io::reference_cache_key(0, std::string(converge.mask.on.begin(), converge.mask.on.end()));
   const std::string settings = settings_text(base) + conv.str();
   const std::uint64_t hash = io::scene_content_hash(scene);
   const std::string key_a = io::reference_cache_key(hash, settings + " half a");
@@ -90,8 +94,8 @@ reference::ConvergedReference cached_converged_reference(
     c.result.spp = c.half_a.spp + c.half_b.spp;
     c.result.seconds = c.half_a.seconds;  // written as the whole render's time (below)
     c.result.rays = c.half_a.rays + c.half_b.rays;
-    // The noise over the pixels the convergence measured it on: those lit in either half.
-    const Mask lit = reference::lit_pixels(c.half_a.final_image, c.half_b.final_image);
+    // The noise over the pixels the convergence measured it on: the mask, or those lit in either half.
+    const Mask lit = converge.mask.on.empty() ? reference::lit_pixels(c.half_a.final_image, c.half_b.final_image) : converge.mask;
     if (std::any_of(lit.on.begin(), lit.on.end(), [](std::uint8_t v) { return v != 0; })) {
       const metrics::NoiseCorrectedError e = metrics::noise_corrected_relmse(
           c.result.final_image, c.half_a.final_image, c.half_b.final_image, lit, converge.relmse_epsilon);

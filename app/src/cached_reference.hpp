@@ -21,9 +21,9 @@ reference::ReferenceResult cached_reference(const scene::Scene& scene, const ref
                                             const std::function<void(double)>& progress, bool& cached);
 
 // render_converged_reference through the same cache: its two halves are entries of their own, keyed by
-// the options and the convergence settings (target, first round, cap, epsilon; not the mask, which
-// must be empty). A hit returns the halves, their mean and the noise recomputed from them (rounds
-// empty; result.seconds is the original render's, all rounds).
+// the options and the convergence settings (target, first round, cap, epsilon, and the mask's size and
+// content when there is one). A hit returns the halves, their mean and the noise recomputed from them
+// over the same pixels (rounds empty; result.seconds is the original render's, all rounds).
 reference::ConvergedReference cached_converged_reference(
     const scene::Scene& scene, const reference::ReferenceOptions& opt, const reference::ConvergeOptions& converge,
     const std::function<void(int round, int spp, double fraction)>& progress, bool& cached);

@@ -1,12 +1,14 @@
 // `softgi compare`: every registered technique (default parameters) and the ray-traced ground truth
-// on one scene; error (relMSE, SSIM) against the reference lit by the full environment and by its
-// order-n SH projection; images, error maps, compare.json and a Markdown summary.
+// on one scene; error (relMSE with the reference's own noise removed, SSIM, FLIP) against the
+// reference lit by the full environment and by its order-n SH projection; images, error maps,
+// compare.json and a Markdown summary.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -17,6 +19,7 @@
 
 #include "cached_reference.hpp"
 #include "commands.hpp"
+#include "error_terms.hpp"
 #include "frame_output.hpp"
 #include "output_dir.hpp"
 #include "softgi/io/scene_file.hpp"
@@ -40,7 +43,9 @@ struct CompareArgs {
   SceneArgs scene;
   std::string out, techniques, backends, device;  // backends: "" = the reference backend
   double frame = 0.0;
-  int spp = 64;
+  int spp = 64;                       // both halves together; with target_noise, the first round's
+  std::optional<double> target_noise;  // render the references until their noise is at most this
+  int max_spp = 4096;                 // with target_noise: the cap
   int width = 0, height = 0;
   unsigned seed = 1;
 };
@@ -60,15 +65,6 @@ std::string ms(double seconds) {
 Json metrics_json(const metrics::Metrics& m) {
   return {{"relmse", m.relmse}, {"ssim", m.ssim}, {"rmse", m.rmse}, {"psnr", std::isfinite(m.psnr) ? Json(m.psnr) : Json("inf")},
           {"max_abs", m.max_abs}, {"pixels", m.pixels}};
-}
-
-// HDR-FLIP (docs/metrics.md#flip) with the papers' default observer and tone mapper, averaged over the
-// surface pixels. Renders against an empty background are mostly black, so the stop exposure may come
-// from the median of the lit pixels.
-double hdr_flip(const Image& test, const Image& reference, const Mask& surface) {
-  metrics::FlipOptions opt;
-  opt.positive_median_fallback = true;
-  return metrics::flip_mean(metrics::flip_hdr(test, reference, opt), surface);
 }
 
 // Progress of a long reference render on stderr, every 10 %.
@@ -94,7 +90,8 @@ struct Reference {
   std::string key, label;  // "full" / "sh4"
   int order = 0;
   bool cached = false;  // served by the reference cache
-  reference::ReferenceResult result;
+  reference::ConvergedReference conv;  // two independent halves; conv.result is their mean
+  const reference::ReferenceResult& result() const { return conv.result; }
 };
 
 struct TechniqueRun {
@@ -105,8 +102,7 @@ struct TechniqueRun {
   render::FrameResult frame;
   double first_frame_seconds = 0.0;
   int order = kDefaultShOrder;
-  std::map<std::string, metrics::Metrics> vs_final, vs_direct;  // keyed by reference key
-  std::map<std::string, double> flip_final;                     // HDR-FLIP mean over the surface pixels
+  std::map<std::string, Json> vs_final, vs_direct;  // noise_corrected_errors, keyed by reference key
   double vs_cpu = -1.0;  // relMSE of the final image against the CPU backend's (other backends, when both ran)
 };
 
@@ -134,6 +130,14 @@ CompareSetup read_arguments(const CompareArgs& args) {
   CompareSetup cs;
   register_builtin();
   if (!std::isfinite(args.frame)) throw std::invalid_argument("--frame: time must be finite");
+  if (args.spp % 2 != 0)
+    throw std::invalid_argument("--spp must be even, got " + std::to_string(args.spp) +
+                                ": the reference is two independent halves of spp / 2 samples, so that its noise can be removed");
+  if (args.target_noise && !(*args.target_noise > 0.0 && std::isfinite(*args.target_noise)))
+    throw std::invalid_argument("--target-noise must be a finite relMSE > 0");
+  if (args.target_noise && (args.max_spp % 2 != 0 || args.max_spp < args.spp))
+    throw std::invalid_argument("--max-spp must be even and at least --spp (" + std::to_string(args.spp) + "), got " +
+                                std::to_string(args.max_spp));
   std::vector<std::string> names = args.techniques.empty() ? render::technique_names() : split_list(args.techniques);
   if (names.empty()) throw std::invalid_argument("compare: no technique to compare (--techniques is empty or none is registered)");
   for (const auto& n : names) cs.techs.push_back(render::create_technique(n));  // unknown names fail here
@@ -248,7 +252,7 @@ std::vector<TechniqueRun> render_variants(const CompareSetup& cs, const CompareA
 
 // Step 4, the ground truth.
 std::vector<Reference> render_references(const CompareSetup& cs, const CompareArgs& args, const std::set<int>& orders,
-                                         OutputDir& out) {
+                                         const Surface& surf, OutputDir& out) {
   const int w = cs.w, h = cs.h;
   const scene::Scene& sc = cs.sc;
   // Ground truth: real geometry as blockers, un-jittered (each pixel sampled at its centre, as the
@@ -256,9 +260,17 @@ std::vector<Reference> render_references(const CompareSetup& cs, const CompareAr
   std::vector<Reference> refs;
   refs.push_back({"full", "full environment", 0, {}});
   for (int n : orders) refs.push_back({"sh" + std::to_string(n), "order-" + std::to_string(n) + " SH lighting", n, {}});
+  // Two independent halves, so that the reference's own noise can be taken out of every error
+  // (docs/metrics.md, "Reference noise"): one round of --spp samples, or rounds until the noise is at
+  // most --target-noise over the surface pixels, the pixels the errors are measured over.
+  reference::ConvergeOptions co;
+  co.mask = surf.mask;
+  co.target_noise = args.target_noise.value_or(std::numeric_limits<double>::max());
+  co.min_spp = args.spp;
+  co.max_spp = args.target_noise ? args.max_spp : args.spp;
+  co.relmse_epsilon = metrics::MetricOptions{}.relmse_epsilon;
   for (auto& ref : refs) {
     reference::ReferenceOptions opt;
-    opt.spp = args.spp;
     opt.blockers = reference::ReferenceOptions::Blockers::Geometry;
     opt.light_sh_order = ref.order;
     opt.indirect = true;
@@ -267,11 +279,14 @@ std::vector<Reference> render_references(const CompareSetup& cs, const CompareAr
     opt.width = w;
     opt.height = h;
     opt.jitter = false;
-    ref.result = cached_reference(sc, opt, progress_printer("reference, " + ref.label), ref.cached);
-    out.write_image_pair("reference_" + ref.key, ref.result.final_image);
-    std::cerr << "compare: reference, " << ref.label << ": " << fmt(ref.result.seconds, 3) << " s"
-              << (ref.cached ? " (cached: the time of the render that made it)" : "") << ", " << ref.result.rays
-              << " rays\n";
+    auto progress = progress_printer("reference, " + ref.label);
+    ref.conv = cached_converged_reference(
+        sc, opt, co, [&](int round, int, double f) { progress(args.target_noise ? std::min(1.0, 0.5 * (round + f)) : f); }, ref.cached);
+    out.write_image_pair("reference_" + ref.key, ref.result().final_image);
+    std::cerr << "compare: reference, " << ref.label << ": " << ref.result().spp << " spp, noise " << fmt(ref.conv.noise, 3)
+              << (args.target_noise && !ref.conv.converged ? " (above --target-noise: --max-spp came first)" : "") << ", "
+              << fmt(ref.result().seconds, 3) << " s" << (ref.cached ? " (cached: the time of the render that made it)" : "")
+              << "\n";
   }
   return refs;
 }
@@ -313,18 +328,20 @@ Json measure_runs(std::vector<TechniqueRun>& runs, const std::vector<Reference>&
     try {
       for (const Reference* ref : {static_cast<const Reference*>(&refs.front()), &ref_for_order(run.order)}) {
         if (run.vs_final.count(ref->key)) continue;
-        run.vs_final[ref->key] = metrics::compare(run.frame.final_image, ref->result.final_image, surface);
-        errors[ref->key] = metrics_json(run.vs_final[ref->key]);
-        run.flip_final[ref->key] = hdr_flip(run.frame.final_image, ref->result.final_image, surface);
-        errors[ref->key]["flip"] = run.flip_final[ref->key];
+        const reference::ConvergedReference& c = ref->conv;
+        Json e = noise_corrected_errors(run.frame.final_image, c.half_a.final_image, c.half_b.final_image, surface);
+        const metrics::Metrics m = metrics::compare(run.frame.final_image, ref->result().final_image, surface);
+        // rmse, psnr, max_abs and pixels too, against the mean of the halves.
+        const Json plain = metrics_json(m);
+        for (const char* k : {"rmse", "psnr", "max_abs", "pixels"}) e[k] = plain[k];
+        run.vs_final[ref->key] = errors[ref->key] = e;
         const std::string map = run.label + "/error_" + ref->key + ".png";
         if (out.write_png_display(map, metrics::error_map(on_surface(run.frame.final_image, surface),
-                                                          on_surface(ref->result.final_image, surface))))
+                                                          on_surface(ref->result().final_image, surface))))
           images["error_" + ref->key] = map;
-        if (!run.frame.direct.empty()) {
-          run.vs_direct[ref->key] = metrics::compare(run.frame.direct, ref->result.direct, surface);
-          direct_errors[ref->key] = metrics_json(run.vs_direct[ref->key]);
-        }
+        if (!run.frame.direct.empty())
+          run.vs_direct[ref->key] = direct_errors[ref->key] =
+              noise_corrected_errors(run.frame.direct, c.half_a.direct, c.half_b.direct, surface);
       }
     } catch (const std::exception& e) {
       run.error = std::string("metrics: ") + e.what();
@@ -372,9 +389,12 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
   for (const auto& r : refs)
     jrefs.push_back({{"key", r.key},
                      {"light_sh_order", r.order},
-                     {"spp", r.result.spp},
-                     {"seconds", r.result.seconds},
-                     {"rays", r.result.rays},
+                     {"spp", r.result().spp},
+                     {"noise", r.conv.noise},
+                     {"target_noise", args.target_noise ? Json(*args.target_noise) : Json(nullptr)},
+                     {"converged", r.conv.converged},
+                     {"seconds", r.result().seconds},
+                     {"rays", r.result().rays},
                      {"cached", r.cached},
                      {"blockers", "geometry"},
                      {"indirect", true},
@@ -397,38 +417,51 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
      << "Scene `" << args.scene.spec << "` (" << sc.source << "), " << w << "x" << h << ", frame t = " << args.frame
      << " s; softgi " << softgi_version() << ", " << utc_now() << ", backend(s): " << (args.backends.empty() ? reference_backend : args.backends) << ".\n\n"
      << "Ground truth: the Embree path tracer with the real geometry as blockers and one-bounce diffuse indirect, "
-     << args.spp << " spp through each pixel centre (the visibility of the techniques' one-sample G-buffer); "
+     << "through each pixel centre (the visibility of the techniques' one-sample G-buffer), as two independent halves; "
      << "lit by the full environment";
   for (std::size_t i = 1; i < refs.size(); ++i) md << " and by its order-" << refs[i].order << " SH projection";
-  md << ". Errors are over the " << surface_pixels << " surface pixels (background excluded); relMSE = mean of "
-     << "(a - b)^2 / (b^2 + " << metrics::MetricOptions{}.relmse_epsilon << "), SSIM on luminance x / (1 + x), "
+  md << " (";
+  for (std::size_t i = 0; i < refs.size(); ++i)
+    md << (i ? "; " : "") << refs[i].key << ": " << refs[i].result().spp << " spp, noise " << fmt(refs[i].conv.noise, 3)
+       << (args.target_noise && !refs[i].conv.converged ? ", above the target" : "");
+  md << "). Every technique runs at its default parameters (all of them in compare.json and its record.json). "
+     << "Errors are over the " << surface_pixels << " surface pixels (background excluded); relMSE = mean of "
+     << "(a - b)^2 / (b^2 + " << metrics::MetricOptions{}.relmse_epsilon << ") with the reference's own noise removed "
+     << "(its 95 % interval in brackets; * where the reference's noise is over 10 % of the error, or the interval "
+     << "reaches 0: the reference cannot resolve it, render it with --target-noise), SSIM on luminance x / (1 + x), "
      << "FLIP = HDR-FLIP (Andersson et al. 2021; ACES, 67 pixels per degree), mean over the surface pixels. "
      << "Times are of a second frame, 1/30 s after an untimed first one (which also pays one-time setup; "
      << "its time is in compare.json).\n\n"
      << "Shared G-buffer on its own, BVH built from scratch: " << ms(gbr.wall_seconds) << " ms (" << gbr.bytes / 1024
      << " KiB); in the timed frames it refits or reuses the BVH.\n\n";
-  md << "| technique | settings | total (ms) | time per pass (ms) | relMSE vs full | SSIM vs full | FLIP vs full | relMSE vs SH | SSIM vs SH | images |\n"
-     << "|---|---|---|---|---|---|---|---|---|---|\n";
+  // The noise-corrected relMSE with its interval, or SSIM / FLIP, of one entry of vs_final/vs_direct.
+  auto err_cell = [](const std::map<std::string, Json>& vs, const std::string& key, const char* field) {
+    auto it = vs.find(key);
+    if (it == vs.end() || !it->second.is_object() || !it->second.contains(field) || !it->second[field].is_number()) return std::string("-");
+    const Json& e = it->second;
+    std::string text = fmt(e[field].get<double>());
+    if (std::string(field) == "relmse")
+      text += " [" + fmt(e["ci_low"].get<double>(), 3) + ", " + fmt(e["ci_high"].get<double>(), 3) + "]" +
+             (e["below_noise_floor"].get<bool>() ? "*" : "");
+    return text;
+  };
+  md << "| technique | total (ms) | time per pass (ms) | relMSE vs full | SSIM vs full | FLIP vs full | relMSE vs SH | SSIM vs SH | images |\n"
+     << "|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& run : runs) {
     if (!run.error.empty()) {
       std::string why = run.error;  // a '|' would end the table cell
       for (std::size_t p = why.find('|'); p != std::string::npos; p = why.find('|', p + 2)) why.replace(p, 1, "\\|");
-      md << "| " << run.label << " | " << run.settings << " | failed: " << why << " | | | | | | | |\n";
+      md << "| " << run.label << " | failed: " << why << " | | | | | | | |\n";
       continue;
     }
     std::string passes;
     for (const auto& p : run.frame.passes)
       passes += (passes.empty() ? "" : ", ") + p.name + " " + ms(p.wall_seconds) + (p.gpu_seconds >= 0.0 ? " (GPU " + ms(p.gpu_seconds) + ")" : "");
     const std::string shk = "sh" + std::to_string(run.order);
-    auto get = [&](const std::string& key, bool ssim) {
-      auto it = run.vs_final.find(key);
-      return it == run.vs_final.end() ? std::string("-") : fmt(ssim ? it->second.ssim : it->second.relmse);
-    };
-    md << "| " << run.label << " | " << run.settings << " | " << ms(run.frame.total_seconds) << " | " << passes << " | "
-       << get("full", false) << " | " << get("full", true) << " | "
-       << (run.flip_final.count("full") ? fmt(run.flip_final.at("full")) : std::string("-")) << " | " << get(shk, false)
-       << " (n=" << run.order << ") | "
-       << get(shk, true) << " | [final](" << run.label << "/final.png) · [error vs full](" << run.label
+    md << "| " << run.label << " | " << ms(run.frame.total_seconds) << " | " << passes << " | " << err_cell(run.vs_final, "full", "relmse")
+       << " | " << err_cell(run.vs_final, "full", "ssim") << " | " << err_cell(run.vs_final, "full", "flip") << " | "
+       << err_cell(run.vs_final, shk, "relmse") << " (n=" << run.order << ") | " << err_cell(run.vs_final, shk, "ssim")
+       << " | [final](" << run.label << "/final.png) · [error vs full](" << run.label
        << "/error_full.png) · [error vs SH](" << run.label << "/error_" << shk << ".png) |\n";
   }
   std::string cross;
@@ -474,17 +507,13 @@ void write_results(const std::vector<TechniqueRun>& runs, const std::vector<Refe
     for (const auto& run : runs) {
       if (run.vs_direct.empty()) continue;
       const std::string shk = "sh" + std::to_string(run.order);
-      auto get = [&](const std::string& key, bool ssim) {
-        auto it = run.vs_direct.find(key);
-        return it == run.vs_direct.end() ? std::string("-") : fmt(ssim ? it->second.ssim : it->second.relmse);
-      };
-      md << "| " << run.label << " | " << get("full", false) << " | " << get("full", true) << " | " << get(shk, false)
-         << " | " << get(shk, true) << " |\n";
+      md << "| " << run.label << " | " << err_cell(run.vs_direct, "full", "relmse") << " | " << err_cell(run.vs_direct, "full", "ssim")
+         << " | " << err_cell(run.vs_direct, shk, "relmse") << " | " << err_cell(run.vs_direct, shk, "ssim") << " |\n";
     }
   }
   md << "\nReferences: ";
   for (std::size_t i = 0; i < refs.size(); ++i)
-    md << (i ? " · " : "") << "[" << refs[i].label << "](reference_" << refs[i].key << ".png) (" << fmt(refs[i].result.seconds, 3)
+    md << (i ? " · " : "") << "[" << refs[i].label << "](reference_" << refs[i].key << ".png) (" << fmt(refs[i].result().seconds, 3)
        << " s)";
   md << "\n";
   std::string pruned;
@@ -502,7 +531,7 @@ void run_compare(const CompareArgs& args) {
   const Surface surf = measure_surface(cs, args);
   std::set<int> orders;
   std::vector<TechniqueRun> runs = render_variants(cs, args, orders);
-  const std::vector<Reference> refs = render_references(cs, args, orders, *cs.out);
+  const std::vector<Reference> refs = render_references(cs, args, orders, surf, *cs.out);
   std::vector<std::string> failures;
   const Json jtechs = measure_runs(runs, refs, surf, cs, args, *cs.out, failures);
   write_results(runs, refs, surf, cs, args, jtechs, *cs.out);
@@ -521,7 +550,15 @@ void register_compare(CLI::App& app) {
   add_scene_options(*sub, args->scene);
   sub->add_option("--out", args->out, "output directory")->required();
   sub->add_option("--frame", args->frame, "animation time in seconds (default 0)");
-  sub->add_option("--spp", args->spp, "reference samples per pixel (default 64)")->check(CLI::Range(1, 1 << 20));
+  sub->add_option("--spp", args->spp,
+                  "reference samples per pixel, two independent halves together, so even (default 64); with --target-noise, "
+                  "the first round's")
+      ->check(CLI::Range(2, 1 << 20));
+  sub->add_option("--target-noise", args->target_noise,
+                  "render each reference in rounds until its own noise adds at most this relMSE (docs/reference.md); "
+                  "default: one round of --spp");
+  sub->add_option("--max-spp", args->max_spp, "with --target-noise: the most samples per pixel of a round (default 4096)")
+      ->check(CLI::Range(2, 1 << 20));
   sub->add_option("--width", args->width, "image width (default: the scene camera's)")->check(CLI::Range(1, 16384));
   sub->add_option("--height", args->height, "image height (default: the scene camera's)")->check(CLI::Range(1, 16384));
   sub->add_option("--techniques", args->techniques, "comma-separated subset of the registered techniques (default: all)");

@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "cached_reference.hpp"
+#include "error_terms.hpp"
 #include "softgi/io/image_io.hpp"
 #include "softgi/io/reference_cache.hpp"
 #include "softgi/metrics/flip.hpp"
@@ -129,28 +130,6 @@ std::optional<Json> read_json_if_complete(const fs::path& p) {
   } catch (const std::exception&) {
     return std::nullopt;  // an unreadable result is measured again
   }
-}
-
-// The errors of one component: relMSE with the reference's noise removed (and its interval),
-// SSIM and HDR-FLIP against the mean of the halves, over the surface pixels.
-Json component_errors(const Image& test, const Image& half_a, const Image& half_b, const Mask& surface, metrics::FlipResult* flip_out) {
-  if (test.empty()) return nullptr;
-  const metrics::NoiseCorrectedError e = metrics::noise_corrected_relmse(test, half_a, half_b, surface, kEpsilon);
-  const Image mean = metrics::mean_of_halves(half_a, half_b);
-  const metrics::Metrics m = metrics::compare(test, mean, surface);
-  metrics::FlipOptions fo;
-  fo.positive_median_fallback = true;  // mostly black components (indirect) have a zero median
-  double flip = std::nan("");
-  try {
-    metrics::FlipResult fr = metrics::flip_hdr(test, mean, fo);
-    flip = metrics::flip_mean(fr, surface);
-    if (flip_out) *flip_out = std::move(fr);
-  } catch (const std::invalid_argument&) {
-    // An all-black reference component has no exposure range: FLIP is undefined there.
-  }
-  return Json{{"relmse", e.corrected},     {"relmse_raw", e.raw},    {"noise", e.noise},
-              {"ci_low", e.ci_low},        {"ci_high", e.ci_high},   {"below_noise_floor", e.below_noise_floor()},
-              {"ssim", number_or_null(m.ssim)}, {"flip", number_or_null(flip)}};
 }
 
 // The three components of a reference as stored in the report: each half and their mean.
@@ -361,6 +340,7 @@ struct Runner::Impl {
     co.min_spp = settings.budget.min_spp;
     co.max_spp = settings.budget.max_spp;
     co.relmse_epsilon = kEpsilon;
+    co.mask = surface(spec, t);  // the noise where the errors are measured
     bool cached = false;
     const reference::ConvergedReference c = cached_converged_reference(sc, opt, co, {}, cached);
     const Image* ha[3] = {&c.half_a.final_image, &c.half_a.direct, &c.half_a.indirect};
@@ -558,7 +538,7 @@ Json Runner::Impl::run(const Job& job) {
     metrics::FlipResult flip_final;
     Json errors = Json::object();
     for (int c = 0; c < 3; ++c)
-      errors[kComponents[c]] = component_errors(*test[c], full.a[c], full.b[c], surf, c == 0 ? &flip_final : nullptr);
+      errors[kComponents[c]] = noise_corrected_errors(*test[c], full.a[c], full.b[c], surf, c == 0 ? &flip_final : nullptr);
     p["errors"] = errors;
 
     // The error budget: each source on its own (docs/reports.md, "Error budget"), with the 95 %

@@ -195,7 +195,7 @@ check_record(${F} reference.json convergence.json final.exr direct.exr indirect.
 # compare: a technique's folder is a file, so its images, error maps and record cannot be written.
 set(C ${WORK_DIR}/compare_midway)
 file(WRITE ${C}/shexp "x")
-execute_process(COMMAND ${SOFTGI} compare --scene spheres --techniques shexp --spp 1 --width 16 --height 12 --out ${C}
+execute_process(COMMAND ${SOFTGI} compare --scene spheres --techniques shexp --spp 2 --width 16 --height 12 --out ${C}
   OUTPUT_VARIABLE out ERROR_VARIABLE err RESULT_VARIABLE rc)
 if(rc EQUAL 0 OR NOT err MATCHES "shexp/final\\.exr")
   message(FATAL_ERROR "compare with shexp/ in the way: exit ${rc}:\n${out}${err}")
