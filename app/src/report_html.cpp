@@ -231,7 +231,8 @@ const char* const kScript = R"HTML(</script>
     // (c) Equal time.
     sec.appendChild(el('h3', {text: 'Against the path tracer at equal time'}));
     sec.appendChild(el('p', {class: 'muted', text: 'Values marked \u2248 lie beyond the end of the path tracer\'s measured curve: ' +
-      'extrapolated with its expected relMSE c / t (an unbiased estimator; c from the curve\'s last point).'}));
+      'extrapolated with its expected relMSE c / N at N samples per pixel (an unbiased estimator; c and the time per sample ' +
+      'from the curve\'s last step).'}));
     sec.appendChild(table(['point', 'time (ms)', 'relMSE', 'path tracer relMSE at that time', 'path tracer time to match (ms)', 'speed-up'],
       good.map(function (p) {
         const q = p.equal_time || {};
