@@ -765,8 +765,9 @@ TEST(ShexpRender, MatchesTheProxiesOnlyReferenceOnASceneWithoutProxies) {
   ro.blockers = reference::ReferenceOptions::Blockers::Geometry;
   const double real = metrics::compare(r.final_image, reference::render_reference(s, ro).final_image, surface).relmse;
   std::printf("[measured] thin_wall 32x24: relMSE %.4g against its own problem, %.4g against the real geometry\n", own, real);
-  // Measured 0.0016 and 0.58 (quick report at 64 px: approximation 0.0003-0.0021, total 0.59-0.61). 0.01 leaves room for the
-  // 64-spp reference's noise; 0.1 is far below what the walls' missing shadows cost.
+  // Measured 0.0016 and 0.58 (the quick report at 64 px: approximation 0.0003-0.0021, total
+  // 0.59-0.61). 0.01 leaves room for the 64-spp reference's noise; 0.1 is far below what the walls'
+  // missing shadows cost.
   EXPECT_LT(own, 0.01);
   EXPECT_GT(real, 0.1);
 }
