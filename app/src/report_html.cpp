@@ -196,14 +196,14 @@ const char* const kScript = R"HTML(</script>
       const xs = {field: 'ms', type: 'quantitative', scale: {type: 'log'}, title: 'frame time (ms, median)'};
       const ys = {field: 'relmse', type: 'quantitative', scale: {type: 'log'}, title: 'final relMSE (noise removed)'};
       const layers = [];
-      if (curve.length) layers.push({data: {values: curve}, mark: {type: 'line', point: true, color: '#888', strokeDash: [4, 3]},
+      if (curve.length) layers.push({data: {values: curve}, mark: {type: 'line', point: {color: '#888'}, color: '#888', strokeDash: [4, 3]},
         encoding: {x: xs, y: ys, tooltip: [{field: 'series'}, {field: 'spp', title: 'spp'}, {field: 'ms', format: '.3f'}, {field: 'relmse', format: '.3e'}]}});
       if (front.length > 1) layers.push({data: {values: front}, mark: {type: 'line', interpolate: 'step-after', color: '#222', opacity: 0.5},
         encoding: {x: xs, y: ys}});
       layers.push({data: {values: rows}, mark: {type: 'rule'}, encoding: {x: xs, y: {field: 'lo', type: 'quantitative', scale: {type: 'log'}},
-        y2: {field: 'hi'}, color: {field: 'technique', type: 'nominal', legend: null}}});
+        y2: {field: 'hi'}, color: {field: 'technique', type: 'nominal'}}});
       layers.push({data: {values: rows}, mark: {type: 'point', size: 90, strokeWidth: 2},
-        encoding: {x: xs, y: ys, color: {field: 'technique', type: 'nominal'}, shape: {field: 'backend', type: 'nominal'},
+        encoding: {x: xs, y: ys, color: {field: 'technique', type: 'nominal', legend: {title: 'technique'}}, shape: {field: 'backend', type: 'nominal'},
           fill: {condition: {test: 'datum.filled', field: 'technique', type: 'nominal', legend: null}, value: 'white'},
           tooltip: [{field: 'id'}, {field: 'technique'}, {field: 'rung'}, {field: 'ms', title: 'ms', format: '.3f'},
                     {field: 'shown', title: 'relMSE [95% CI]'}, {field: 'floor', title: 'reference'}, {field: 'ssim', title: 'SSIM'},
