@@ -31,7 +31,9 @@ nlohmann::ordered_json noise_corrected_errors(const Image& test, const Image& ha
   }
   return {{"relmse", e.corrected},          {"relmse_raw", e.raw},    {"noise", e.noise},
           {"ci_low", e.ci_low},             {"ci_high", e.ci_high},   {"below_noise_floor", e.below_noise_floor()},
-          {"ssim", number_or_null(m.ssim)}, {"flip", number_or_null(flip)}};
+          {"ssim", number_or_null(m.ssim)}, {"flip", number_or_null(flip)}, {"rmse", m.rmse},
+          {"psnr", std::isfinite(m.psnr) ? nlohmann::ordered_json(m.psnr) : nlohmann::ordered_json("inf")},
+          {"max_abs", m.max_abs},           {"pixels", m.pixels}};
 }
 
 }  // namespace softgi::app

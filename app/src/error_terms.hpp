@@ -10,8 +10,8 @@
 namespace softgi::app {
 
 // relMSE with the reference's noise removed (`relmse`), the uncorrected value (`relmse_raw`), the
-// noise term removed, its 95 % interval (`ci_low`, `ci_high`), `below_noise_floor`, SSIM and
-// HDR-FLIP against the mean of the halves, over the surface pixels. FLIP takes the median of the lit
+// noise term removed, its 95 % interval (`ci_low`, `ci_high`), `below_noise_floor`, SSIM, HDR-FLIP,
+// RMSE, PSNR and the largest difference against the mean of the halves, over the surface pixels. FLIP takes the median of the lit
 // pixels for its stop exposure where at least half the reference is black (mostly dark indirect
 // images), and is null where the reference is all black. An empty test image gives null. The FLIP
 // result itself goes to *flip_out when asked for (for its map).
