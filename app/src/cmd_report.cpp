@@ -46,7 +46,7 @@ struct ReportArgs {
   int emit_slurm = 0;
   double target_noise = 0.0;
   unsigned seed = 1;
-  bool no_page = false;
+  bool no_page = false, references_only = false;
   std::string bench_json;  // bench_techniques' JSON, shown on the page
   // merge
   std::vector<std::string> shard_dirs;
@@ -106,6 +106,9 @@ report::Settings read_settings(const ReportArgs& a) {
   s.seed = a.seed;
   s.fit_proxies = a.fit_proxies;
   s.device = a.device;
+  // Loading each scene here also names a missing or malformed scene before anything renders.
+  for (const auto& spec : s.scenes)
+    if (scene::is_static(load_cli_scene("report", spec, 0))) s.static_scenes.push_back(spec);
   return s;
 }
 
@@ -193,6 +196,7 @@ report::Settings settings_from_plan(const Json& plan) {
   s.seed = j.at("seed");
   s.fit_proxies = j.at("fit_proxies");
   s.device = j.at("device");
+  s.static_scenes = j.value("static_scenes", std::vector<std::string>{});
   return s;
 }
 
@@ -329,20 +333,34 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
   for (std::size_t i = 0; i < plan.size(); ++i)
     if (static_cast<int>(i % shard.second) == shard.first) mine.push_back(plan[i]);
   std::cerr << "report: " << plan.size() << " jobs planned (" << s.scenes.size() << " scene(s), " << s.techniques.size()
-            << " technique(s), " << s.backends.size() << " backend(s), " << s.budget.frame_times.size() << " frame(s))";
+            << " technique(s), " << s.backends.size() << " backend(s), " << s.budget.frame_times.size() << " frame(s)"
+            << (s.static_scenes.empty() ? std::string() : ", one for each of " + std::to_string(s.static_scenes.size()) + " static scene(s)")
+            << ")";
   if (shard.second > 1) std::cerr << "; shard " << shard.first << "/" << shard.second << " runs " << mine.size();
   std::cerr << "\n";
 
   report::Runner runner(s, a.out, concurrent_jobs);
-  // Phase 1: the ground truth of every scene and frame the jobs need (converged references and the
-  // path tracer's curve), before the jobs, so that processes running jobs side by side only read it.
+  // Phase 1: the converged references of every scene and frame the jobs need, before the jobs, so
+  // that processes running jobs side by side only read them. Nothing here is timed.
   {
     ProgressBar bar("report: references", !quiet);
     runner.prepare_references(mine, [&](int k, int n) {
       bar.update(static_cast<double>(k) / n, std::to_string(k) + "/" + std::to_string(n));
     });
   }
-  // Phase 2: the jobs, resumed from those DIR holds finished.
+  if (a.references_only) {
+    std::cerr << "report: the references are in " << a.out << "; the same command without --references-only measures the rest\n";
+    return;
+  }
+  // Phase 2: the path tracer's equal-time curves. They are timed, so they run with the jobs, after
+  // the long untimed phase.
+  {
+    ProgressBar bar("report: path tracer", !quiet);
+    runner.prepare_curves(mine, [&](int k, int n) {
+      bar.update(static_cast<double>(k) / n, std::to_string(k) + "/" + std::to_string(n) + " curves");
+    });
+  }
+  // Phase 3: the jobs, resumed from those DIR holds finished.
   std::vector<report::Job> todo;
   for (const auto& j : mine)
     if (!runner.finished(j)) todo.push_back(j);
@@ -468,6 +486,9 @@ void register_report(CLI::App& app) {
   sub->add_option("--bench-json", a->bench_json,
                   "the comparative benchmark suite's results (bench_techniques --benchmark_out=F --benchmark_out_format=json), copied into DIR and shown on the page");
   sub->add_flag("--no-page", a->no_page, "write the jobs' results only (a shard; `report merge` writes the page)");
+  sub->add_flag("--references-only", a->references_only,
+                "render the untimed ground truth (converged references) and stop; a later run without it measures the "
+                "timed part (path tracer's curves, jobs) on a quiet machine");
   sub->add_option("--emit-slurm", a->emit_slurm, "write DIR/slurm/report.sbatch (a job array of N shards) and submit.sh; renders nothing")
       ->check(CLI::Range(1, 100000));
   sub->add_flag("--quiet-progress", *quiet, "no progress bars (worker processes)")->group("");

@@ -193,7 +193,8 @@ Json settings_json(const Settings& s) {
           {"every_rung", b.every_rung},
           {"seed", s.seed},
           {"fit_proxies", s.fit_proxies},
-          {"device", s.device}};
+          {"device", s.device},
+          {"static_scenes", s.static_scenes}};
 }
 
 std::string settings_hash(const Settings& s) {
@@ -204,6 +205,7 @@ std::string settings_hash(const Settings& s) {
   j.erase("scenes");
   j.erase("techniques");
   j.erase("backends");
+  j.erase("static_scenes");
   return io::reference_cache_key(0, j.dump());
 }
 
@@ -216,6 +218,12 @@ std::string scene_label(const std::string& spec) {
 
 std::string frame_label(double t) { return fmt_time(t).insert(0, 1, 't'); }
 
+std::vector<double> frame_times_of(const Settings& s, const std::string& spec) {
+  const auto& st = s.static_scenes;
+  if (s.budget.frame_times.empty() || std::find(st.begin(), st.end(), spec) == st.end()) return s.budget.frame_times;
+  return {s.budget.frame_times.front()};
+}
+
 std::vector<Job> plan_jobs(const Settings& s) {
   std::vector<Job> jobs;
   std::set<std::string> labels;
@@ -223,7 +231,7 @@ std::vector<Job> plan_jobs(const Settings& s) {
     const std::string label = scene_label(spec);
     if (!labels.insert(label).second)
       throw std::invalid_argument("--scenes: two scenes share the name '" + label + "' (" + spec + ")");
-    for (double t : s.budget.frame_times)
+    for (double t : frame_times_of(s, spec))
       for (const auto& tech : s.techniques) {
         const auto technique = render::create_technique(tech);
         const auto ladder = render::default_params(*technique).ladder();
@@ -300,7 +308,8 @@ struct Runner::Impl {
     const fs::path scene_json = dir / "references" / scene_label(spec) / "scene.json";
     if (!fs::exists(scene_json))
       write_json_atomic(scene_json, {{"name", scene_label(spec)}, {"spec", spec}, {"title", sc.name}, {"resolution", {w, h}},
-                                     {"surface_pixels", pixels}, {"has_proxies", !sc.proxies.empty()}});
+                                     {"surface_pixels", pixels}, {"has_proxies", !sc.proxies.empty()},
+                                     {"static", scene::is_static(sc)}});
     return surfaces.emplace(key, std::move(m)).first->second;
   }
 
@@ -433,8 +442,9 @@ Runner::Runner(Settings settings, std::string dir, int concurrent_jobs) : impl_(
 }
 Runner::~Runner() = default;
 
-void Runner::prepare_references(const std::vector<Job>& jobs, const std::function<void(int, int)>& done) {
-  // (scene, frame) -> the keys its jobs need.
+namespace {
+// (scene, frame) -> the reference keys its jobs need.
+std::map<std::pair<std::string, double>, std::set<std::string>> references_needed(const std::vector<Job>& jobs) {
   std::map<std::pair<std::string, double>, std::set<std::string>> need;
   for (const auto& j : jobs) {
     const auto t = render::create_technique(j.technique);
@@ -446,16 +456,29 @@ void Runner::prepare_references(const std::vector<Job>& jobs, const std::functio
     keys.insert("sh" + n);
     if (t->shadow_blockers() == render::ShadowBlockers::SphereProxies) keys.insert(kProxiesOnlyKey + n);
   }
+  return need;
+}
+}  // namespace
+
+void Runner::prepare_references(const std::vector<Job>& jobs, const std::function<void(int, int)>& done) {
+  const auto need = references_needed(jobs);
   int total = 0, k = 0;
-  for (const auto& [sf, keys] : need) total += static_cast<int>(keys.size()) + 1;  // + the path tracer's curve
+  for (const auto& [sf, keys] : need) total += static_cast<int>(keys.size());
   for (const auto& [sf, keys] : need) {
     impl_->surface(sf.first, sf.second);
     for (const auto& key : keys) {
       impl_->reference(sf.first, sf.second, key);
       if (done) done(++k, total);
     }
+  }
+}
+
+void Runner::prepare_curves(const std::vector<Job>& jobs, const std::function<void(int, int)>& done) {
+  const auto need = references_needed(jobs);
+  int k = 0;
+  for (const auto& [sf, keys] : need) {
     impl_->path_tracer_curve(sf.first, sf.second);
-    if (done) done(++k, total);
+    if (done) done(++k, static_cast<int>(need.size()));
   }
 }
 
@@ -690,7 +713,7 @@ Json assemble_results(const std::string& dir_text, const Settings& settings, con
     const fs::path sdir = dir / "references" / job.scene_label;
     Json s = read_json_if_complete(sdir / "scene.json").value_or(Json{{"name", job.scene_label}, {"spec", job.scene}});
     Json refs = Json::array(), pts = Json::array();
-    for (double t : settings.budget.frame_times) {
+    for (double t : frame_times_of(settings, job.scene)) {
       const fs::path fdir = sdir / frame_label(t);
       std::error_code ec;
       std::vector<fs::path> keys;

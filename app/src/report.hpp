@@ -40,6 +40,9 @@ struct Settings {
   unsigned seed = 1;  // of the references (their second halves and the path tracer's curve derive from it)
   int fit_proxies = 0;
   std::string device;
+  // Scenes (specs) that nothing moves in (scene::is_static): measured at the first frame time
+  // only, since every other time would repeat its images and its times.
+  std::vector<std::string> static_scenes;
 };
 Json settings_json(const Settings& s);
 // Identifies what a job's result depends on besides the job itself: a finished job of another
@@ -57,6 +60,8 @@ struct Job {
 // Every job, in a fixed order (scene, frame, technique, backend, rung): shard I of N takes jobs
 // I, I + N, ...
 std::vector<Job> plan_jobs(const Settings& s);
+// The animation times a scene is measured at: the budget's, or its first alone for a static scene.
+std::vector<double> frame_times_of(const Settings& s, const std::string& spec);
 // A scene spec as a file-name part ("spheres", "my_scene_gltf").
 std::string scene_label(const std::string& spec);
 std::string frame_label(double t);  // "t0", "t0.5"
@@ -70,9 +75,12 @@ class Runner {
   Runner(const Runner&) = delete;
   Runner& operator=(const Runner&) = delete;
 
-  // The references (converged, with halves) and the path tracer's curve of every scene and frame
-  // of `jobs`; rendered or read back. `done(k, n)` after each.
+  // The converged references (with halves) of every scene and frame of `jobs`; rendered or read
+  // back. Nothing in them is timed. `done(k, n)` after each.
   void prepare_references(const std::vector<Job>& jobs, const std::function<void(int, int)>& done);
+  // The path tracer's equal-time curve of every scene and frame of `jobs` (timed, like the jobs);
+  // rendered or read back, after prepare_references. `done(k, n)` after each.
+  void prepare_curves(const std::vector<Job>& jobs, const std::function<void(int, int)>& done);
   // Whether DIR holds a finished result of `job` under these settings.
   bool finished(const Job& job) const;
   // Measures the job and writes jobs/<id>.json; a failing render is recorded in it, not thrown.

@@ -165,7 +165,8 @@ const char* const kScript = R"HTML(</script>
     content.appendChild(sec);
     sec.appendChild(el('h2', {text: 'Scene ' + scene.name}));
     sec.appendChild(el('p', {class: 'muted', text: (scene.resolution ? scene.resolution.join('x') + ', ' : '') +
-      (scene.surface_pixels || '?') + ' surface pixels, ' + sp.length + ' points'}));
+      (scene.surface_pixels || '?') + ' surface pixels, ' + sp.length + ' points' +
+      (scene.static ? '; nothing in it moves, so it is measured at one time only' : '')}));
     if (!sp.length) { sec.appendChild(el('p', {text: 'No points for this scene yet.'})); continue; }
     const good = sp.filter(function (p) { return !p.error && isNum(p.seconds) && p.errors && p.errors.final; });
     const frames = Array.from(new Set(sp.map(function (p) { return p.frame_time; }))).sort(function (a, b) { return a - b; });

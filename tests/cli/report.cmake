@@ -35,8 +35,8 @@ endfunction()
 # With the comparative benchmark suite's JSON (a real bench_techniques run at 16x16 on sphere_plane
 # and box1, kept in tests/data): the page gets its section.
 run_report(${WORK_DIR}/full --bench-json ${SOURCE_DIR}/tests/data/bench_techniques_small.json)
-if(NOT report_err MATCHES "report: references" OR NOT report_err MATCHES "report: jobs")
-  message(FATAL_ERROR "no progress for the two phases on stderr:\n${report_err}")
+if(NOT report_err MATCHES "report: references" OR NOT report_err MATCHES "report: path tracer" OR NOT report_err MATCHES "report: jobs")
+  message(FATAL_ERROR "no progress for the three phases on stderr:\n${report_err}")
 endif()
 foreach(f index.html results.json results.csv report.json lib/vega.min.js lib/vega-lite.min.js lib/vega-embed.min.js
           lib/vega.LICENSE)
@@ -209,6 +209,38 @@ if(NOT report_err MATCHES "resuming: [0-9]+ of ${n_points} jobs already finished
 endif()
 file(READ ${WORK_DIR}/resumed/results.json resumed)
 expect_same_points("${full}" "${resumed}" "resumed run")
+
+# The untimed ground truth alone, then the timed part; and a static scene (box8) measured at one of
+# the two times asked for, its references rendered once.
+set(STATIC --scenes box8 --techniques shexp --budget quick --width 32 --max-spp 64 --pt-max-spp 16 --timed-frames 2
+    --frames 0,0.5 --out ${WORK_DIR}/static)
+execute_process(COMMAND ${SOFTGI} report ${STATIC} --references-only RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT err MATCHES "without --references-only")
+  message(FATAL_ERROR "--references-only failed (${rc}):\n${err}")
+endif()
+if(NOT EXISTS ${WORK_DIR}/static/references/box8/t0/full/meta.json OR EXISTS ${WORK_DIR}/static/references/box8/t0/path_tracer.json
+   OR EXISTS ${WORK_DIR}/static/jobs OR EXISTS ${WORK_DIR}/static/references/box8/t0.5)
+  message(FATAL_ERROR "--references-only should render t = 0's references of the static box8, and no curve, job or t = 0.5")
+endif()
+execute_process(COMMAND ${SOFTGI} report ${STATIC} RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "the run after --references-only failed (${rc}):\n${err}")
+endif()
+file(READ ${WORK_DIR}/static/results.json st)
+string(JSON n_st LENGTH "${st}" points)
+string(JSON n_planned GET "${st}" planned_jobs)
+string(JSON is_static GET "${st}" scenes 0 static)
+string(JSON st_frames LENGTH "${st}" scenes 0 path_tracer)
+if(NOT n_st EQUAL 2 OR NOT n_planned EQUAL 2 OR NOT is_static OR NOT st_frames EQUAL 1)
+  message(FATAL_ERROR "box8 at t = 0, 0.5: expected 2 points and 2 planned jobs (shexp's two rungs at t = 0 only), static, one "
+                      "path-tracer curve; got ${n_st}, ${n_planned}, ${is_static}, ${st_frames}")
+endif()
+foreach(i 0 1)
+  string(JSON t GET "${st}" points ${i} frame_time)
+  if(NOT t EQUAL 0)
+    message(FATAL_ERROR "a point of the static box8 is at t = ${t}")
+  endif()
+endforeach()
 
 # Two worker processes: the same points, every job's record saying it shared the machine.
 run_report(${WORK_DIR}/two --jobs 2)

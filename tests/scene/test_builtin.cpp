@@ -89,6 +89,7 @@ void check_posed(const scene::Scene& s, double t) {
   ASSERT_EQ(p.lights.size(), s.lights.size());
   const scene::Bounds b = scene::bounds(p);
   EXPECT_TRUE(glm::all(glm::lessThan(b.lo, b.hi))) << s.name;
+  EXPECT_EQ(scene::is_static(s), is_static(s.name)) << s.name;
   if (is_static(s.name)) {
     EXPECT_FALSE(p.animated) << s.name << " is static";
   } else {

@@ -284,6 +284,19 @@ TEST(SceneEvaluate, RestPoseAtTimeZeroWhereClipIsIdentity) {
   for (std::size_t v = 0; v < 4; ++v) expect_near(q.objects[0].positions[v], p.objects[0].positions[v], kPoseTol, "static pose");
 }
 
+TEST(SceneEvaluate, IsStaticWhenNoChannelChangesAValue) {
+  scene::Scene s = hierarchy_scene();
+  EXPECT_FALSE(scene::is_static(s)) << "its clip moves the parent";
+  // Every channel held at its first value: a clip that plays but moves nothing.
+  for (auto& ch : s.clips[s.active_clip].channels)
+    for (auto& v : ch.values) v = ch.values.front();
+  EXPECT_TRUE(scene::is_static(s));
+  const scene::PosedScene a = scene::evaluate(s, 0.0), b = scene::evaluate(s, 1.3);
+  for (std::size_t v = 0; v < 4; ++v) EXPECT_EQ(a.objects[0].positions[v], b.objects[0].positions[v]) << "vertex " << v;
+  s.active_clip = -1;
+  EXPECT_TRUE(scene::is_static(s));
+}
+
 TEST(SceneEvaluate, LinearTranslationAndSlerpMidpoint) {
   const scene::Scene s = hierarchy_scene();
   const scene::PosedScene p = scene::evaluate(s, 0.5);

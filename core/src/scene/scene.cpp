@@ -291,6 +291,11 @@ bool clip_varies(const AnimationClip& clip) {
 
 }  // namespace
 
+bool is_static(const Scene& scene) {
+  if (scene.active_clip < 0 || scene.active_clip >= static_cast<int>(scene.clips.size())) return true;
+  return !clip_varies(scene.clips[scene.active_clip]);
+}
+
 PosedScene evaluate(const Scene& scene, double t) {
   if (!std::isfinite(t)) {
     std::ostringstream os;

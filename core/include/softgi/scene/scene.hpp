@@ -180,6 +180,10 @@ glm::vec3 surface_albedo(const Scene& scene, const PosedObject& obj, std::size_t
 // non-finite t.
 PosedScene evaluate(const Scene& scene, double t);
 
+// True when evaluate() gives the same pose at every time: no active clip, or one whose channels
+// each hold a single value. Sweeps over animation times measure such a scene once.
+bool is_static(const Scene& scene);
+
 // Structural checks with errors that name the part, field and value: indices in range, finite
 // values, unit normals, no zero-area triangles, sane sizes. Loaders call it; throws
 // std::invalid_argument on the first problem ("mesh 'bunny': triangle 12 has zero area").
