@@ -7,8 +7,17 @@
 // (gather_voxel), diffuse and glossy (the Phong lobe, optionally weighted by eq. 7) apart. One
 // invocation per gathering pixel; under a driver's loop-iteration limit an invocation that runs out
 // of budget saves its place and sums and the host dispatches again.
+//
+// The lanes of a subgroup walk one voxel sequence together: the union of their lists, in increasing
+// voxel order, each lane adding only the voxels of its own list. Neighbouring pixels share most of
+// their voxels, so the union is little longer than one list, and every voxel's data (its range, its
+// centroid, its SH, its VPLs) is read at one address for all lanes instead of at as many addresses
+// as lanes (a SIMD device fetches divergent addresses lane by lane). Each lane still sums its own
+// voxels in the same order with the same operations: the results are those of one pixel alone.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_KHR_shader_subgroup_vote : require
 #include "pv_shared.h"
 #include "pv_common.glsl"
 
@@ -86,15 +95,16 @@ void gather_far(uint k, float weight, vec3 to_c, float dc2) {
   if (rp.normal_glossy.w > 0.0) add_glossy(ei, wn, weight);
 }
 
-// One VPL of a near voxel: a disc of area A (eq. 6, first case).
-void gather_vpl(uint i, float weight, inout vec3 esum) {
-  const vec3 w = prox[i].position.xyz - rp.pos_depth.xyz;
+// One VPL of a near voxel: a disc of area A (eq. 6, first case), at `pos` with normal `nrm` and
+// radiance `rad`.
+void gather_vpl(vec3 pos, vec3 nrm, vec3 rad, float weight, inout vec3 esum) {
+  const vec3 w = pos - rp.pos_depth.xyz;
   const float d2 = dot(w, w);
   if (!(d2 > 0.0)) return;
   const vec3 wn = w / sqrt(d2);
-  const float cos_r = dot(rp.normal_glossy.xyz, wn), cos_v = -dot(prox[i].normal.xyz, wn);
+  const float cos_r = dot(rp.normal_glossy.xyz, wn), cos_v = -dot(nrm, wn);
   if (cos_r <= 0.0 || cos_v <= 0.0) return;
-  const vec3 ei = radiance[i].xyz * (g_cell_a.w * cos_v * cos_r / (d2 + pc.reg));
+  const vec3 ei = rad * (g_cell_a.w * cos_v * cos_r / (d2 + pc.reg));
   esum += ei;
   if (rp.normal_glossy.w > 0.0) add_glossy(ei, wn, weight);
 }
@@ -161,44 +171,57 @@ void main() {
       tb[b - 1u] = t;
     }
 
-  // The union of the neighbours' bitset words.
+  // The union of the neighbours' bitset words (this lane's list), and of the subgroup's lists.
+  // After a resume every lane of the subgroup restarts at the same place: they all stopped there.
   uint tbits[4] = uint[4](0u, 0u, 0u, 0u);
   acc = outv[i];
   const uint resume_voxel = st.s.y;
-  uint gathered = st.s.w, word = resume_voxel / 32u, m = 0u;
+  uint gathered = st.s.w, word = resume_voxel / 32u, mine = 0u, m = 0u;
   if (word < pc.words) {
     [[unroll]] for (uint t = 0u; t < 4u; ++t) tbits[t] = t < used ? bits[tb[t] + word] : 0u;
-    m = (tbits[0] | tbits[1] | tbits[2] | tbits[3]) & ~((1u << (resume_voxel % 32u)) - 1u);
+    mine = (tbits[0] | tbits[1] | tbits[2] | tbits[3]) & ~((1u << (resume_voxel % 32u)) - 1u);
   }
+  m = subgroupOr(mine);
   // One loop whose every iteration is a word, a voxel or a VPL (pv_march says why).
   uint vox = 0u, cell_b = 0u, vi = 0u, ve = 0u;
   float weight = 0.0;
   vec3 esum = vec3(0.0);
-  bool near_voxel = false;
+  bool near_voxel = false, near_mine = false;
   uint spent = 0u;
   for (;;) {
     if (++spent > pc.budget) {
       outv[i] = acc;
-      if (near_voxel) state[i] = GatherState(uvec4(kPvPhaseResume, vox, vi - cell_b, gathered), vec4(esum, 0.0));
+      // esum.w = 1: stopped inside the voxel's VPLs, its far lanes have gathered it already.
+      if (near_voxel) state[i] = GatherState(uvec4(kPvPhaseResume, vox, vi - cell_b, gathered), vec4(esum, 1.0));
       else state[i] = GatherState(uvec4(kPvPhaseResume, m != 0u ? word * 32u + uint(findLSB(m)) : (word + 1u) * 32u, 0u, gathered), vec4(0.0));
       atomicAdd(status[kPvStatusUnfinished], 1u);
       return;
     }
     if (near_voxel) {
-      if (vi < ve) {
-        gather_vpl(vi, weight, esum);
+      // The voxel's VPLs in a loop of their own: a SIMD device runs every branch of the outer
+      // loop's body for every iteration (masked), so each VPL would pay for the voxel's and the
+      // word's code too. The iterations still count in `spent`.
+      while (vi < ve && spent < pc.budget) {
+        ++spent;
+        if (near_mine) gather_vpl(prox[vi].position.xyz, prox[vi].normal.xyz, radiance[vi].xyz, weight, esum);
         ++vi;
+      }
+      if (vi < ve) {
+        spent = pc.budget;  // out of budget: the next iteration saves the place
         continue;
       }
-      acc.irradiance.xyz += weight * esum;
+      if (near_mine) {
+        acc.irradiance.xyz += weight * esum;
+        ++gathered;
+      }
       near_voxel = false;
-      ++gathered;
       continue;
     }
     if (m != 0u) {
       const uint bit = uint(findLSB(m));
       m &= m - 1u;
       vox = word * 32u + bit;
+      const bool listed = ((mine >> bit) & 1u) != 0u;
       // A voxel's weights are summed in increasing order (the taps are sorted by weight).
       weight = 0.0;
       [[unroll]] for (uint t = 0u; t < 4u; ++t)
@@ -206,26 +229,29 @@ void main() {
       cell_b = cell_start[vox];
       ve = cell_start[vox + 1u];
       if (cell_b == ve) {
-        ++gathered;
+        if (listed) ++gathered;
         continue;
       }
       const vec3 cen = vec3(vsh[vox * kPvVoxelFloats + 12u], vsh[vox * kPvVoxelFloats + 13u], vsh[vox * kPvVoxelFloats + 14u]);
       const vec3 to_c = cen - rp.pos_depth.xyz;
       const float dc2 = dot(to_c, to_c);
-      if (dc2 < pc.near2) {
-        const bool resumed = st.s.x == kPvPhaseResume && vox == resume_voxel;
-        vi = cell_b + (resumed ? st.s.z : 0u);
-        esum = resumed ? st.esum.xyz : vec3(0.0);
+      near_mine = listed && dc2 < pc.near2;
+      const bool inside = st.s.x == kPvPhaseResume && vox == resume_voxel && st.esum.w != 0.0;
+      if (subgroupAny(near_mine)) {
+        vi = cell_b + (inside ? st.s.z : 0u);
+        esum = inside ? st.esum.xyz : vec3(0.0);
         near_voxel = true;
-        continue;
       }
-      gather_far(vox, weight, to_c, dc2);
-      ++gathered;
+      if (listed && !near_mine && !inside) {
+        gather_far(vox, weight, to_c, dc2);
+        ++gathered;
+      }
       continue;
     }
     if (++word >= pc.words) break;
     [[unroll]] for (uint t = 0u; t < 4u; ++t) tbits[t] = t < used ? bits[tb[t] + word] : 0u;
-    m = tbits[0] | tbits[1] | tbits[2] | tbits[3];
+    mine = tbits[0] | tbits[1] | tbits[2] | tbits[3];
+    m = subgroupOr(mine);
   }
   outv[i] = acc;
   state[i].s = uvec4(kPvPhaseDone, 0u, 0u, gathered);

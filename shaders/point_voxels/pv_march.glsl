@@ -78,9 +78,16 @@ int pv_march(vec3 o, vec3 d, float t_min, float t_max, inout uint steps, inout u
       return -2;
     }
     if (i < e) {
-      const float t = pv_ray_disc(o, d, prox[i].position.xyz, prox[i].normal.xyz, r);
-      if (t >= t_min && t <= t_max) return int(k);
-      ++i;
+      // The cell's discs in a loop of their own: a SIMD device runs every branch of this loop's
+      // body for every iteration (masked), so each disc test would pay for a DDA step too. Its
+      // iterations still count in `spent`.
+      while (i < e && spent < budget) {
+        ++spent;
+        const float t = pv_ray_disc(o, d, prox[i].position.xyz, prox[i].normal.xyz, r);
+        if (t >= t_min && t <= t_max) return int(k);
+        ++i;
+      }
+      if (i < e) spent = budget;  // out of budget: the next iteration saves the place
       continue;
     }
     int a = 0;
