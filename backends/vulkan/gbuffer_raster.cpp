@@ -1,12 +1,14 @@
 // The Vulkan implementation of the shared "gbuffer" and "receiver_gbuffer" passes: a graphics
 // pipeline (shaders/gbuffer/gbuffer_raster.{vert,frag}) rasterises every posed object's triangles
 // (world-space positions and normals uploaded per frame; objects are skinned on the CPU by
-// scene::evaluate) into colour attachments, read back into a render::GBuffer with the meaning of
-// every plane of the CPU G-buffer (backends/cpu/gbuffer_embree.cpp):
+// scene::evaluate) into a visibility buffer (object, primitive, barycentrics), a compute pass
+// (gbuffer_resolve.comp) turns each pixel of it into position, depth and normal, and the result is
+// read back into a render::GBuffer with the meaning of every plane of the CPU G-buffer
+// (backends/cpu/gbuffer_embree.cpp):
 //
-//   position, depth  fragment shader: w p0 + b1 p1 + b2 p2 of the triangle's posed corners (fetched
+//   position, depth  resolve pass: w p0 + b1 p1 + b2 p2 of the triangle's posed corners (fetched
 //                    from the same vertex arrays), depth (p - e) . E (paper 000 section 4)
-//   normal           fragment shader: the CPU's rule (interpolated vertex normal, normalised, turned
+//   normal           resolve pass: the CPU's rule (interpolated vertex normal, normalised, turned
 //                    to the side of the geometric normal that faces the viewer)
 //   object, primitive, barycentric
 //                    rasterised: per-corner weights (1,0,0), (0,1,0), (0,0,1), perspective-correct
@@ -56,6 +58,7 @@
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/shaders/gbuffer/gbuffer_raster_frag.h"
 #include "softgi/shaders/gbuffer/gbuffer_raster_vert.h"
+#include "softgi/shaders/gbuffer/gbuffer_resolve_comp.h"
 
 namespace softgi::backends {
 
@@ -87,14 +90,18 @@ struct GbDraw {
   std::uint32_t has_normals = 0;
 };
 static_assert(sizeof(GbDraw) == 12);
+// std430 push-constant block GbResolve (gbuffer_resolve.comp).
+struct GbResolve {
+  std::uint32_t width = 0, height = 0;
+};
 
 constexpr std::array<VkFormat, gpu::kGbColorAttachments> kColorFormats = {
-    VK_FORMAT_R32G32B32A32_SFLOAT,  // kGbOutPositionDepth
-    VK_FORMAT_R32G32B32A32_SFLOAT,  // kGbOutNormal
-    VK_FORMAT_R32G32_SINT,          // kGbOutIds
-    VK_FORMAT_R32G32_SFLOAT,        // kGbOutBarycentric
+    VK_FORMAT_R32G32_SINT,    // kGbOutIds
+    VK_FORMAT_R32G32_SFLOAT,  // kGbOutBarycentric
 };
-constexpr std::array<std::uint32_t, gpu::kGbColorAttachments> kTexelBytes = {16, 16, 8, 8};
+constexpr std::array<std::uint32_t, gpu::kGbColorAttachments> kTexelBytes = {8, 8};
+// The resolve pass's outputs: position and depth, normal (vec4 each).
+constexpr std::size_t kResolvedTexelBytes = 2 * sizeof(glm::vec4);
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
 
 // Size-independent objects: layout (from SPIR-V reflection), render pass, pipeline (viewport and
@@ -105,16 +112,19 @@ struct RasterPipeline {
   vk::Owned<VkPipeline> pipeline;
 };
 
-// Per buffer size: attachments, framebuffer and host-visible readback buffers.
+// Per buffer size: attachments, framebuffer, host-visible readback buffers (the attachments'
+// copies, which the resolve pass reads) and the resolve pass's outputs.
 struct Targets {
   std::uint32_t width = 0, height = 0;
   std::array<vk::Image, gpu::kGbColorAttachments> color;
   vk::Image depth;
   vk::Owned<VkFramebuffer> framebuffer;
   std::array<vk::Buffer, gpu::kGbColorAttachments> readback;
+  vk::Buffer position_depth, normal;
   std::size_t bytes() const {
-    std::size_t b = static_cast<std::size_t>(width) * height * 4;  // depth
-    for (std::size_t a = 0; a < kTexelBytes.size(); ++a) b += 2 * static_cast<std::size_t>(width) * height * kTexelBytes[a];
+    const std::size_t n = static_cast<std::size_t>(width) * height;
+    std::size_t b = n * (4 + kResolvedTexelBytes);  // depth, resolved planes
+    for (std::size_t a = 0; a < kTexelBytes.size(); ++a) b += 2 * n * kTexelBytes[a];
     return b;
   }
 };
@@ -123,8 +133,9 @@ struct Targets {
 struct RasterState {
   std::mutex m;
   std::unique_ptr<RasterPipeline> pipe;
+  std::unique_ptr<vk::ComputePipeline> resolve;
   std::vector<std::unique_ptr<Targets>> targets;  // most recently used last
-  vk::Buffer positions, normals, indices, frame;
+  vk::Buffer positions, normals, indices, frame, objects;
 };
 
 std::span<const std::uint32_t> words(const std::uint32_t* w, std::size_t bytes) { return {w, bytes / sizeof(std::uint32_t)}; }
@@ -262,10 +273,15 @@ std::unique_ptr<Targets> make_targets(vk::Context& ctx, const RasterPipeline& pi
   for (std::uint32_t a = 0; a < gpu::kGbColorAttachments; ++a) {
     t->color[a] = ctx.create_image(w, h, kColorFormats[a], VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
                                    VK_IMAGE_ASPECT_COLOR_BIT, "gbuffer_raster attachment " + std::to_string(a) + " " + size);
-    t->readback[a] = ctx.create_buffer(static_cast<VkDeviceSize>(w) * h * kTexelBytes[a], VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                       vk::MemoryKind::Host, "gbuffer_raster readback " + std::to_string(a) + " " + size);
+    t->readback[a] = ctx.create_buffer(static_cast<VkDeviceSize>(w) * h * kTexelBytes[a],
+                                       VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryKind::Host,
+                                       "gbuffer_raster readback " + std::to_string(a) + " " + size);
     views[a] = t->color[a].view();
   }
+  const VkDeviceSize plane = static_cast<VkDeviceSize>(w) * h * sizeof(glm::vec4);
+  t->position_depth = ctx.create_buffer(plane, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryKind::Host,
+                                        "gbuffer_raster resolved position " + size);
+  t->normal = ctx.create_buffer(plane, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryKind::Host, "gbuffer_raster resolved normal " + size);
   t->depth = ctx.create_image(w, h, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, VK_IMAGE_ASPECT_DEPTH_BIT,
                               "gbuffer_raster depth " + size);
   views[gpu::kGbColorAttachments] = t->depth.view();
@@ -345,6 +361,8 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
   std::vector<float> positions, normals;
   std::vector<std::uint32_t> indices;
   std::vector<Draw> draws;
+  // Per posed object (by its index): first triangle in `indices`, has vertex normals.
+  std::vector<glm::uvec2> objects(std::max<std::size_t>(fc.posed.objects.size(), 1), glm::uvec2(0u));
   float max_depth = 0.0f;
   std::size_t vertex_total = 0, triangle_total = 0;
   for (const scene::PosedObject& o : fc.posed.objects)
@@ -381,6 +399,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
     d.push.first_triangle = static_cast<std::uint32_t>(indices.size() / 3);
     d.push.has_normals = has_normals ? 1u : 0u;
     d.triangles = static_cast<std::uint32_t>(o.source->triangles.size());
+    objects[oi] = glm::uvec2(d.push.first_triangle, d.push.has_normals);
     const auto& tris = o.source->triangles;
     for (std::size_t t = 0; t < tris.size(); ++t)
       for (int k = 0; k < 3; ++k) {
@@ -417,6 +436,9 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
   auto state = ctx.cached<RasterState>("gbuffer_raster.state", [] { return std::make_shared<RasterState>(); });
   std::lock_guard<std::mutex> lock(state->m);
   if (!state->pipe) state->pipe = make_pipeline(ctx);
+  if (!state->resolve)
+    state->resolve = std::make_unique<vk::ComputePipeline>(ctx, words(gbuffer_gbuffer_resolve_comp, sizeof(gbuffer_gbuffer_resolve_comp)),
+                                                           "gbuffer_resolve");
   const RasterPipeline& pipe = *state->pipe;
   Targets& tg = targets_for(ctx, *state, static_cast<std::uint32_t>(bw), static_cast<std::uint32_t>(bh));
 
@@ -425,10 +447,13 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
   ctx.ensure_buffer(state->positions, pos_bytes, storage, vk::MemoryKind::Device, "gbuffer_raster positions");
   ctx.ensure_buffer(state->normals, pos_bytes, storage, vk::MemoryKind::Device, "gbuffer_raster normals");
   ctx.ensure_buffer(state->indices, idx_bytes, storage, vk::MemoryKind::Device, "gbuffer_raster indices");
+  const std::size_t obj_bytes = objects.size() * sizeof(glm::uvec2);
+  ctx.ensure_buffer(state->objects, obj_bytes, storage, vk::MemoryKind::Device, "gbuffer_raster objects");
   ctx.ensure_buffer(state->frame, sizeof(GbFrame), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryKind::Host, "gbuffer_raster frame");
   ctx.upload(state->positions, positions.data(), pos_bytes);
   ctx.upload(state->normals, normals.data(), pos_bytes);
   ctx.upload(state->indices, indices.data(), idx_bytes);
+  ctx.upload(state->objects, objects.data(), obj_bytes);
   GbFrame frame{};
   frame.clip_from_world = clip_from_world(cam, bw, bh, scale, near_plane);
   frame.eye = glm::vec4(cam.position, 0.0f);
@@ -439,7 +464,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
   frame.image2 = glm::vec4(cam.aspect, 0.0f, 0.0f, 0.0f);
   std::memcpy(state->frame.mapped(), &frame, sizeof frame);
   ctx.note_transfer(sizeof frame, 0);
-  stats.upload_bytes = static_cast<double>(2 * pos_bytes + idx_bytes + sizeof frame);
+  stats.upload_bytes = static_cast<double>(2 * pos_bytes + idx_bytes + obj_bytes + sizeof frame);
 
   const vk::SubmitResult sr = ctx.submit(
       [&](vk::Recorder& r) {
@@ -483,16 +508,26 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
           c.imageExtent = {tg.width, tg.height, 1};
           vkCmdCopyImageToBuffer(cmd, tg.color[a].handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, tg.readback[a].handle(), 1, &c);
         }
+        r.barrier();  // copies -> the resolve pass's reads
+        const GbResolve push{tg.width, tg.height};
+        r.dispatch(*state->resolve,
+                   {vk::Bind::buffer_at(gpu::kGbBindFrame, state->frame), vk::Bind::buffer_at(gpu::kGbBindPositions, state->positions),
+                    vk::Bind::buffer_at(gpu::kGbBindNormals, state->normals), vk::Bind::buffer_at(gpu::kGbBindIndices, state->indices),
+                    vk::Bind::buffer_at(gpu::kGbBindObjects, state->objects),
+                    vk::Bind::buffer_at(gpu::kGbBindIds, tg.readback[gpu::kGbOutIds]),
+                    vk::Bind::buffer_at(gpu::kGbBindBarycentric, tg.readback[gpu::kGbOutBarycentric]),
+                    vk::Bind::buffer_at(gpu::kGbBindPositionDepth, tg.position_depth), vk::Bind::buffer_at(gpu::kGbBindNormal, tg.normal)},
+                   push, state->resolve->groups_x(n));
         r.end_timer();
-        r.barrier();  // copies -> host reads
+        r.barrier();  // resolve -> host reads
       },
       who);
   for (const auto& [label, seconds] : sr.timers)
     if (label == "rasterise") stats.raster_gpu_seconds = seconds;
 
   const auto t1 = clock::now();
-  const auto* pd = static_cast<const glm::vec4*>(tg.readback[gpu::kGbOutPositionDepth].mapped());
-  const auto* nm = static_cast<const glm::vec4*>(tg.readback[gpu::kGbOutNormal].mapped());
+  const auto* pd = static_cast<const glm::vec4*>(tg.position_depth.mapped());
+  const auto* nm = static_cast<const glm::vec4*>(tg.normal.mapped());
   const auto* ids = static_cast<const glm::ivec2*>(tg.readback[gpu::kGbOutIds].mapped());
   const auto* bc = static_cast<const glm::vec2*>(tg.readback[gpu::kGbOutBarycentric].mapped());
   long long hits = 0;
@@ -525,7 +560,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
   // The four readback targets were read through their mapping.
   ctx.note_transfer(0, static_cast<std::size_t>(bw) * bh * (2 * sizeof(glm::vec4) + sizeof(glm::ivec2) + sizeof(glm::vec2)));
   stats.hits = hits;
-  std::size_t held = state->positions.size() + state->normals.size() + state->indices.size() + state->frame.size();
+  std::size_t held = state->positions.size() + state->normals.size() + state->indices.size() + state->objects.size() + state->frame.size();
   for (const auto& t : state->targets) held += t->bytes();
   stats.held_bytes = held;
   return gb;
@@ -578,6 +613,8 @@ void gbuffer_raster_memory(const std::vector<const render::PassDesc*>& passes, c
                        pass, false, false});
     }
     items.push_back({"gbuffer_raster depth " + size, n * sizeof(float), render::MemoryPlace::Device, pass, false, false});
+    items.push_back({"gbuffer_raster resolved position " + size, n * sizeof(glm::vec4), render::MemoryPlace::Device, pass, false, false});
+    items.push_back({"gbuffer_raster resolved normal " + size, n * sizeof(glm::vec4), render::MemoryPlace::Device, pass, false, false});
   };
   if (display) targets("gbuffer", 1);
   if (receiver_scale > 0) targets("receiver_gbuffer", receiver_scale);

@@ -173,18 +173,19 @@ TEST_F(VulkanMemory, EstimateHasTheRasterTargetsAndTheKernelsBuffers) {
     ADD_FAILURE() << "no item '" << name << "'";
     return 0;
   };
-  // Attachment 0 (RGBA32F) of the display and of the receiver buffer (receiver_scale 2).
-  EXPECT_EQ(bytes("gbuffer_raster attachment 0 640x480"), std::size_t{16} * 640 * 480);
-  EXPECT_EQ(bytes("gbuffer_raster attachment 0 320x240"), std::size_t{16} * 320 * 240);
+  // Attachment 0 (RG32I, the visibility buffer's ids) of the display and of the receiver buffer
+  // (receiver_scale 2).
+  EXPECT_EQ(bytes("gbuffer_raster attachment 0 640x480"), std::size_t{8} * 640 * 480);
+  EXPECT_EQ(bytes("gbuffer_raster attachment 0 320x240"), std::size_t{8} * 320 * 240);
   // The eq. 11 taps: 4 indices per display pixel, one storage buffer.
   EXPECT_EQ(bytes("upsample taps"), std::size_t{16} * 640 * 480);
-  // Everything device-side of the display G-buffer: 52 bytes of attachments and depth, 48 of
-  // readback per pixel.
+  // Everything device-side of the display G-buffer per pixel: 20 bytes of attachments and depth,
+  // 16 of their readback, 32 of the resolved position, depth and normal.
   std::size_t raster = 0;
   for (const auto& it : m.items)
     if (it.place == MemoryPlace::Device && it.name.rfind("gbuffer_raster", 0) == 0 && it.name.find(" 640x480") != std::string::npos)
       raster += it.bytes;
-  EXPECT_EQ(raster, std::size_t{100} * 640 * 480);
+  EXPECT_EQ(raster, std::size_t{68} * 640 * 480);
 }
 
 // The frame that ran out of memory after 45 s: refused at once, naming a buffer and a limit.
