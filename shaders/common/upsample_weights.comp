@@ -55,51 +55,58 @@ void axis(float u, int n, out int i0, out int i1, out float f) {
   f = u - float(i0);
 }
 
-int bn;
-int bidx[4];
-float bw[4];
-
-void bilinear_block(int X, int Y) {
+// The 2x2 block of bilinear taps in upsample.cpp's order, (x0, y0), (x1, y0), (x0, y1), (x1, y1),
+// as vectors: a tap of weight 0 (upsample.cpp leaves it out) keeps weight 0 below and adds exact
+// zeros to every sum, so the sums are those of the taps kept, in their order. Vectors with
+// constant components and no arrays: a SIMD device keeps per-invocation arrays in memory.
+void bilinear_block(int X, int Y, out ivec4 bidx, out vec4 bw) {
   const float ratio = float(pc.fscale) / float(pc.cscale);
   int x0, x1, y0, y1;
   float fx, fy;
   axis((float(X) + 0.5) * ratio - 0.5, pc.cw, x0, x1, fx);
   axis((float(Y) + 0.5) * ratio - 0.5, pc.ch, y0, y1, fy);
-  const int xs[2] = int[2](x0, x1), ys[2] = int[2](y0, y1);
-  const float wx[2] = float[2](1.0 - fx, fx), wy[2] = float[2](1.0 - fy, fy);
-  bn = 0;
-  for (int j = 0; j < 2; ++j)
-    for (int i = 0; i < 2; ++i) {
-      const float w = wx[i] * wy[j];
-      if (w > 0.0) {
-        bidx[bn] = ys[j] * pc.cw + xs[i];
-        bw[bn] = w;
-        ++bn;
-      }
-    }
+  bidx = ivec4(y0 * pc.cw + x0, y0 * pc.cw + x1, y1 * pc.cw + x0, y1 * pc.cw + x1);
+  bw = vec4((1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy);
+}
+
+// Appends tap (i, w) at place m of (idx, wt) when w > 0.
+void keep(int i, float w, float sum, inout int m, inout ivec4 idx, inout vec4 wt) {
+  if (!(w > 0.0)) return;
+  const float v = w / sum;
+  idx = ivec4(m == 0 ? i : idx.x, m == 1 ? i : idx.y, m == 2 ? i : idx.z, m == 3 ? i : idx.w);
+  wt = vec4(m == 0 ? v : wt.x, m == 1 ? v : wt.y, m == 2 ? v : wt.z, m == 3 ? v : wt.w);
+  ++m;
 }
 
 // Keeps the taps with positive weight, normalised (upsample.cpp store_normalised).
-bool store_normalised(float w[4], out ivec4 idx, out vec4 wt) {
+bool store_normalised(ivec4 bidx, vec4 w, out ivec4 idx, out vec4 wt) {
   idx = ivec4(-1);
   wt = vec4(0.0);
-  float sum = 0.0;
-  for (int k = 0; k < bn; ++k) sum += w[k];
+  const float sum = ((w.x + w.y) + w.z) + w.w;
   if (!(sum > 0.0)) return false;
   int m = 0;
-  for (int k = 0; k < bn; ++k)
-    if (w[k] > 0.0) {
-      idx[m] = bidx[k];
-      wt[m] = w[k] / sum;
-      ++m;
-    }
+  keep(bidx.x, w.x, sum, m, idx, wt);
+  keep(bidx.y, w.y, sum, m, idx, wt);
+  keep(bidx.z, w.z, sum, m, idx, wt);
+  keep(bidx.w, w.w, sum, m, idx, wt);
   return true;
 }
 
-bool bilinear_valid(out ivec4 idx, out vec4 wt) {
-  float w[4] = float[4](0.0, 0.0, 0.0, 0.0);
-  for (int k = 0; k < bn; ++k) w[k] = is_hit(cdepth[bidx[k]]) ? bw[k] : 0.0;
-  return store_normalised(w, idx, wt);
+bool bilinear_valid(ivec4 bidx, vec4 bw, out ivec4 idx, out vec4 wt) {
+  const vec4 w = vec4(is_hit(cdepth[bidx.x]) ? bw.x : 0.0, is_hit(cdepth[bidx.y]) ? bw.y : 0.0, is_hit(cdepth[bidx.z]) ? bw.z : 0.0,
+                      is_hit(cdepth[bidx.w]) ? bw.w : 0.0);
+  return store_normalised(bidx, w, idx, wt);
+}
+
+// Eq. 11's weight of one tap: w_b w_z w_N, 0 for a background tap or one of weight 0.
+float bilateral(int i, float wb, float zp, float eps, vec3 np) {
+  if (!(wb > 0.0)) return 0.0;
+  const float zi = cdepth[i];
+  if (!is_hit(zi)) return 0.0;
+  const float dz = abs(zp - zi);
+  const float wz = dz == 0.0 ? 1.0 : 1.0 / (1.0 + dz / eps);
+  const float wn = ipow(max(0.0, dot(np, coarse_normal(uint(i)))), pc.normal_power);
+  return wb * wz * wn;
 }
 
 void main() {
@@ -122,27 +129,22 @@ void main() {
   if (!depth_ok(zp) || (is_hit(zp) && !normal_ok(np))) {
     atomicMin(status[kUpStatusBadFine], p + 1);
   } else if (is_hit(zp)) {  // background: nothing to shade, not a miss
-    bilinear_block(X, Y);
+    ivec4 bidx;
+    vec4 bw;
+    bilinear_block(X, Y, bidx, bw);
     if (pc.mode == kUpsampleBilinear) {
-      miss = bilinear_valid(idx, wt) ? 0u : 1u;
+      miss = bilinear_valid(bidx, bw, idx, wt) ? 0u : 1u;
     } else {
       // Eq. 11 with eps w_z in (0, 1] (see upsample.cpp): the sum is the miss measure directly.
       const float eps = pc.epsilon_rel * zp;
-      float w[4] = float[4](0.0, 0.0, 0.0, 0.0);
-      for (int k = 0; k < bn; ++k) {
-        const float zi = cdepth[bidx[k]];
-        if (!is_hit(zi)) continue;
-        const float dz = abs(zp - zi);
-        const float wz = dz == 0.0 ? 1.0 : 1.0 / (1.0 + dz / eps);
-        const float wn = ipow(max(0.0, dot(np, coarse_normal(uint(bidx[k])))), pc.normal_power);
-        w[k] = bw[k] * wz * wn;
-        measure += w[k];
-      }
+      const vec4 w = vec4(bilateral(bidx.x, bw.x, zp, eps, np), bilateral(bidx.y, bw.y, zp, eps, np), bilateral(bidx.z, bw.z, zp, eps, np),
+                          bilateral(bidx.w, bw.w, zp, eps, np));
+      measure = ((w.x + w.y) + w.z) + w.w;
       if (measure > 0.0) {
-        store_normalised(w, idx, wt);
+        store_normalised(bidx, w, idx, wt);
         miss = measure < pc.miss_threshold ? 1u : 0u;
       } else {
-        bilinear_valid(idx, wt);  // every eq. 11 weight vanished: bilinear over the valid taps, a miss
+        bilinear_valid(bidx, bw, idx, wt);  // every eq. 11 weight vanished: bilinear over the valid taps, a miss
         miss = 1u;
       }
     }
