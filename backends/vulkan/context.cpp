@@ -552,6 +552,8 @@ Buffer Context::create_buffer(VkDeviceSize bytes, VkBufferUsageFlags usage, Memo
   VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   bi.size = bytes;
   bi.usage = usage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  // A storage buffer may also be read through texel views (Bind::texels_at).
+  if (usage & VK_BUFFER_USAGE_STORAGE_BUFFER_BIT) bi.usage |= VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_TEXEL_BUFFER_BIT;
   bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   const std::string what = "buffer '" + name + "'";
   check(vkCreateBuffer(device_, &bi, nullptr, &b.buffer_), ("vkCreateBuffer for " + what + " of " + mib(bytes)).c_str());
@@ -609,6 +611,8 @@ void Context::download(const Buffer& src, void* dst, std::size_t bytes, std::siz
 }
 
 namespace {
+}  // namespace
+
 // Bytes per texel of the uncompressed formats softgi and its tests use (0: not known here, and the
 // driver alone judges the image's size).
 std::uint64_t texel_bytes(VkFormat f) {
@@ -641,7 +645,6 @@ std::uint64_t texel_bytes(VkFormat f) {
       return 0;
   }
 }
-}  // namespace
 
 Image Context::create_image(std::uint32_t width, std::uint32_t height, VkFormat format, VkImageUsageFlags usage,
                             VkImageAspectFlags aspect, const std::string& name) {
@@ -719,7 +722,9 @@ VkDescriptorSet Context::allocate_set(VkDescriptorSetLayout layout) {
                                             {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kSetsPerPool * 2},
                                             {VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, kSetsPerPool},
                                             {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, kSetsPerPool * 2},
-                                            {VK_DESCRIPTOR_TYPE_SAMPLER, kSetsPerPool}};
+                                            {VK_DESCRIPTOR_TYPE_SAMPLER, kSetsPerPool},
+                                            {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, kSetsPerPool * 4},
+                                            {VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER, kSetsPerPool * 2}};
       VkDescriptorPoolCreateInfo ci{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
       ci.maxSets = kSetsPerPool;
       ci.poolSizeCount = static_cast<std::uint32_t>(std::size(sizes));
@@ -770,6 +775,7 @@ SubmitResult Context::submit(const std::function<void(Recorder&)>& record, const
     if (rec.timer_open_) throw std::logic_error("vulkan: submission '" + what + "' left a timer open");
   } catch (...) {
     vkEndCommandBuffer(cmd);
+    for (VkBufferView v : rec.views_) vkDestroyBufferView(device_, v, nullptr);
     reset_pools();
     throw;
   }
@@ -781,19 +787,29 @@ SubmitResult Context::submit(const std::function<void(Recorder&)>& record, const
   si.pCommandBuffers = &cmd;
   check(vkResetFences(device_, 1, &fence_), "vkResetFences");
   const auto t_submit = std::chrono::steady_clock::now();
-  check(vkQueueSubmit(queue_, 1, &si, fence_), ("vkQueueSubmit '" + what + "'").c_str());
+  if (const VkResult r = vkQueueSubmit(queue_, 1, &si, fence_); r != VK_SUCCESS) {
+    for (VkBufferView v : rec.views_) vkDestroyBufferView(device_, v, nullptr);
+    reset_pools();
+    check(r, ("vkQueueSubmit '" + what + "'").c_str());
+  }
   const auto timeout_ns = static_cast<std::uint64_t>(fence_timeout_ * 1e9);
   const VkResult w = vkWaitForFences(device_, 1, &fence_, VK_TRUE, timeout_ns);
+  auto destroy_views = [&] {
+    for (VkBufferView v : rec.views_) vkDestroyBufferView(device_, v, nullptr);
+    rec.views_.clear();
+  };
   const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_submit).count();
   if (w == VK_TIMEOUT) {
     std::ostringstream os;
     os << "submission '" << what << "' did not complete within " << fence_timeout_ << " s on device '" << info_.name << "'";
     // The command buffer may still be executing: it must not be freed, and the context is unusable.
     (void)owned.release();
+    rec.views_.clear();  // may still be in use: left to the device's destruction
     lost_ = true;
     pending_ = true;
     throw VulkanError(os.str(), w);
   }
+  destroy_views();
   check(w, ("vkWaitForFences '" + what + "'").c_str());
   reset_pools();
   SubmitResult res;

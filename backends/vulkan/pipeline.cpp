@@ -218,7 +218,10 @@ ShaderReflection reflect_spirv(std::span<const std::uint32_t> w) {
     } else if (v.storage == ScUniform) {
       b.type = buffer_block.count(pointee) ? VK_DESCRIPTOR_TYPE_STORAGE_BUFFER : VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
     } else if (t->op == OpTypeSampledImage) {
-      b.type = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+      // A samplerBuffer is a uniform texel buffer (the image operand's Dim is Buffer = 5).
+      const TypeInfo& image = type_of(t->args.at(0));
+      b.type = image.op == OpTypeImage && image.args.at(1) == 5 ? VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER
+                                                                  : VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
     } else if (t->op == OpTypeSampler) {
       b.type = VK_DESCRIPTOR_TYPE_SAMPLER;
     } else if (t->op == OpTypeAccelerationStructureKHR) {
@@ -354,6 +357,9 @@ namespace {
 bool is_buffer_type(VkDescriptorType t) {
   return t == VK_DESCRIPTOR_TYPE_STORAGE_BUFFER || t == VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
 }
+bool is_texel_type(VkDescriptorType t) {
+  return t == VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER || t == VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER;
+}
 bool is_image_type(VkDescriptorType t) {
   return t == VK_DESCRIPTOR_TYPE_STORAGE_IMAGE || t == VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE ||
          t == VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER || t == VK_DESCRIPTOR_TYPE_INPUT_ATTACHMENT;
@@ -374,8 +380,10 @@ VkDescriptorSet Recorder::descriptor_set(const PipelineLayout& layout, std::uint
   std::vector<VkWriteDescriptorSet> writes;
   std::vector<VkDescriptorBufferInfo> buffers;
   std::vector<VkDescriptorImageInfo> images;
+  std::vector<VkBufferView> texel_views;
   buffers.reserve(layout.bindings().size());
   images.reserve(layout.bindings().size());
+  texel_views.reserve(layout.bindings().size());
   for (const auto& rb : layout.bindings()) {
     if (rb.set != set) continue;
     const Bind* found = nullptr;
@@ -391,6 +399,26 @@ VkDescriptorSet Recorder::descriptor_set(const PipelineLayout& layout, std::uint
       if (!found->buffer || !*found->buffer) throw std::invalid_argument(where(rb.binding) + ": expects a buffer");
       buffers.push_back({found->buffer->handle(), found->offset, found->range});
       wr.pBufferInfo = &buffers.back();
+    } else if (is_texel_type(rb.type)) {
+      if (!found->buffer || !*found->buffer || found->texel_format == VK_FORMAT_UNDEFINED)
+        throw std::invalid_argument(where(rb.binding) + ": expects a buffer with a texel format (Bind::texels_at)");
+      const std::uint64_t texel = texel_bytes(found->texel_format);
+      const std::uint64_t bytes = found->range == VK_WHOLE_SIZE ? found->buffer->size() - found->offset : found->range;
+      if (texel > 0 && bytes / texel > ctx_.device_info().limits.maxTexelBufferElements)
+        throw std::invalid_argument(where(rb.binding) + ": buffer '" + found->buffer->name() + "' holds " + std::to_string(bytes / texel) +
+                                    " texels, more than the maxTexelBufferElements of " +
+                                    std::to_string(ctx_.device_info().limits.maxTexelBufferElements) + " of device '" +
+                                    ctx_.device_info().name + "'");
+      VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+      vi.buffer = found->buffer->handle();
+      vi.format = found->texel_format;
+      vi.offset = found->offset;
+      vi.range = found->range;
+      VkBufferView view = VK_NULL_HANDLE;
+      check(vkCreateBufferView(ctx_.device(), &vi, nullptr, &view), (where(rb.binding) + ": vkCreateBufferView").c_str());
+      views_.push_back(view);
+      texel_views.push_back(view);
+      wr.pTexelBufferView = &texel_views.back();
     } else if (is_image_type(rb.type) || rb.type == VK_DESCRIPTOR_TYPE_SAMPLER) {
       if (rb.type != VK_DESCRIPTOR_TYPE_SAMPLER && (!found->image || !*found->image))
         throw std::invalid_argument(where(rb.binding) + ": expects an image");

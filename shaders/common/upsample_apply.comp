@@ -8,10 +8,11 @@
 layout(constant_id = 0) const uint CHANNELS = 3;
 layout(local_size_x = kUpsampleGroupX * kUpsampleGroupY) in;
 
-layout(std430, set = 0, binding = kApBindIndex) readonly buffer Index { ivec4 index[]; };
-layout(std430, set = 0, binding = kApBindWeight) readonly buffer Weight { vec4 weight[]; };
-layout(std430, set = 0, binding = kApBindIn) readonly buffer In { float inv[]; };
-layout(std430, set = 0, binding = kApBindOut) buffer Out { float outv[]; };
+// Read through texel buffers (Bind::texels_at says why).
+layout(set = 0, binding = kApBindIndex) uniform isamplerBuffer index;
+layout(set = 0, binding = kApBindWeight) uniform samplerBuffer weight;
+layout(set = 0, binding = kApBindIn) uniform samplerBuffer inv;
+layout(set = 0, binding = kApBindOut, r32f) uniform writeonly imageBuffer outv;
 layout(push_constant) uniform Push {
   uint first, end;  // display pixels of this dispatch
 } pc;
@@ -19,12 +20,12 @@ layout(push_constant) uniform Push {
 void main() {
   const uint p = pc.first + gl_GlobalInvocationID.x;
   if (p >= pc.end) return;
-  const ivec4 idx = index[p];
+  const ivec4 idx = texelFetch(index, int(p));
   if (idx.x < 0) return;
-  const vec4 w = weight[p];
+  const vec4 w = texelFetch(weight, int(p));
   for (uint c = 0; c < CHANNELS; ++c) {
     float acc = 0.0;
-    for (int k = 0; k < 4 && idx[k] >= 0; ++k) acc += w[k] * inv[uint(idx[k]) * CHANNELS + c];
-    outv[p * CHANNELS + c] = acc;
+    for (int k = 0; k < 4 && idx[k] >= 0; ++k) acc += w[k] * texelFetch(inv, int(uint(idx[k]) * CHANNELS + c)).x;
+    imageStore(outv, int(p * CHANNELS + c), vec4(acc));
   }
 }

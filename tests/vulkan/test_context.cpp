@@ -22,6 +22,7 @@ namespace spv {
 #include "softgi/shaders/test/reflect_mix_comp.h"
 #include "softgi/shaders/test/saxpy_comp.h"
 #include "softgi/shaders/test/spin_comp.h"
+#include "softgi/shaders/test/texel_saxpy_comp.h"
 }  // namespace spv
 
 using namespace softgi;
@@ -162,6 +163,50 @@ TEST_F(ValidatedTest, ComputeRoundTripMatchesTheClosedForm) {
     }
   }
   EXPECT_GE(ctx().submissions(), 1u);
+}
+
+// Storage buffers read and written through texel views (Bind::texels_at): the same closed form, no
+// validation message (usage flags, formats, views released), and a texel binding given without a format is an error that says so.
+TEST_F(ValidatedTest, TexelBufferViewsOfStorageBuffers) {
+  const ShaderReflection r = reflect_spirv(words(spv::test_texel_saxpy_comp));
+  ASSERT_EQ(r.bindings.size(), 2u);
+  EXPECT_EQ(r.bindings[0].type, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER);
+  EXPECT_EQ(r.bindings[1].type, VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER);
+  constexpr std::uint32_t n = 1000;
+  std::vector<float> x(n), y(n);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    x[i] = 0.25f + 0.002f * i;
+    y[i] = std::cos(0.07f * i);
+  }
+  const float a = -0.5f;
+  ComputePipeline p(ctx(), words(spv::test_texel_saxpy_comp), "texel_saxpy");
+  Buffer bx = ctx().create_buffer(n * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryKind::Device, "x");
+  Buffer by = ctx().create_buffer(n * sizeof(float), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryKind::Device, "y");
+  ctx().upload(bx, x.data(), n * sizeof(float));
+  ctx().upload(by, y.data(), n * sizeof(float));
+  struct {
+    std::uint32_t n;
+    float a;
+  } push{n, a};
+  for (int round = 0; round < 2; ++round)  // views are made per submission and released after it
+    ctx().submit([&](Recorder& rec) {
+      rec.dispatch(p, {Bind::texels_at(0, bx, VK_FORMAT_R32_SFLOAT), Bind::texels_at(1, by, VK_FORMAT_R32_SFLOAT)}, push, p.groups_x(n));
+      rec.barrier();
+    }, "texel saxpy");
+  std::vector<float> out(n);
+  ctx().download(by, out.data(), n * sizeof(float));
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const float want = a * x[i] + (a * x[i] + y[i]);
+    ASSERT_LE(std::abs(out[i] - want), 2 * kSaxpyRelTol * (2 * std::abs(a * x[i]) + std::abs(y[i]))) << "element " << i;
+  }
+  EXPECT_EQ(log_->problems(), 0u) << log_->summary();  // and, at TearDown, no view left alive
+  try {
+    ctx().submit([&](Recorder& rec) { rec.dispatch(p, {Bind::buffer_at(0, bx), Bind::texels_at(1, by, VK_FORMAT_R32_SFLOAT)}, push, 1); },
+                 "texel binding without a format");
+    ADD_FAILURE() << "a samplerBuffer bound without a texel format was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("texels_at"), std::string::npos) << e.what();
+  }
 }
 
 TEST_F(ValidatedTest, DispatchChecksBindingsAndPushConstantsAgainstTheShader) {

@@ -288,6 +288,9 @@ class ComputePipeline {
   VkPipeline pipeline_ = VK_NULL_HANDLE;
 };
 
+// Bytes per texel of the uncompressed formats softgi uses (0: not known).
+std::uint64_t texel_bytes(VkFormat f);
+
 // ---------------------------------------------------------------------------------------------
 // Recording. A resource bound to one binding of a descriptor set.
 struct Bind {
@@ -298,11 +301,20 @@ struct Bind {
   VkSampler sampler = VK_NULL_HANDLE;
   VkImageLayout image_layout = VK_IMAGE_LAYOUT_GENERAL;
   std::uint32_t set = 0;
+  VkFormat texel_format = VK_FORMAT_UNDEFINED;  // a texel buffer binding: the view's format
   static Bind buffer_at(std::uint32_t binding, const Buffer& b, std::uint32_t set = 0) {
     Bind x;
     x.binding = binding;
     x.buffer = &b;
     x.set = set;
+    return x;
+  }
+  // A storage buffer read through a texel buffer view of `format` (samplerBuffer, texelFetch): a
+  // SIMD device such as llvmpipe fetches texels for all lanes at once, where it reads a storage
+  // buffer lane by lane with a bounds check per component.
+  static Bind texels_at(std::uint32_t binding, const Buffer& b, VkFormat format, std::uint32_t set = 0) {
+    Bind x = buffer_at(binding, b, set);
+    x.texel_format = format;
     return x;
   }
 };
@@ -342,6 +354,7 @@ class Recorder {
   VkCommandBuffer cmd_;
   std::vector<std::string> timer_labels_;
   bool timer_open_ = false;
+  std::vector<VkBufferView> views_;  // texel views of this submission; Context::submit destroys them
 };
 
 struct SubmitResult {
