@@ -42,6 +42,7 @@ SOFTGI_PV_CONST_UINT(kPvMarchBindPixels, 3u)   // MarchPixel per marching pixel 
 SOFTGI_PV_CONST_UINT(kPvMarchBindSky, 4u)      // vec4 per sky SH coefficient (order 3: 9)
 SOFTGI_PV_CONST_UINT(kPvMarchBindItems, 5u)    // struct { uvec4 state; vec4 radiance; } per (source, ray)
 SOFTGI_PV_CONST_UINT(kPvMarchBindStatus, 6u)   // status words
+SOFTGI_PV_CONST_UINT(kPvMarchBindDiscs, 7u)    // the sorted proxies again, as RGBA32F texels (4 per proxy) for the disc tests
 // Sources of the march shader (specialisation constant 0).
 SOFTGI_PV_CONST_UINT(kPvSourceProxies, 0u)
 SOFTGI_PV_CONST_UINT(kPvSourcePixels, 1u)

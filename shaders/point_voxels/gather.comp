@@ -22,12 +22,15 @@
 #include "pv_common.glsl"
 
 layout(local_size_x = kPvGroup) in;
-layout(std430, set = 0, binding = kPvGathBindProxies) readonly buffer Proxies { Proxy prox[]; };
-layout(std430, set = 0, binding = kPvGathBindRadiance) readonly buffer Radiance { vec4 radiance[]; };
-layout(std430, set = 0, binding = kPvGathBindStart) readonly buffer Start { uint cell_start[]; };
-layout(std430, set = 0, binding = kPvGathBindSh) readonly buffer Sh { float vsh[]; };
-layout(std430, set = 0, binding = kPvGathBindMarch) readonly buffer Pixels { MarchPixel pixels[]; };
-layout(std430, set = 0, binding = kPvGathBindBits) readonly buffer Bits { uint bits[]; };
+// What the loops read comes through texel buffers: a SIMD device fetches texels for all lanes at
+// once, where it reads a storage buffer lane by lane. The proxies as RGBA32F texels, 4 per proxy
+// (position, normal, ...); the marching pixels 3 per pixel (position and hit, normal and depth, ...).
+layout(set = 0, binding = kPvGathBindProxies) uniform samplerBuffer discs;
+layout(set = 0, binding = kPvGathBindRadiance) uniform samplerBuffer radiance;
+layout(set = 0, binding = kPvGathBindStart) uniform usamplerBuffer cell_start;
+layout(set = 0, binding = kPvGathBindSh) uniform samplerBuffer vsh;
+layout(set = 0, binding = kPvGathBindMarch) uniform samplerBuffer pixels;
+layout(set = 0, binding = kPvGathBindBits) uniform usamplerBuffer bits;
 struct GatherPixel {
   vec4 pos_depth;
   vec4 normal_glossy;
@@ -61,6 +64,7 @@ layout(push_constant) uniform Push {
 
 Gathered acc;
 GatherPixel rp;
+float patch_area;  // the grid's g_cell_a.w, read once
 
 // add_glossy: one light's glossy term E (ns + 2) / (2 pi) max(0, R . w)^ns, and eq. 7's.
 void add_glossy(vec3 e, vec3 wn, float weight) {
@@ -86,9 +90,11 @@ void gather_far(uint k, float weight, vec3 to_c, float dc2) {
   const float cos_r = dot(rp.normal_glossy.xyz, wn);
   if (cos_r <= 0.0) return;
   const vec4 y = pv_basis2(-wn);
-  const uint o = k * kPvVoxelFloats;
-  const vec3 c0 = vec3(vsh[o], vsh[o + 1u], vsh[o + 2u]), c1 = vec3(vsh[o + 3u], vsh[o + 4u], vsh[o + 5u]);
-  const vec3 c2 = vec3(vsh[o + 6u], vsh[o + 7u], vsh[o + 8u]), c3 = vec3(vsh[o + 9u], vsh[o + 10u], vsh[o + 11u]);
+  const int o = int(k * kPvVoxelFloats);
+  const vec3 c0 = vec3(texelFetch(vsh, o).x, texelFetch(vsh, o + 1).x, texelFetch(vsh, o + 2).x);
+  const vec3 c1 = vec3(texelFetch(vsh, o + 3).x, texelFetch(vsh, o + 4).x, texelFetch(vsh, o + 5).x);
+  const vec3 c2 = vec3(texelFetch(vsh, o + 6).x, texelFetch(vsh, o + 7).x, texelFetch(vsh, o + 8).x);
+  const vec3 c3 = vec3(texelFetch(vsh, o + 9).x, texelFetch(vsh, o + 10).x, texelFetch(vsh, o + 11).x);
   const vec3 intensity = max(vec3(0.0), c0 * y[0] + c1 * y[1] + c2 * y[2] + c3 * y[3]);
   const vec3 ei = intensity * (cos_r / dc2);
   acc.irradiance.xyz += weight * ei;
@@ -104,7 +110,7 @@ void gather_vpl(vec3 pos, vec3 nrm, vec3 rad, float weight, inout vec3 esum) {
   const vec3 wn = w / sqrt(d2);
   const float cos_r = dot(rp.normal_glossy.xyz, wn), cos_v = -dot(nrm, wn);
   if (cos_r <= 0.0 || cos_v <= 0.0) return;
-  const vec3 ei = rad * (g_cell_a.w * cos_v * cos_r / (d2 + pc.reg));
+  const vec3 ei = rad * (patch_area * cos_v * cos_r / (d2 + pc.reg));
   esum += ei;
   if (rp.normal_glossy.w > 0.0) add_glossy(ei, wn, weight);
 }
@@ -115,6 +121,7 @@ void main() {
   GatherState st = state[i];
   if (st.s.x == kPvPhaseDone) return;
   rp = recv[i];
+  patch_area = g_cell_a.w;
   if (rp.extra.y == 0.0) {
     state[i].s = uvec4(kPvPhaseDone, 0u, 0u, 0u);
     return;
@@ -131,10 +138,11 @@ void main() {
     for (int k = 0; k < 2; ++k) {
       const int qx = clamp(x0 + k, 0, pc.mw - 1), qy = clamp(y0 + j, 0, pc.mh - 1);
       const uint q = uint(qy) * uint(pc.mw) + uint(qx);
-      if (pixels[q].pos_hit.w == 0.0) continue;
+      if (texelFetch(pixels, int(3u * q)).w == 0.0) continue;
       wl[nt] = (k != 0 ? fx : 1.0 - fx) * (j != 0 ? fy : 1.0 - fy);
-      const float dz = (pixels[q].normal_depth.w - rp.pos_depth.w) / (pc.sigma_depth * rp.pos_depth.w);
-      const float dn = (1.0 - dot(pixels[q].normal_depth.xyz, rp.normal_glossy.xyz)) / pc.sigma_normal;
+      const vec4 normal_depth = texelFetch(pixels, int(3u * q + 1u));
+      const float dz = (normal_depth.w - rp.pos_depth.w) / (pc.sigma_depth * rp.pos_depth.w);
+      const float dn = (1.0 - dot(normal_depth.xyz, rp.normal_glossy.xyz)) / pc.sigma_normal;
       wg[nt] = exp(-0.5 * (dz * dz + dn * dn));
       tq[nt++] = q;
     }
@@ -178,7 +186,7 @@ void main() {
   const uint resume_voxel = st.s.y;
   uint gathered = st.s.w, word = resume_voxel / 32u, mine = 0u, m = 0u;
   if (word < pc.words) {
-    [[unroll]] for (uint t = 0u; t < 4u; ++t) tbits[t] = t < used ? bits[tb[t] + word] : 0u;
+    [[unroll]] for (uint t = 0u; t < 4u; ++t) tbits[t] = t < used ? texelFetch(bits, int(tb[t] + word)).x : 0u;
     mine = (tbits[0] | tbits[1] | tbits[2] | tbits[3]) & ~((1u << (resume_voxel % 32u)) - 1u);
   }
   m = subgroupOr(mine);
@@ -203,7 +211,8 @@ void main() {
       // word's code too. The iterations still count in `spent`.
       while (vi < ve && spent < pc.budget) {
         ++spent;
-        if (near_mine) gather_vpl(prox[vi].position.xyz, prox[vi].normal.xyz, radiance[vi].xyz, weight, esum);
+        if (near_mine) gather_vpl(texelFetch(discs, int(4u * vi)).xyz, texelFetch(discs, int(4u * vi + 1u)).xyz, texelFetch(radiance, int(vi)).xyz,
+                                  weight, esum);
         ++vi;
       }
       if (vi < ve) {
@@ -226,13 +235,14 @@ void main() {
       weight = 0.0;
       [[unroll]] for (uint t = 0u; t < 4u; ++t)
         if (t < used && ((tbits[t] >> bit) & 1u) != 0u) weight += tw[t];
-      cell_b = cell_start[vox];
-      ve = cell_start[vox + 1u];
+      cell_b = texelFetch(cell_start, int(vox)).x;
+      ve = texelFetch(cell_start, int(vox + 1u)).x;
       if (cell_b == ve) {
         if (listed) ++gathered;
         continue;
       }
-      const vec3 cen = vec3(vsh[vox * kPvVoxelFloats + 12u], vsh[vox * kPvVoxelFloats + 13u], vsh[vox * kPvVoxelFloats + 14u]);
+      const int co = int(vox * kPvVoxelFloats);
+      const vec3 cen = vec3(texelFetch(vsh, co + 12).x, texelFetch(vsh, co + 13).x, texelFetch(vsh, co + 14).x);
       const vec3 to_c = cen - rp.pos_depth.xyz;
       const float dc2 = dot(to_c, to_c);
       near_mine = listed && dc2 < pc.near2;
@@ -249,7 +259,7 @@ void main() {
       continue;
     }
     if (++word >= pc.words) break;
-    [[unroll]] for (uint t = 0u; t < 4u; ++t) tbits[t] = t < used ? bits[tb[t] + word] : 0u;
+    [[unroll]] for (uint t = 0u; t < 4u; ++t) tbits[t] = t < used ? texelFetch(bits, int(tb[t] + word)).x : 0u;
     mine = tbits[0] | tbits[1] | tbits[2] | tbits[3];
     m = subgroupOr(mine);
   }

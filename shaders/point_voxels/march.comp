@@ -13,7 +13,8 @@ layout(constant_id = 0) const uint SOURCE = kPvSourcePixels;
 layout(local_size_x = kPvGroup) in;
 
 layout(std430, set = 0, binding = kPvMarchBindProxies) readonly buffer Proxies { Proxy prox[]; };
-layout(std430, set = 0, binding = kPvMarchBindStart) readonly buffer Start { uint cell_start[]; };
+layout(set = 0, binding = kPvMarchBindStart) uniform usamplerBuffer cell_start;
+layout(set = 0, binding = kPvMarchBindDiscs) uniform samplerBuffer discs;
 layout(std430, set = 0, binding = kPvMarchBindPixels) readonly buffer Pixels { MarchPixel pixels[]; };
 layout(std430, set = 0, binding = kPvMarchBindSky) readonly buffer Sky { vec4 sky_sh[]; };
 layout(std430, set = 0, binding = kPvMarchBindItems) buffer Items { MarchItem items[]; };

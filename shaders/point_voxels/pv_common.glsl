@@ -34,7 +34,8 @@ struct MarchItem {
 const float kPvPi = 3.14159265358979324;
 
 // Eq. 1: H(v) = v.z Dx Dy + v.y Dx + v.x.
-uint pv_hash(ivec3 v) { return uint(v.z) * uint(g_dims.x) * uint(g_dims.y) + uint(v.y) * uint(g_dims.x) + uint(v.x); }
+uint pv_hash(ivec3 v, ivec3 dims) { return uint(v.z) * uint(dims.x) * uint(dims.y) + uint(v.y) * uint(dims.x) + uint(v.x); }
+uint pv_hash(ivec3 v) { return pv_hash(v, g_dims.xyz); }
 
 // VoxelGrid::cell_of: by the reciprocal of the cell size, so that both backends round alike.
 ivec3 pv_cell_of(vec3 p) { return clamp(ivec3(floor((p - g_lo_r.xyz) * g_inv_cell.xyz)), ivec3(0), g_dims.xyz - 1); }

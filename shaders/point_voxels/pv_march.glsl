@@ -25,11 +25,14 @@ vec3 pv_sky_radiance(vec3 w) {
 // with them replays the DDA to that cell without testing discs. One loop whose every iteration is a
 // disc test or a DDA step: a driver that limits loop iterations per SIMD batch of invocations (llvmpipe)
 // counts at most the budget for the batch, whatever the lanes' paths (nested loops would count the
-// inner loop's longest lane once per outer iteration). Expects `prox` (sorted proxies) and
-// `cell_start` (cell ranges) declared.
+// inner loop's longest lane once per outer iteration). Expects `discs` (the sorted proxies as RGBA32F
+// texels, 4 per proxy) and `cell_start` (cell ranges, R32UI texels) declared: a SIMD device fetches
+// texels for all lanes at once, where it reads a storage buffer lane by lane.
 int pv_march(vec3 o, vec3 d, float t_min, float t_max, inout uint steps, inout uint disc, uint budget) {
   if (g_counts.x == 0u) return -1;
-  const vec3 lo = g_lo_r.xyz, hi = lo + g_cell_a.xyz * vec3(g_dims.xyz);
+  // The grid once in registers: the loops below would read it from its storage buffer every step.
+  const ivec3 dims = g_dims.xyz;
+  const vec3 lo = g_lo_r.xyz, hi = lo + g_cell_a.xyz * vec3(dims);
   float t0 = t_min, t1 = t_max;
   for (int a = 0; a < 3; ++a) {
     if (abs(d[a]) < 1e-12) {
@@ -65,10 +68,10 @@ int pv_march(vec3 o, vec3 d, float t_min, float t_max, inout uint steps, inout u
   const uint target = steps;  // cells to replay before testing discs again
   uint taken = 0u, spent = 0u, k = 0u, cell_b = 0u, i = 0u, e = 0u;
   if (target == 0u) {
-    k = pv_hash(v);
-    cell_b = cell_start[k];
+    k = pv_hash(v, dims);
+    cell_b = texelFetch(cell_start, int(k)).x;
     i = cell_b + disc;
-    e = cell_start[k + 1u];
+    e = texelFetch(cell_start, int(k + 1u)).x;
   }
   for (;;) {
     if (++spent > budget) {
@@ -83,7 +86,7 @@ int pv_march(vec3 o, vec3 d, float t_min, float t_max, inout uint steps, inout u
       // iterations still count in `spent`.
       while (i < e && spent < budget) {
         ++spent;
-        const float t = pv_ray_disc(o, d, prox[i].position.xyz, prox[i].normal.xyz, r);
+        const float t = pv_ray_disc(o, d, texelFetch(discs, int(4u * i)).xyz, texelFetch(discs, int(4u * i + 1u)).xyz, r);
         if (t >= t_min && t <= t_max) return int(k);
         ++i;
       }
@@ -95,14 +98,14 @@ int pv_march(vec3 o, vec3 d, float t_min, float t_max, inout uint steps, inout u
     if (t_next[2] < t_next[a]) a = 2;
     if (t_next[a] > t1) return -1;
     v[a] += stp[a];
-    if (v[a] < 0 || v[a] >= g_dims[a]) return -1;
+    if (v[a] < 0 || v[a] >= dims[a]) return -1;
     t_next[a] += t_delta[a];
     ++taken;
     if (taken >= target) {
-      k = pv_hash(v);
-      cell_b = cell_start[k];
+      k = pv_hash(v, dims);
+      cell_b = texelFetch(cell_start, int(k)).x;
       i = cell_b + (taken == target ? disc : 0u);
-      e = cell_start[k + 1u];
+      e = texelFetch(cell_start, int(k + 1u)).x;
     }
   }
   return -1;

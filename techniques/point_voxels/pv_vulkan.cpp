@@ -551,9 +551,10 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
                      k_rays ? kPi / static_cast<float>(k_rays) : 0.0f, L.sun ? 1u : 0u, glm::vec4(L.sun_irradiance, 0.0f)};
   const std::vector<vk::Bind> march_binds = {
       vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),          vk::Bind::buffer_at(gpu::kPvMarchBindProxies, g.vprox),
-      vk::Bind::buffer_at(gpu::kPvMarchBindStart, g.vstart),  vk::Bind::buffer_at(gpu::kPvMarchBindPixels, g.vprox),
+      vk::Bind::texels_at(gpu::kPvMarchBindStart, g.vstart, VK_FORMAT_R32_UINT), vk::Bind::buffer_at(gpu::kPvMarchBindPixels, g.vprox),
       vk::Bind::buffer_at(gpu::kPvMarchBindSky, g.sky),       vk::Bind::buffer_at(gpu::kPvMarchBindItems, g.items),
-      vk::Bind::buffer_at(gpu::kPvMarchBindStatus, g.march_status)};
+      vk::Bind::buffer_at(gpu::kPvMarchBindStatus, g.march_status),
+      vk::Bind::texels_at(gpu::kPvMarchBindDiscs, g.vprox, VK_FORMAT_R32G32B32A32_SFLOAT)};
   const std::vector<vk::Bind> light_binds = {
       vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),          vk::Bind::buffer_at(gpu::kPvLitBindProxies, g.vprox),
       vk::Bind::buffer_at(gpu::kPvLitBindItems, g.items),     vk::Bind::buffer_at(gpu::kPvLitBindLights, g.lights),
@@ -642,9 +643,10 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   vk::ComputePipeline& lists = pipeline(dev, g.pipelines, "pv.march_lists", words(spv::point_voxels_march_lists_comp), {});
   const std::vector<vk::Bind> march_binds = {
       vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),         vk::Bind::buffer_at(gpu::kPvMarchBindProxies, g.sprox),
-      vk::Bind::buffer_at(gpu::kPvMarchBindStart, g.start),  vk::Bind::buffer_at(gpu::kPvMarchBindPixels, g.pixels),
+      vk::Bind::texels_at(gpu::kPvMarchBindStart, g.start, VK_FORMAT_R32_UINT), vk::Bind::buffer_at(gpu::kPvMarchBindPixels, g.pixels),
       vk::Bind::buffer_at(gpu::kPvMarchBindSky, g.sky),      vk::Bind::buffer_at(gpu::kPvMarchBindItems, g.items),
-      vk::Bind::buffer_at(gpu::kPvMarchBindStatus, g.march_status)};
+      vk::Bind::buffer_at(gpu::kPvMarchBindStatus, g.march_status),
+      vk::Bind::texels_at(gpu::kPvMarchBindDiscs, g.sprox, VK_FORMAT_R32G32B32A32_SFLOAT)};
   const std::vector<vk::Bind> list_binds = {
       vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),          vk::Bind::buffer_at(gpu::kPvListBindPixels, g.pixels),
       vk::Bind::buffer_at(gpu::kPvListBindItems, g.items),    vk::Bind::buffer_at(gpu::kPvListBindBits, g.bits[0]),
@@ -802,10 +804,14 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
                   static_cast<float>(s.sigma_depth), static_cast<float>(s.sigma_normal), near_range * near_range, d.patch_area / kPi,
                   std::sqrt(2.0f * kPi), loop_budget(dev.device_info())};
   const std::vector<vk::Bind> binds = {
-      vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),            vk::Bind::buffer_at(gpu::kPvGathBindProxies, g.vprox),
-      vk::Bind::buffer_at(gpu::kPvGathBindRadiance, g.radiance), vk::Bind::buffer_at(gpu::kPvGathBindStart, g.vstart),
-      vk::Bind::buffer_at(gpu::kPvGathBindSh, g.vsh),            vk::Bind::buffer_at(gpu::kPvGathBindMarch, g.pixels),
-      vk::Bind::buffer_at(gpu::kPvGathBindBits, g.bits[1]),      vk::Bind::buffer_at(gpu::kPvGathBindReceivers, g.receivers),
+      vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),
+      vk::Bind::texels_at(gpu::kPvGathBindProxies, g.vprox, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kPvGathBindRadiance, g.radiance, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kPvGathBindStart, g.vstart, VK_FORMAT_R32_UINT),
+      vk::Bind::texels_at(gpu::kPvGathBindSh, g.vsh, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kPvGathBindMarch, g.pixels, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kPvGathBindBits, g.bits[1], VK_FORMAT_R32_UINT),
+      vk::Bind::buffer_at(gpu::kPvGathBindReceivers, g.receivers),
       vk::Bind::buffer_at(gpu::kPvGathBindOut, g.gathered),      vk::Bind::buffer_at(gpu::kPvGathBindState, g.gstate),
       vk::Bind::buffer_at(gpu::kPvGathBindStatus, g.gather_status)};
   double secs = 0.0;
