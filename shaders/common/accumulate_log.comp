@@ -19,16 +19,17 @@ layout(constant_id = 1) const uint RULE = kRuleContinuous;
 layout(local_size_x = kAccumulateGroup) in;
 const uint W4 = (N + 3u) / 4u;  // vec4s of band weights per blocker (kAccWeightStride(N) / 4)
 
-layout(std430, set = 0, binding = kAccBindReceivers) readonly buffer Receivers { float rec[]; };
-layout(std430, set = 0, binding = kAccBindReceiverList) readonly buffer ReceiverList { uint rlist[]; };
-layout(std430, set = 0, binding = kAccBindListRange) readonly buffer ListRange { uvec2 ranges[]; };
-layout(std430, set = 0, binding = kAccBindBlockers) readonly buffer Blockers { vec4 blockers[]; };
-// The band weights in rows of kAccWeightStride floats per blocker and the table's (value, slope)
-// pairs are read as vectors: one load per vector rather than per float, which is what costs on
-// drivers that load a storage buffer lane by lane (llvmpipe).
-layout(std430, set = 0, binding = kAccBindWeights) readonly buffer Weights { vec4 weights4[]; };
-layout(std430, set = 0, binding = kAccBindTable) readonly buffer Table { vec2 table2[]; };
-layout(std430, set = 0, binding = kAccBindOut) buffer Out { float outv[]; };
+layout(set = 0, binding = kAccBindReceivers) uniform samplerBuffer rec;
+layout(set = 0, binding = kAccBindReceiverList) uniform usamplerBuffer rlist;
+layout(set = 0, binding = kAccBindListRange) uniform usamplerBuffer ranges;
+// Every buffer is read and written through texel buffers, the loop's as vectors: the spheres, the
+// band weights in rows of kAccWeightStride floats per blocker and the table's (value, slope) pairs.
+// A SIMD device fetches texels for all lanes at once, where it reads a storage buffer lane by lane
+// with a bounds check per component (llvmpipe).
+layout(set = 0, binding = kAccBindBlockers) uniform samplerBuffer blockers;
+layout(set = 0, binding = kAccBindWeights) uniform samplerBuffer weights4;
+layout(set = 0, binding = kAccBindTable) uniform samplerBuffer table2;
+layout(set = 0, binding = kAccBindOut, r32f) uniform imageBuffer outv;
 layout(push_constant) uniform Push {
   uint count;       // receivers in all (the planes of rec are this long)
   uint first;       // first receiver of this dispatch
@@ -45,15 +46,16 @@ layout(push_constant) uniform Push {
 void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
   if (i >= pc.end) return;
-  const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
-  const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
-  const uvec2 range = ranges[rlist[i]];
+  const int n = int(pc.count), ii = int(i);
+  const vec3 P = vec3(texelFetch(rec, ii).x, texelFetch(rec, n + ii).x, texelFetch(rec, 2 * n + ii).x);
+  const vec3 Nrm = vec3(texelFetch(rec, 3 * n + ii).x, texelFetch(rec, 4 * n + ii).x, texelFetch(rec, 5 * n + ii).x);
+  const uvec2 range = texelFetch(ranges, int(texelFetch(rlist, ii).x)).xy;
   if (pc.chunk_add != 0u && pc.chunk_first >= range.y) return;  // this list ended in an earlier chunk
   float acc[kAccumMaxCoeffs];
-  [[unroll]] for (uint c = 0; c < N * N; ++c) acc[c] = pc.chunk_add != 0u ? outv[i * N * N + c] : 0.0;
+  [[unroll]] for (uint c = 0; c < N * N; ++c) acc[c] = pc.chunk_add != 0u ? imageLoad(outv, int(i * N * N + c)).x : 0.0;
   const uint b_end = range.x + min(range.y, pc.chunk_first + pc.chunk_count);
   for (uint b = range.x + pc.chunk_first; b < b_end; ++b) {
-    const vec4 sphere = blockers[b];
+    const vec4 sphere = texelFetch(blockers, int(b));
     const float r = sphere.w;
     const vec3 d = sphere.xyz - P;
     if (pc.cut > 0.0 && !(length(d) < pc.cut * r)) continue;  // image_splat_core.cpp accumulate_log_range
@@ -97,7 +99,7 @@ void main() {
     const uint row = uint(k) * N;
     float w[4u * ((kAccumMaxOrder + 3u) / 4u)];
     [[unroll]] for (uint q = 0; q < W4; ++q) {
-      const vec4 x = weights4[b * W4 + q];
+      const vec4 x = texelFetch(weights4, int(b * W4 + q));
       w[4u * q] = x.x;
       w[4u * q + 1u] = x.y;
       w[4u * q + 2u] = x.z;
@@ -105,7 +107,7 @@ void main() {
     }
     float fl[kAccumMaxOrder];
     [[unroll]] for (uint l = 0; l < N; ++l) {
-      const vec2 t = table2[row + l];  // (value, slope) of band l
+      const vec2 t = texelFetch(table2, int(row + l)).xy;  // (value, slope) of band l
       fl[l] = (fr * t.y + t.x) * w[l];  // W of eq. 38
     }
     // Basis by recurrence, accumulated as in kernel_block.
@@ -123,5 +125,5 @@ void main() {
 #undef SH_BASIS_PUT
     }
   }
-  [[unroll]] for (uint c = 0; c < N * N; ++c) outv[i * N * N + c] = acc[c];
+  [[unroll]] for (uint c = 0; c < N * N; ++c) imageStore(outv, int(i * N * N + c), vec4(acc[c]));
 }

@@ -187,10 +187,14 @@ vk::SubmitResult run_accumulate_log(vk::Context& dev, const vk::ComputePipeline&
   const std::uint32_t n_chunks = longest <= chunk ? 1u : (longest + chunk - 1u) / chunk;
   if (chunks) *chunks = n_chunks;
   const std::vector<vk::Bind> binds = {
-      vk::Bind::buffer_at(gpu::kAccBindReceivers, b.receivers), vk::Bind::buffer_at(gpu::kAccBindReceiverList, b.rlist),
-      vk::Bind::buffer_at(gpu::kAccBindListRange, b.ranges),    vk::Bind::buffer_at(gpu::kAccBindBlockers, b.blockers),
-      vk::Bind::buffer_at(gpu::kAccBindWeights, b.weights),     vk::Bind::buffer_at(gpu::kAccBindTable, b.table),
-      vk::Bind::buffer_at(gpu::kAccBindBasis, b.basis),         vk::Bind::buffer_at(gpu::kAccBindOut, b.out)};
+      vk::Bind::texels_at(gpu::kAccBindReceivers, b.receivers, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kAccBindReceiverList, b.rlist, VK_FORMAT_R32_UINT),
+      vk::Bind::texels_at(gpu::kAccBindListRange, b.ranges, VK_FORMAT_R32G32_UINT),
+      vk::Bind::texels_at(gpu::kAccBindBlockers, b.blockers, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kAccBindWeights, b.weights, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kAccBindTable, b.table, VK_FORMAT_R32G32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kAccBindBasis, b.basis),
+      vk::Bind::texels_at(gpu::kAccBindOut, b.out, VK_FORMAT_R32_SFLOAT)};
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("accumulate_log");
     for (std::uint32_t k = 0; k < n_chunks; ++k) {
