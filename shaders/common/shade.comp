@@ -23,17 +23,19 @@ layout(constant_id = 1) const uint VIS = kShadeVisReceiver;
 layout(constant_id = 2) const uint LIGHTS = 0;
 layout(local_size_x = kShadeGroup) in;
 
-layout(std430, set = 0, binding = kShadeBindReceivers) readonly buffer Receivers { float rec[]; };
-layout(std430, set = 0, binding = kShadeBindVis) readonly buffer Vis { float vis[]; };
-layout(std430, set = 0, binding = kShadeBindConsts) readonly buffer Consts { float consts[]; };  // L (3 n^2), hcoef, gwin
+// Inputs through texel buffers: a SIMD device fetches texels for all lanes at once, where it reads a
+// storage buffer lane by lane with a bounds check per component (llvmpipe).
+layout(set = 0, binding = kShadeBindReceivers) uniform samplerBuffer rec;
+layout(set = 0, binding = kShadeBindVis) uniform samplerBuffer vis;
+layout(set = 0, binding = kShadeBindConsts) uniform samplerBuffer consts;  // L (3 n^2), hcoef, gwin
 #include "sh_plan_products.glsl"
 layout(std430, set = 0, binding = kShadeBindOut) writeonly buffer Out { vec4 outv[]; };
-layout(std430, set = 0, binding = kShadeBindTapPixel) readonly buffer TapPixel { int tap_pixel[]; };
-layout(std430, set = 0, binding = kShadeBindTapIndex) readonly buffer TapIndex { ivec4 tap_index[]; };
-layout(std430, set = 0, binding = kShadeBindTapWeight) readonly buffer TapWeight { vec4 tap_weight[]; };
-layout(std430, set = 0, binding = kShadeBindCoarseRow) readonly buffer CoarseRow { int coarse_row[]; };
-layout(std430, set = 0, binding = kShadeBindLightTable) readonly buffer LightTable { float ltab[]; };
-layout(std430, set = 0, binding = kShadeBindLights) readonly buffer Lights { vec4 lights[]; };
+layout(set = 0, binding = kShadeBindTapPixel) uniform isamplerBuffer tap_pixel;
+layout(set = 0, binding = kShadeBindTapIndex) uniform isamplerBuffer tap_index;
+layout(set = 0, binding = kShadeBindTapWeight) uniform samplerBuffer tap_weight;
+layout(set = 0, binding = kShadeBindCoarseRow) uniform isamplerBuffer coarse_row;
+layout(set = 0, binding = kShadeBindLightTable) uniform samplerBuffer ltab;
+layout(set = 0, binding = kShadeBindLights) uniform samplerBuffer lights;
 layout(std430, set = 0, binding = kShadeBindStatus) buffer Status { uint clamped; };
 layout(push_constant) uniform Push {
   uint count;        // receivers in all (the planes of rec are this long)
@@ -80,8 +82,8 @@ bool light_dot(vec3 p, vec3 n, vec3 c, float R, float g[kAccumMaxCoeffs], out fl
   float k[kAccumMaxOrder];
   [[unroll]] for (uint l = 0; l < N; ++l) k[l] = 0.0;
   for (uint q = 0; q < 4; ++q) {
-    psi += w[q] * ltab[cells[q]];
-    [[unroll]] for (uint l = 0; l < N; ++l) k[l] += w[q] * ltab[kbase + cells[q] * N + l];
+    psi += w[q] * texelFetch(ltab, int(cells[q])).x;
+    [[unroll]] for (uint l = 0; l < N; ++l) k[l] += w[q] * texelFetch(ltab, int(kbase + cells[q] * N + l)).x;
   }
   // k is stored per unit solid angle of the light: multiplied back by 4 pi sin^2(theta / 2).
   const float sh = accum_sincos_quarter(0.5 * max(theta, pc.theta_floor)).x;
@@ -108,8 +110,9 @@ void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
   if (i >= pc.end) return;
   const uint n2 = N * N;
-  const vec3 p = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
-  const vec3 s = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
+  const int n = int(pc.count), ii = int(i);
+  const vec3 p = vec3(texelFetch(rec, ii).x, texelFetch(rec, n + ii).x, texelFetch(rec, 2 * n + ii).x);
+  const vec3 s = vec3(texelFetch(rec, 3 * n + ii).x, texelFetch(rec, 4 * n + ii).x, texelFetch(rec, 5 * n + ii).x);
   if ((pc.flags & kShadeFlagZeroNormalEmpty) != 0u && s == vec3(0.0)) {  // no surface (DirectShader::shade)
     outv[i] = vec4(0.0);
     return;
@@ -119,38 +122,39 @@ void main() {
   [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = 0.0;
   bool unshadowed = VIS == kShadeVisNone;
   if (VIS == kShadeVisReceiver) {
-    [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = vis[i * n2 + k];
+    [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = texelFetch(vis, int(i * n2 + k)).x;
   } else if (VIS == kShadeVisGather) {
     // Eq. 11 (paper 000): sum over the pixel's taps, in the CPU's order; no tap at all: unshadowed.
-    const int px = tap_pixel[i];
-    const ivec4 idx = tap_index[px];
-    const vec4 wt = tap_weight[px];
+    const int px = texelFetch(tap_pixel, ii).x;
+    const ivec4 idx = texelFetch(tap_index, px);
+    const vec4 wt = texelFetch(tap_weight, px);
     unshadowed = idx.x < 0;
     for (int t = 0; t < 4 && idx[t] >= 0; ++t) {
       // The field's row of the tap's coarse sample: the sample itself, or (a field in another
       // order, as O_p in receiver order) its entry of coarse_row.
-      const uint row = (pc.flags & kShadeFlagCoarseRow) != 0u ? uint(coarse_row[idx[t]]) : uint(idx[t]);
+      const uint row = (pc.flags & kShadeFlagCoarseRow) != 0u ? uint(texelFetch(coarse_row, idx[t]).x) : uint(idx[t]);
       const uint base = row * n2;
-      [[unroll]] for (uint k = 0; k < n2; ++k) g[k] += wt[t] * vis[base + k];
+      [[unroll]] for (uint k = 0; k < n2; ++k) g[k] += wt[t] * texelFetch(vis, int(base + k)).x;
     }
   }
   if (unshadowed) {
     [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = k == 0 ? kSqrt4Pi : 0.0;
   }
   [[unroll]] for (uint k = 0; k < n2; ++k) {
-    H[k] *= consts[3 * n2 + k];  // hcoef
-    g[k] *= consts[4 * n2 + k];  // gwin
+    H[k] *= texelFetch(consts, int(3 * n2 + k)).x;  // hcoef
+    g[k] *= texelFetch(consts, int(4 * n2 + k)).x;  // gwin
   }
   // (H * g)_k (eq. 3), then dotted with the light.
   float hg[kAccumMaxCoeffs];
   sh_plan_product(H, g, hg);
   vec3 e = vec3(0.0);
-  [[unroll]] for (uint k = 0; k < n2; ++k) e += hg[k] * vec3(consts[k], consts[n2 + k], consts[2 * n2 + k]);
+  [[unroll]] for (uint k = 0; k < n2; ++k)
+    e += hg[k] * vec3(texelFetch(consts, int(k)).x, texelFetch(consts, int(n2 + k)).x, texelFetch(consts, int(2 * n2 + k)).x);
   if (LIGHTS != 0) {
     for (uint li = 0; li < pc.light_count; ++li) {
-      const vec4 cr = lights[2 * li];
+      const vec4 cr = texelFetch(lights, int(2 * li));
       float dsum;
-      if (light_dot(p, s, cr.xyz, cr.w, g, dsum)) e += dsum * lights[2 * li + 1].xyz;
+      if (light_dot(p, s, cr.xyz, cr.w, g, dsum)) e += dsum * texelFetch(lights, int(2 * li + 1)).xyz;
     }
   }
   // Truncated SH can ring below zero in deep shadow; outgoing radiance cannot.

@@ -152,13 +152,16 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   const std::uint32_t nl = lights ? static_cast<std::uint32_t>(in.lights->size()) : 0u;
   const std::uint32_t rt = lights ? static_cast<std::uint32_t>(lt->rows_theta) : 2u, rf = lights ? static_cast<std::uint32_t>(lt->rows_f) : 2u;
   const std::vector<vk::Bind> binds = {
-      vk::Bind::buffer_at(gpu::kShadeBindReceivers, g.shade_rec),       vk::Bind::buffer_at(gpu::kShadeBindVis, dvis ? *dvis->buffer : dcoarse ? *dcoarse->buffer : g.shade_vis),
-      vk::Bind::buffer_at(gpu::kShadeBindConsts, g.shade_consts),       vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
-      vk::Bind::buffer_at(gpu::kShadeBindOut, g.shade_out),             vk::Bind::buffer_at(gpu::kShadeBindTapPixel, g.shade_tap_pixel),
-      vk::Bind::buffer_at(gpu::kShadeBindTapIndex, taps.index ? *taps.index : g.shade_tap_index),
-      vk::Bind::buffer_at(gpu::kShadeBindTapWeight, taps.weight ? *taps.weight : g.shade_tap_weight),
-      vk::Bind::buffer_at(gpu::kShadeBindCoarseRow, g.shade_coarse_row),
-      vk::Bind::buffer_at(gpu::kShadeBindLightTable, g.light_table),    vk::Bind::buffer_at(gpu::kShadeBindLights, g.shade_lights),
+      vk::Bind::texels_at(gpu::kShadeBindReceivers, g.shade_rec, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kShadeBindVis, dvis ? *dvis->buffer : dcoarse ? *dcoarse->buffer : g.shade_vis, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kShadeBindConsts, g.shade_consts, VK_FORMAT_R32_SFLOAT), vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
+      vk::Bind::buffer_at(gpu::kShadeBindOut, g.shade_out),
+      vk::Bind::texels_at(gpu::kShadeBindTapPixel, g.shade_tap_pixel, VK_FORMAT_R32_SINT),
+      vk::Bind::texels_at(gpu::kShadeBindTapIndex, taps.index ? *taps.index : g.shade_tap_index, VK_FORMAT_R32G32B32A32_SINT),
+      vk::Bind::texels_at(gpu::kShadeBindTapWeight, taps.weight ? *taps.weight : g.shade_tap_weight, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kShadeBindCoarseRow, g.shade_coarse_row, VK_FORMAT_R32_SINT),
+      vk::Bind::texels_at(gpu::kShadeBindLightTable, g.light_table, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kShadeBindLights, g.shade_lights, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::buffer_at(gpu::kShadeBindStatus, g.shade_status)};
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("shade");
