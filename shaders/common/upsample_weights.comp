@@ -11,13 +11,15 @@
 
 layout(local_size_x = kUpsampleGroupX, local_size_y = kUpsampleGroupY) in;
 
-layout(std430, set = 0, binding = kUpBindFineDepth) readonly buffer FineDepth { float fdepth[]; };
-layout(std430, set = 0, binding = kUpBindFineNormal) readonly buffer FineNormal { float fnormal[]; };
-layout(std430, set = 0, binding = kUpBindCoarseDepth) readonly buffer CoarseDepth { float cdepth[]; };
-layout(std430, set = 0, binding = kUpBindCoarseNormal) readonly buffer CoarseNormal { float cnormal[]; };
-layout(std430, set = 0, binding = kUpBindIndex) writeonly buffer Index { ivec4 out_index[]; };
-layout(std430, set = 0, binding = kUpBindWeight) writeonly buffer Weight { vec4 out_weight[]; };
-layout(std430, set = 0, binding = kUpBindMiss) writeonly buffer Miss { uvec2 out_miss[]; };
+// Through texel buffers: a SIMD device fetches and stores texels for all lanes at once, where it
+// reads and writes a storage buffer lane by lane with a bounds check per component (llvmpipe).
+layout(set = 0, binding = kUpBindFineDepth) uniform samplerBuffer fdepth;
+layout(set = 0, binding = kUpBindFineNormal) uniform samplerBuffer fnormal;
+layout(set = 0, binding = kUpBindCoarseDepth) uniform samplerBuffer cdepth;
+layout(set = 0, binding = kUpBindCoarseNormal) uniform samplerBuffer cnormal;
+layout(set = 0, binding = kUpBindIndex, rgba32i) uniform writeonly iimageBuffer out_index;
+layout(set = 0, binding = kUpBindWeight, rgba32f) uniform writeonly imageBuffer out_weight;
+layout(set = 0, binding = kUpBindMiss, rg32ui) uniform writeonly uimageBuffer out_miss;
 layout(std430, set = 0, binding = kUpBindStatus) buffer Status { uint status[]; };
 layout(push_constant) uniform Push {
   int fw, fh, fscale;   // display buffer
@@ -33,8 +35,13 @@ bool is_hit(float z) { return !isinf(z); }
 bool depth_ok(float z) { return (isinf(z) && z > 0.0) || (!isnan(z) && !isinf(z) && z > 0.0); }
 bool normal_ok(vec3 n) { return !any(isnan(n)) && !any(isinf(n)); }
 
-vec3 fine_normal(uint p) { return vec3(fnormal[3 * p], fnormal[3 * p + 1], fnormal[3 * p + 2]); }
-vec3 coarse_normal(uint i) { return vec3(cnormal[3 * i], cnormal[3 * i + 1], cnormal[3 * i + 2]); }
+float depth_at(samplerBuffer b, int i) { return texelFetch(b, i).x; }
+vec3 normal_at(samplerBuffer b, uint i) {
+  const int k = int(3u * i);
+  return vec3(texelFetch(b, k).x, texelFetch(b, k + 1).x, texelFetch(b, k + 2).x);
+}
+vec3 fine_normal(uint p) { return normal_at(fnormal, p); }
+vec3 coarse_normal(uint i) { return normal_at(cnormal, i); }
 
 // b^e by squaring (upsample.cpp ipow); 0^0 = 1.
 float ipow(float b, int e) {
@@ -93,15 +100,15 @@ bool store_normalised(ivec4 bidx, vec4 w, out ivec4 idx, out vec4 wt) {
 }
 
 bool bilinear_valid(ivec4 bidx, vec4 bw, out ivec4 idx, out vec4 wt) {
-  const vec4 w = vec4(is_hit(cdepth[bidx.x]) ? bw.x : 0.0, is_hit(cdepth[bidx.y]) ? bw.y : 0.0, is_hit(cdepth[bidx.z]) ? bw.z : 0.0,
-                      is_hit(cdepth[bidx.w]) ? bw.w : 0.0);
+  const vec4 w = vec4(is_hit(depth_at(cdepth, bidx.x)) ? bw.x : 0.0, is_hit(depth_at(cdepth, bidx.y)) ? bw.y : 0.0,
+                      is_hit(depth_at(cdepth, bidx.z)) ? bw.z : 0.0, is_hit(depth_at(cdepth, bidx.w)) ? bw.w : 0.0);
   return store_normalised(bidx, w, idx, wt);
 }
 
 // Eq. 11's weight of one tap: w_b w_z w_N, 0 for a background tap or one of weight 0.
 float bilateral(int i, float wb, float zp, float eps, vec3 np) {
   if (!(wb > 0.0)) return 0.0;
-  const float zi = cdepth[i];
+  const float zi = depth_at(cdepth, i);
   if (!is_hit(zi)) return 0.0;
   const float dz = abs(zp - zi);
   const float wz = dz == 0.0 ? 1.0 : 1.0 / (1.0 + dz / eps);
@@ -115,12 +122,12 @@ void main() {
   // dispatches over the larger of both extents).
   if (X < pc.cw && Y < pc.ch) {
     const uint c = uint(Y) * uint(pc.cw) + uint(X);
-    const float zc = cdepth[c];
+    const float zc = depth_at(cdepth, int(c));
     if (!depth_ok(zc) || (is_hit(zc) && !normal_ok(coarse_normal(c)))) atomicMin(status[kUpStatusBadCoarse], c + 1);
   }
   if (X >= pc.fw || Y >= pc.fh) return;
   const uint p = uint(Y) * uint(pc.fw) + uint(X);
-  const float zp = fdepth[p];
+  const float zp = depth_at(fdepth, int(p));
   ivec4 idx = ivec4(-1);
   vec4 wt = vec4(0.0);
   uint miss = 0;
@@ -149,7 +156,7 @@ void main() {
       }
     }
   }
-  out_index[p] = idx;
-  out_weight[p] = wt;
-  out_miss[p] = uvec2(miss, floatBitsToUint(measure));
+  imageStore(out_index, int(p), idx);
+  imageStore(out_weight, int(p), wt);
+  imageStore(out_miss, int(p), uvec4(miss, floatBitsToUint(measure), 0u, 0u));
 }

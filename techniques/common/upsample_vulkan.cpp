@@ -128,10 +128,14 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
                   static_cast<float>(opt.miss_threshold),
                   opt.mode == UpsampleMode::Bilateral ? gpu::kUpsampleBilateral : gpu::kUpsampleBilinear};
   const std::vector<vk::Bind> binds = {
-      vk::Bind::buffer_at(gpu::kUpBindFineDepth, g.fdepth),     vk::Bind::buffer_at(gpu::kUpBindFineNormal, g.fnormal),
-      vk::Bind::buffer_at(gpu::kUpBindCoarseDepth, g.cdepth),   vk::Bind::buffer_at(gpu::kUpBindCoarseNormal, g.cnormal),
-      vk::Bind::buffer_at(gpu::kUpBindIndex, g.up_index),       vk::Bind::buffer_at(gpu::kUpBindWeight, g.up_weight),
-      vk::Bind::buffer_at(gpu::kUpBindMiss, g.up_miss),         vk::Bind::buffer_at(gpu::kUpBindStatus, g.up_status)};
+      vk::Bind::texels_at(gpu::kUpBindFineDepth, g.fdepth, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kUpBindFineNormal, g.fnormal, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kUpBindCoarseDepth, g.cdepth, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kUpBindCoarseNormal, g.cnormal, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kUpBindIndex, g.up_index, VK_FORMAT_R32G32B32A32_SINT),
+      vk::Bind::texels_at(gpu::kUpBindWeight, g.up_weight, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kUpBindMiss, g.up_miss, VK_FORMAT_R32G32_UINT),
+      vk::Bind::buffer_at(gpu::kUpBindStatus, g.up_status)};
   // The coarse buffer is checked by the invocations of its own extent: cover the larger of both.
   const int gw = std::max(fine.width, coarse.width), gh = std::max(fine.height, coarse.height);
   const auto& lim = dev.device_info().limits.maxComputeWorkGroupCount;
