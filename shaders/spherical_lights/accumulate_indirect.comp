@@ -41,23 +41,23 @@ layout(constant_id = 2) const uint METHOD = kExpHyb;
 layout(constant_id = 3) const uint BLOCKING = kSlPerSphere;
 layout(local_size_x = kSlIndirectGroup) in;
 
-layout(std430, set = 0, binding = kSlIndBindReceivers) readonly buffer Receivers { float rec[]; };
-layout(std430, set = 0, binding = kSlIndBindSpheres) readonly buffer Spheres { vec4 spheres[]; };
-layout(std430, set = 0, binding = kSlIndBindRotation) readonly buffer Rotation { vec4 rotation[]; };
-layout(std430, set = 0, binding = kSlIndBindObject) readonly buffer Object { uint object[]; };
-layout(std430, set = 0, binding = kSlIndBindObjCentre) readonly buffer ObjCentre { vec4 object_centre[]; };
-layout(std430, set = 0, binding = kSlIndBindInterBegin) readonly buffer InterBegin { uint inter_begin[]; };
-layout(std430, set = 0, binding = kSlIndBindInterList) readonly buffer InterList { uint inter_list[]; };
-layout(std430, set = 0, binding = kSlIndBindIntensity) readonly buffer Intensity { float lc[]; };
-layout(std430, set = 0, binding = kSlIndBindLogTable) readonly buffer LogTable { float log_table[]; };
-layout(std430, set = 0, binding = kSlIndBindWeight) readonly buffer Weight { float weight[]; };
-layout(std430, set = 0, binding = kSlIndBindConsts) readonly buffer Consts { float consts[]; };
+layout(set = 0, binding = kSlIndBindReceivers) uniform samplerBuffer rec;
+layout(set = 0, binding = kSlIndBindSpheres) uniform samplerBuffer spheres;
+layout(set = 0, binding = kSlIndBindRotation) uniform samplerBuffer rotation;
+layout(set = 0, binding = kSlIndBindObject) uniform usamplerBuffer object;
+layout(set = 0, binding = kSlIndBindObjCentre) uniform samplerBuffer object_centre;
+layout(set = 0, binding = kSlIndBindInterBegin) uniform usamplerBuffer inter_begin;
+layout(set = 0, binding = kSlIndBindInterList) uniform usamplerBuffer inter_list;
+layout(set = 0, binding = kSlIndBindIntensity) uniform samplerBuffer lc;
+layout(set = 0, binding = kSlIndBindLogTable) uniform samplerBuffer log_table;
+layout(set = 0, binding = kSlIndBindWeight) uniform samplerBuffer weight;
+layout(set = 0, binding = kSlIndBindConsts) uniform samplerBuffer consts;
 layout(std430, set = 0, binding = kSlIndBindOut) writeonly buffer Out { vec4 outv[]; };
 layout(std430, set = 0, binding = kSlIndBindStatus) buffer Status { uint status[]; };
-layout(std430, set = 0, binding = kSlIndBindEntrySl) readonly buffer EntrySl { uint entry_sl[]; };
-layout(std430, set = 0, binding = kSlIndBindRatio) readonly buffer Ratio { vec4 ratio[]; };
-layout(std430, set = 0, binding = kSlIndBindRList) readonly buffer RList { uint rlist[]; };
-layout(std430, set = 0, binding = kSlIndBindLists) readonly buffer Lists { uvec2 lists[]; };
+layout(set = 0, binding = kSlIndBindEntrySl) uniform usamplerBuffer entry_sl;
+layout(set = 0, binding = kSlIndBindRatio) uniform samplerBuffer ratio;
+layout(set = 0, binding = kSlIndBindRList) uniform usamplerBuffer rlist;
+layout(set = 0, binding = kSlIndBindLists) uniform usamplerBuffer lists;
 layout(std430, set = 0, binding = kSlIndBindState) buffer State { float state[]; };
 layout(push_constant) uniform Push {
   uint count;         // receivers in all (the planes of rec are this long)
@@ -73,13 +73,13 @@ layout(push_constant) uniform Push {
   uint resume;        // 0: the first pass; 1: continue from the state
 } pc;
 
-float hcoef(uint l) { return consts[l]; }
-float zh_rot(uint l) { return consts[N + l]; }
+float hcoef(uint l) { return texelFetch(consts, int(l)).x; }
+float zh_rot(uint l) { return texelFetch(consts, int(N + l)).x; }
 
 // The SL's sphere after the replacement rules at (P, Nrm); radius 0 where the rules eliminate it or
 // p is not outside it.
 vec4 sl_adjusted(uint k, vec3 P, vec3 Nrm) {
-  const vec4 sph = spheres[k];
+  const vec4 sph = texelFetch(spheres, int(k));
   vec4 adj = apply_replacement_rule(RULE, P, Nrm, sph.xyz, sph.w);
   const float dist = length(adj.xyz - P);
   if (!(adj.w > 0.0) || !(dist > adj.w)) adj.w = 0.0;
@@ -98,20 +98,20 @@ void sl_log_vector(vec4 adj, vec3 P, out float G[kAccumMaxCoeffs]) {
   const uint row = uint(kr) * 2u * N;
   float Y[kAccumMaxCoeffs], F[kAccumMaxOrder];
   sh_basis_eval(d / dist, Y);
-  [[unroll]] for (uint l = 0; l < N; ++l) F[l] = log_table[row + 2 * l] + fr * log_table[row + 2 * l + 1];
+  [[unroll]] for (uint l = 0; l < N; ++l) F[l] = texelFetch(log_table, int(row + 2 * l)).x + fr * texelFetch(log_table, int(row + 2 * l + 1)).x;
   [[unroll]] for (uint q = 0; q < N * N; ++q) G[q] = F[kShBand[q]] * Y[q];
 }
 
 // Eqs. 16-18: the SL's average radiance towards P (WeightTable::lookup, the rotated ZH dot product).
 vec3 sl_average_radiance(uint k, vec3 P) {
-  const vec4 sph = spheres[k];
+  const vec4 sph = texelFetch(spheres, int(k));
   const vec3 d = P - sph.xyz;
   const float D = length(d);
   const float r = sph.w;
   const float theta = D > r ? accum_asin01(min(1.0, r / D)) : kAccumHalfPi;
   const vec3 u = D > 0.0 ? d / D : vec3(0.0);
   // transpose(R) u: into the SL's rest frame.
-  const vec3 dl = D > 0.0 ? vec3(dot(rotation[3 * k].xyz, u), dot(rotation[3 * k + 1].xyz, u), dot(rotation[3 * k + 2].xyz, u))
+  const vec3 dl = D > 0.0 ? vec3(dot(texelFetch(rotation, int(3 * k)).xyz, u), dot(texelFetch(rotation, int(3 * k + 1)).xyz, u), dot(texelFetch(rotation, int(3 * k + 2)).xyz, u))
                           : vec3(0.0, 0.0, 1.0);
   const float th = theta > 0.0 ? theta : 0.0;
   const float x = min(th, kAccumHalfPi) * pc.weight_scale;
@@ -119,16 +119,16 @@ vec3 sl_average_radiance(uint k, vec3 P) {
   const float f = min(1.0, x - float(kw));
   float Y[kAccumMaxCoeffs];
   sh_basis_eval(dl, Y);
-  const uint n2 = N * N, base = entry_sl[k] * 3 * n2;
+  const uint n2 = N * N, base = texelFetch(entry_sl, int(k)).x * 3 * n2;
   float wl[kAccumMaxOrder];
   [[unroll]] for (uint l = 0; l < N; ++l) {
-    const float a = weight[uint(kw) * N + l], b = weight[uint(kw + 1) * N + l];
+    const float a = texelFetch(weight, int(uint(kw) * N + l)).x, b = texelFetch(weight, int(uint(kw + 1) * N + l)).x;
     wl[l] = (a + f * (b - a)) * zh_rot(l);
   }
   vec3 acc = vec3(0.0);
-  [[unroll]] for (uint q = 0; q < n2; ++q) acc += (wl[kShBand[q]] * Y[q]) * vec3(lc[base + q], lc[base + n2 + q], lc[base + 2 * n2 + q]);
+  [[unroll]] for (uint q = 0; q < n2; ++q) acc += (wl[kShBand[q]] * Y[q]) * vec3(texelFetch(lc, int(base + q)).x, texelFetch(lc, int(base + n2 + q)).x, texelFetch(lc, int(base + 2 * n2 + q)).x);
   // Eq. 26: a parent of the hierarchy scaled by its reflection ratio.
-  return acc * ratio[k].xyz;
+  return acc * texelFetch(ratio, int(k)).xyz;
 }
 
 float key_[kSlMaxLights];  // per list entry: distance to its adjusted sphere, < 0 when eliminated
@@ -141,7 +141,7 @@ bool before(uint a, uint b) {
   if (BLOCKING == kSlPerObject) {
     const float da = od_[a - lb_], db = od_[b - lb_];
     if (da != db) return da < db;
-    const uint oa = object[a], ob = object[b];
+    const uint oa = texelFetch(object, int(a)).x, ob = texelFetch(object, int(b)).x;
     if (oa != ob) return oa < ob;
   }
   const float ka = key_[a - lb_], kb = key_[b - lb_];
@@ -166,8 +166,8 @@ void main() {
     last = floatBitsToUint(state[sbase + n2 + 3u]);
     if (last == kSlStateDone) return;
   }
-  const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
-  const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
+  const vec3 P = vec3(texelFetch(rec, int(i)).x, texelFetch(rec, int(pc.count + i)).x, texelFetch(rec, int(2 * pc.count + i)).x);
+  const vec3 Nrm = vec3(texelFetch(rec, int(3 * pc.count + i)).x, texelFetch(rec, int(4 * pc.count + i)).x, texelFetch(rec, int(5 * pc.count + i)).x);
   if (!(dot(Nrm, Nrm) > 0.0)) {
     outv[i] = vec4(0.0);
     state[sbase + n2 + 3u] = uintBitsToFloat(kSlStateDone);
@@ -177,7 +177,7 @@ void main() {
   sh_basis_eval(Nrm, hn);
   [[unroll]] for (uint q = 0; q < N * N; ++q) hn[q] *= hcoef(kShBand[q]);
   // The active SLs' order keys and their distances from p.
-  const uvec2 list = lists[rlist[i]];
+  const uvec2 list = texelFetch(lists, int(texelFetch(rlist, int(i)).x)).xy;
   lb_ = list.x;
   uint eliminated = 0;
   for (uint k = list.x; k < list.x + list.y; ++k) {
@@ -188,7 +188,7 @@ void main() {
       key_[k - lb_] = -1.0;
       ++eliminated;
     }
-    if (BLOCKING == kSlPerObject) od_[k - lb_] = length(object_centre[object[k]].xyz - P);
+    if (BLOCKING == kSlPerObject) od_[k - lb_] = length(texelFetch(object_centre, int(texelFetch(object, int(k)).x)).xyz - P);
   }
   const uint list_max = subgroupMax(list.y);
   uint used = cost_sphere() + list_max * 8u;
@@ -218,8 +218,8 @@ void main() {
     }
     // Eq. 21: S_k, the G of the SLs before k less those of its own object that intersect it.
     [[unroll]] for (uint q = 0; q < n2; ++q) S[q] = prefix[q];
-    for (uint t = inter_begin[k]; t < inter_begin[k + 1]; ++t) {
-      const uint j = inter_list[t];
+    for (uint t = texelFetch(inter_begin, int(k)).x; t < texelFetch(inter_begin, int(k + 1)).x; ++t) {
+      const uint j = texelFetch(inter_list, int(t)).x;
       if (key_[j - lb_] >= 0.0 && before(j, k)) {
         sl_log_vector(sl_adjusted(j, P, Nrm), P, G);
         [[unroll]] for (uint q = 0; q < n2; ++q) S[q] -= G[q];
@@ -233,7 +233,7 @@ void main() {
       n1 += SG[q] * SG[q];
     }
     SG[0] = S[0] + G[0];
-    const uint cost = cost_pair_fixed() + subgroupMax(inter_begin[k + 1] - inter_begin[k]) * cost_sphere() +
+    const uint cost = cost_pair_fixed() + subgroupMax(texelFetch(inter_begin, int(k + 1)).x - texelFetch(inter_begin, int(k)).x) * cost_sphere() +
                       cost_exp(subgroupMax(sh_exp_squarings(sqrt(n0), METHOD))) + cost_exp(subgroupMax(sh_exp_squarings(sqrt(n1), METHOD)));
     if (pc.budget != 0xffffffffu) {
       if (cost + 2u * list_max + cost_sphere() > pc.budget) atomicMin(status[kSlStatusBudget], i + 1);

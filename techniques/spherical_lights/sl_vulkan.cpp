@@ -388,16 +388,26 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
     std::uint32_t budget, resume;
   };
   const std::vector<vk::Bind> binds = {
-      vk::Bind::buffer_at(gpu::kSlIndBindReceivers, rb.inputs.receivers), vk::Bind::buffer_at(gpu::kSlIndBindSpheres, g.spheres),
-      vk::Bind::buffer_at(gpu::kSlIndBindRotation, g.rotation),           vk::Bind::buffer_at(gpu::kSlIndBindObject, g.object),
-      vk::Bind::buffer_at(gpu::kSlIndBindObjCentre, g.object_centre),     vk::Bind::buffer_at(gpu::kSlIndBindInterBegin, g.inter_begin),
-      vk::Bind::buffer_at(gpu::kSlIndBindInterList, g.inter_list),        vk::Bind::buffer_at(gpu::kSlIndBindIntensity, lc),
-      vk::Bind::buffer_at(gpu::kSlIndBindLogTable, g.log_table),          vk::Bind::buffer_at(gpu::kSlIndBindWeight, g.weight_table),
-      vk::Bind::buffer_at(gpu::kSlIndBindConsts, g.consts),               vk::Bind::buffer_at(gpu::kSlIndBindBasis, basis),
-      vk::Bind::buffer_at(gpu::kSlIndBindOl, g.ol),                       vk::Bind::buffer_at(gpu::kSlIndBindOut, g.ind_out),
-      vk::Bind::buffer_at(gpu::kSlIndBindStatus, g.ind_status),           vk::Bind::buffer_at(gpu::kSlIndBindEntrySl, g.entry_sl),
-      vk::Bind::buffer_at(gpu::kSlIndBindRatio, g.ratio),                 vk::Bind::buffer_at(gpu::kSlIndBindRList, g.rlist),
-      vk::Bind::buffer_at(gpu::kSlIndBindLists, g.list_range),           vk::Bind::buffer_at(gpu::kSlIndBindState, g.ind_state)};
+      vk::Bind::texels_at(gpu::kSlIndBindReceivers, rb.inputs.receivers, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSlIndBindSpheres, g.spheres, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSlIndBindRotation, g.rotation, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSlIndBindObject, g.object, VK_FORMAT_R32_UINT),
+      vk::Bind::texels_at(gpu::kSlIndBindObjCentre, g.object_centre, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSlIndBindInterBegin, g.inter_begin, VK_FORMAT_R32_UINT),
+      vk::Bind::texels_at(gpu::kSlIndBindInterList, g.inter_list, VK_FORMAT_R32_UINT),
+      vk::Bind::texels_at(gpu::kSlIndBindIntensity, lc, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSlIndBindLogTable, g.log_table, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSlIndBindWeight, g.weight_table, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSlIndBindConsts, g.consts, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kSlIndBindBasis, basis),
+      vk::Bind::buffer_at(gpu::kSlIndBindOl, g.ol),
+      vk::Bind::buffer_at(gpu::kSlIndBindOut, g.ind_out),
+      vk::Bind::buffer_at(gpu::kSlIndBindStatus, g.ind_status),
+      vk::Bind::texels_at(gpu::kSlIndBindEntrySl, g.entry_sl, VK_FORMAT_R32_UINT),
+      vk::Bind::texels_at(gpu::kSlIndBindRatio, g.ratio, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSlIndBindRList, g.rlist, VK_FORMAT_R32_UINT),
+      vk::Bind::texels_at(gpu::kSlIndBindLists, g.list_range, VK_FORMAT_R32G32_UINT),
+      vk::Bind::buffer_at(gpu::kSlIndBindState, g.ind_state)};
   const float weight_scale = static_cast<float>((t.weight.rows - 1) / kHalfPi);
   // Passes until every receiver has summed all its SLs: one where the driver has no loop limit,
   // else as many as the limit requires (the shader's header comment).
