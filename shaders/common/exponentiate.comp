@@ -18,7 +18,7 @@ layout(local_size_x = kExponentiateGroup) in;
 #define SH_EXP_BIND_SERIES kExpBindSeries
 #include "sh_exp.glsl"
 
-layout(std430, set = 0, binding = kExpBindIn) readonly buffer In { float f_in[]; };
+layout(set = 0, binding = kExpBindIn) uniform samplerBuffer f_in;
 layout(std430, set = 0, binding = kExpBindOut) writeonly buffer Out { float g_out[]; };
 layout(std430, set = 0, binding = kExpBindStatus) buffer Status { uint status[]; };
 layout(push_constant) uniform Push {
@@ -45,7 +45,7 @@ void main() {
   if (i >= pc.end) return;
   const uint n2 = N * N, base = i * n2;
   float f[kAccumMaxCoeffs];
-  for (uint k = 0; k < n2; ++k) f[k] = f_in[base + k];
+  for (uint k = 0; k < n2; ++k) f[k] = texelFetch(f_in, int(base + k)).x;
   int s;
   const uint code = sh_exp(f, METHOD, pc.ol_count, pc.degree, s);
   if (pc.budget != 0xffffffffu && loop_cost(subgroupMax(s)) > pc.budget) atomicMin(status[kExpStatusLoopBudget], i + 1);

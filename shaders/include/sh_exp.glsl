@@ -23,7 +23,9 @@
 #define SH_EXP_PRODUCTS
 #endif
 
-layout(std430, set = 0, binding = SH_EXP_BIND_OL) readonly buffer ShExpOl { float ol[]; };  // norms, a, b (ol_count each)
+// Tables through texel buffers: a SIMD device fetches texels for all lanes at once, where it reads a
+// storage buffer lane by lane with a bounds check per component (llvmpipe).
+layout(set = 0, binding = SH_EXP_BIND_OL) uniform samplerBuffer ol;  // norms, a, b (ol_count each)
 // The squares are code: sh_square_unrolled.glsl, generated at build time from the CPU's ProductPlan
 // (shaders/gen/sh_plan_glsl.cpp), every term written out with constant indices.
 #include "sh_square_unrolled.glsl"
@@ -31,7 +33,7 @@ layout(std430, set = 0, binding = SH_EXP_BIND_OL) readonly buffer ShExpOl { floa
 #include "sh_plan_products.glsl"
 #endif
 #ifdef SH_EXP_SERIES
-layout(std430, set = 0, binding = SH_EXP_BIND_SERIES) readonly buffer ShExpSeries { float series[]; };
+layout(set = 0, binding = SH_EXP_BIND_SERIES) uniform samplerBuffer series;
 #endif
 
 const float kSqrt4Pi = 3.5449077018110318;
@@ -60,25 +62,25 @@ void sh_exp_square_g() {
 // sh::ShTables::ol_lookup: piecewise linear in the increasing prefix of the OL sweep (eq. 23);
 // m = ol_count knots.
 void sh_exp_ol_lookup(float norm, uint m, out float a, out float b) {
-  if (!(norm > ol[0])) {
-    a = ol[m];
-    b = ol[2 * m];
+  if (!(norm > texelFetch(ol, int(0)).x)) {
+    a = texelFetch(ol, int(m)).x;
+    b = texelFetch(ol, int(2 * m)).x;
     return;
   }
-  if (norm >= ol[m - 1]) {
-    a = ol[2 * m - 1];
-    b = ol[3 * m - 1];
+  if (norm >= texelFetch(ol, int(m - 1)).x) {
+    a = texelFetch(ol, int(2 * m - 1)).x;
+    b = texelFetch(ol, int(3 * m - 1)).x;
     return;
   }
   uint lo = 0, hi = m - 1;  // ol[lo] < norm <= ... < ol[hi]: find the last knot <= norm
   while (hi - lo > 1) {
     const uint mid = (lo + hi) / 2;
-    if (ol[mid] <= norm) lo = mid;
+    if (texelFetch(ol, int(mid)).x <= norm) lo = mid;
     else hi = mid;
   }
-  const float w = (norm - ol[lo]) / (ol[lo + 1] - ol[lo]);
-  a = ol[m + lo] + w * (ol[m + lo + 1] - ol[m + lo]);
-  b = ol[2 * m + lo] + w * (ol[2 * m + lo + 1] - ol[2 * m + lo]);
+  const float w = (norm - texelFetch(ol, int(lo)).x) / (texelFetch(ol, int(lo + 1)).x - texelFetch(ol, int(lo)).x);
+  a = texelFetch(ol, int(m + lo)).x + w * (texelFetch(ol, int(m + lo + 1)).x - texelFetch(ol, int(m + lo)).x);
+  b = texelFetch(ol, int(2 * m + lo)).x + w * (texelFetch(ol, int(2 * m + lo + 1)).x - texelFetch(ol, int(2 * m + lo)).x);
 }
 
 // The squarings sh_exp does for a vector whose non-DC part has norm `norm` (sh::paper_squarings:
@@ -128,7 +130,7 @@ uint sh_exp(in float f[kAccumMaxCoeffs], uint method, uint ol_count, uint degree
       x2[k] = pw[k] = 0.0;
     }
     for (uint k = 2; k <= degree; ++k) {
-      const float h = series[k];
+      const float h = texelFetch(series, int(k)).x;
       if (k % 2 == 0) {
         if (k == 2) {
           sh_square(x, x2);
@@ -161,7 +163,7 @@ uint sh_exp(in float f[kAccumMaxCoeffs], uint method, uint ol_count, uint degree
     }
     for (uint k = 2; k <= degree; ++k) {
       sh_product(term, x, exp_t);
-      const float inv = series[k];
+      const float inv = texelFetch(series, int(k)).x;
       for (uint c = 0; c < n2; ++c) {
         term[c] = exp_t[c] * inv;
         exp_g[c] += term[c];

@@ -400,7 +400,7 @@ void vulkan_indirect(const Settings& s, render::FrameContext& ctx) {
       vk::Bind::texels_at(gpu::kSlIndBindWeight, g.weight_table, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kSlIndBindConsts, g.consts, VK_FORMAT_R32_SFLOAT),
       vk::Bind::buffer_at(gpu::kSlIndBindBasis, basis),
-      vk::Bind::buffer_at(gpu::kSlIndBindOl, g.ol),
+      vk::Bind::texels_at(gpu::kSlIndBindOl, g.ol, VK_FORMAT_R32_SFLOAT),
       vk::Bind::buffer_at(gpu::kSlIndBindOut, g.ind_out),
       vk::Bind::buffer_at(gpu::kSlIndBindStatus, g.ind_status),
       vk::Bind::texels_at(gpu::kSlIndBindEntrySl, g.entry_sl, VK_FORMAT_R32_UINT),
