@@ -21,18 +21,18 @@ layout(constant_id = 1) const uint RULE = kRuleContinuous;
 layout(constant_id = 2) const uint OP = kIndOpAveraged;
 layout(local_size_x = kIndGroup) in;
 
-layout(std430, set = 0, binding = kIndBindReceivers) readonly buffer Receivers { float rec[]; };
-layout(std430, set = 0, binding = kIndBindReceiverList) readonly buffer ReceiverList { uint rlist[]; };
-layout(std430, set = 0, binding = kIndBindListRange) readonly buffer ListRange { uvec2 ranges[]; };
-layout(std430, set = 0, binding = kIndBindProxies) readonly buffer Proxies { vec4 proxies[]; };
-layout(std430, set = 0, binding = kIndBindAlbedo) readonly buffer Albedo { vec4 albedo[]; };
-layout(std430, set = 0, binding = kIndBindVis) readonly buffer Vis { float vis[]; };
-layout(std430, set = 0, binding = kIndBindDfac) readonly buffer Dfac { float dfac[]; };
-layout(std430, set = 0, binding = kIndBindConsts) readonly buffer Consts { float consts[]; };
+layout(set = 0, binding = kIndBindReceivers) uniform samplerBuffer rec;
+layout(set = 0, binding = kIndBindReceiverList) uniform usamplerBuffer rlist;
+layout(set = 0, binding = kIndBindListRange) uniform usamplerBuffer ranges;
+layout(set = 0, binding = kIndBindProxies) uniform samplerBuffer proxies;
+layout(set = 0, binding = kIndBindAlbedo) uniform samplerBuffer albedo;
+layout(set = 0, binding = kIndBindVis) uniform samplerBuffer vis;
+layout(set = 0, binding = kIndBindDfac) uniform samplerBuffer dfac;
+layout(set = 0, binding = kIndBindConsts) uniform samplerBuffer consts;
 layout(std430, set = 0, binding = kIndBindOut) buffer Out { vec4 outv[]; };
 layout(std430, set = 0, binding = kIndBindPairs) buffer Pairs { uint pairs_inside; };
-layout(std430, set = 0, binding = kIndBindMtab) readonly buffer Mtab { float mtab[]; };
-layout(std430, set = 0, binding = kIndBindQrot) readonly buffer Qrot { float qrot[]; };
+layout(set = 0, binding = kIndBindMtab) uniform samplerBuffer mtab;
+layout(set = 0, binding = kIndBindQrot) uniform samplerBuffer qrot;
 layout(push_constant) uniform Push {
   uint count;   // receivers in all (the planes of rec are this long)
   uint first;   // first receiver of this dispatch
@@ -45,9 +45,9 @@ layout(push_constant) uniform Push {
   uint chunk_add;    // 1: add to the sums of the chunks before (read back from outv); 0: the first chunk
 } pc;
 
-float lt(uint k, uint c) { return consts[3 * k + c]; }
-float vh(uint l) { return consts[3 * N * N + l]; }
-float hc(uint l) { return consts[3 * N * N + N + l]; }
+float lt(uint k, uint c) { return texelFetch(consts, int(3 * k + c)).x; }
+float vh(uint l) { return texelFetch(consts, int(3 * N * N + l)).x; }
+float hc(uint l) { return texelFetch(consts, int(3 * N * N + N + l)).x; }
 uint sh_index(uint l, int m) { return uint(int(l * l + l) + m); }
 
 // Paper 000 eqs. 16-17, Impl::pair's exact branch: I . H(N) = (M(theta) R L~) . H(R N) with
@@ -95,7 +95,7 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
     }
     [[unroll]] for (uint i = 0; i < w; ++i) {  // Q^T
       vec3 s = vec3(0.0);
-      [[unroll]] for (uint j = 0; j < w; ++j) s += qrot[qo + j * w + i] * t[j];
+      [[unroll]] for (uint j = 0; j < w; ++j) s += texelFetch(qrot, int(qo + j * w + i)).x * t[j];
       g[i] = s;
     }
     [[unroll]] for (uint m = 1; m <= l; ++m) {  // rotate_z(-beta)
@@ -105,7 +105,7 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
     }
     [[unroll]] for (uint i = 0; i < w; ++i) {  // Q
       vec3 s = vec3(0.0);
-      [[unroll]] for (uint j = 0; j < w; ++j) s += qrot[qo + i * w + j] * g[j];
+      [[unroll]] for (uint j = 0; j < w; ++j) s += texelFetch(qrot, int(qo + i * w + j)).x * g[j];
       f[base + i] = s;
     }
     qo += w * w;
@@ -123,8 +123,8 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
       vec3 r = vec3(0.0);
       [[unroll]] for (uint b = 0; b < w; ++b) {
         const uint e = mo + a * w + b;
-        const float m0 = mtab[r0 + e];
-        r += (m0 + fr * (mtab[r1 + e] - m0)) * f[sh_index(am + b, m)];
+        const float m0 = texelFetch(mtab, int(r0 + e)).x;
+        r += (m0 + fr * (texelFetch(mtab, int(r1 + e)).x - m0)) * f[sh_index(am + b, m)];
       }
       acc += hp[sh_index(am + a, m)] * r;
     }
@@ -136,10 +136,10 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
 void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
   if (i >= pc.end) return;
-  const vec3 P = vec3(rec[i], rec[pc.count + i], rec[2 * pc.count + i]);
-  const vec3 Nrm = vec3(rec[3 * pc.count + i], rec[4 * pc.count + i], rec[5 * pc.count + i]);
+  const vec3 P = vec3(texelFetch(rec, int(i)).x, texelFetch(rec, int(pc.count + i)).x, texelFetch(rec, int(2 * pc.count + i)).x);
+  const vec3 Nrm = vec3(texelFetch(rec, int(3 * pc.count + i)).x, texelFetch(rec, int(4 * pc.count + i)).x, texelFetch(rec, int(5 * pc.count + i)).x);
   const bool cut = pc.eta > 0.0;
-  const uvec2 range = ranges[rlist[i]];
+  const uvec2 range = texelFetch(ranges, int(texelFetch(rlist, int(i)).x)).xy;
   if (pc.chunk_add != 0u && pc.chunk_first >= range.y) return;  // this list ended in an earlier chunk
   const vec4 before = pc.chunk_add != 0u ? outv[i] : vec4(0.0);
   vec3 acc = before.xyz;
@@ -147,7 +147,7 @@ void main() {
   uint inside = 0;
   const uint j_end = range.x + min(range.y, pc.chunk_first + pc.chunk_count);
   for (uint j = range.x + pc.chunk_first; j < j_end; ++j) {
-    const vec4 sph = proxies[j];
+    const vec4 sph = texelFetch(proxies, int(j));
     // Self-shadowing replacement rules (paper 004 section 6.2), as in the shadow pass.
     const vec4 s = apply_replacement_rule(RULE, P, Nrm, sph.xyz, sph.w);
     if (!(s.w > 0.0)) continue;
@@ -164,14 +164,14 @@ void main() {
     const float fr = u - float(k);
     const uint row = uint(k) * 2u * N;
     // omega_i = sqrt(4pi) V_i,0 = F_0 (eq. 2 through the DC term).
-    om += vis[row] + fr * vis[row + 1];
+    om += texelFetch(vis, int(row)).x + fr * texelFetch(vis, int(row + 1)).x;
     if (OP == kIndOpExact) {
-      acc += albedo[j].xyz * exact_pair(d, Nrm, uint(k), fr);  // eqs. 16-17
+      acc += texelFetch(albedo, int(j)).xyz * exact_pair(d, Nrm, uint(k), fr);  // eqs. 16-17
       continue;
     }
     // V . H(N) = sum_l F_l vh_l P_l(d . N) (addition theorem).
     float F[kAccumMaxOrder];
-    [[unroll]] for (uint l = 0; l < N; ++l) F[l] = vis[row + 2 * l] + fr * vis[row + 2 * l + 1];
+    [[unroll]] for (uint l = 0; l < N; ++l) F[l] = texelFetch(vis, int(row + 2 * l)).x + fr * texelFetch(vis, int(row + 2 * l + 1)).x;
     const float t = clamp(dot(d, Nrm), -1.0, 1.0);
     float p0 = 1.0, p1 = t;
     float vdoth = F[0] * vh(0) + (N > 1 ? F[1] * vh(1) * t : 0.0);
@@ -187,7 +187,7 @@ void main() {
       [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = (l & 1u) != 0u ? -1.0 : 1.0;
     } else {
       const uint d0 = uint(k) * N;
-      [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = dfac[d0 + l] + fr * (dfac[d0 + N + l] - dfac[d0 + l]);
+      [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = texelFetch(dfac, int(d0 + l)).x + fr * (texelFetch(dfac, int(d0 + N + l)).x - texelFetch(dfac, int(d0 + l)).x);
     }
     // B_l = sum_m y_lm(d) L~_lm per channel; kappa = sum_l fac_l B_l. Basis by the SHEXP recurrence.
     float y[kAccumMaxCoeffs];
@@ -197,7 +197,7 @@ void main() {
     [[unroll]] for (uint q = 0; q < N * N; ++q) B[kShBand[q]] += y[q] * vec3(lt(q, 0), lt(q, 1), lt(q, 2));
     vec3 kap = vec3(0.0);
     [[unroll]] for (uint l = 0; l < N; ++l) kap += fac[l] * B[l];
-    acc += albedo[j].xyz * (kap * vdoth);  // diffuse proxy: radiance albedo / pi L~
+    acc += texelFetch(albedo, int(j)).xyz * (kap * vdoth);  // diffuse proxy: radiance albedo / pi L~
   }
   outv[i] = vec4(acc, om);
   if (inside > 0u) atomicAdd(pairs_inside, inside);

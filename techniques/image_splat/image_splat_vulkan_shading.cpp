@@ -200,13 +200,19 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   const std::uint32_t chunk = indirect_chunk(dev.device_info(), n, exact);
   const std::uint32_t n_chunks = longest <= chunk ? 1u : (longest + chunk - 1u) / chunk;
   const std::vector<vk::Bind> binds = {
-      vk::Bind::buffer_at(gpu::kIndBindReceivers, g.receivers), vk::Bind::buffer_at(gpu::kIndBindReceiverList, g.rlist),
-      vk::Bind::buffer_at(gpu::kIndBindListRange, g.ranges),    vk::Bind::buffer_at(gpu::kIndBindProxies, g.proxies),
-      vk::Bind::buffer_at(gpu::kIndBindAlbedo, g.albedo),       vk::Bind::buffer_at(gpu::kIndBindVis, g.vis),
-      vk::Bind::buffer_at(gpu::kIndBindDfac, g.dfac),           vk::Bind::buffer_at(gpu::kIndBindConsts, g.consts),
-      vk::Bind::buffer_at(gpu::kIndBindBasis, basis_constants(dev)),       vk::Bind::buffer_at(gpu::kIndBindOut, g.out),
-      vk::Bind::buffer_at(gpu::kIndBindPairs, g.pairs),         vk::Bind::buffer_at(gpu::kIndBindMtab, g.mtab),
-      vk::Bind::buffer_at(gpu::kIndBindQrot, g.qrot)};
+      vk::Bind::texels_at(gpu::kIndBindReceivers, g.receivers, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindReceiverList, g.rlist, VK_FORMAT_R32_UINT),
+      vk::Bind::texels_at(gpu::kIndBindListRange, g.ranges, VK_FORMAT_R32G32_UINT),
+      vk::Bind::texels_at(gpu::kIndBindProxies, g.proxies, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindAlbedo, g.albedo, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindVis, g.vis, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindDfac, g.dfac, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindConsts, g.consts, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kIndBindBasis, basis_constants(dev)),
+      vk::Bind::buffer_at(gpu::kIndBindOut, g.out),
+      vk::Bind::buffer_at(gpu::kIndBindPairs, g.pairs),
+      vk::Bind::texels_at(gpu::kIndBindMtab, g.mtab, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindQrot, g.qrot, VK_FORMAT_R32_SFLOAT)};
   vk::SubmitResult res;
   if (count)
     res = dev.submit([&](vk::Recorder& rec) {
