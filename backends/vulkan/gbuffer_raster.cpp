@@ -482,9 +482,9 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
         bi.pClearValues = clear.data();
         const VkDescriptorSet set = r.descriptor_set(*pipe.layout, 0,
                                                      {vk::Bind::buffer_at(gpu::kGbBindFrame, state->frame),
-                                                      vk::Bind::buffer_at(gpu::kGbBindPositions, state->positions),
-                                                      vk::Bind::buffer_at(gpu::kGbBindNormals, state->normals),
-                                                      vk::Bind::buffer_at(gpu::kGbBindIndices, state->indices)});
+                                                      vk::Bind::texels_at(gpu::kGbBindPositions, state->positions, VK_FORMAT_R32_SFLOAT),
+                                                      vk::Bind::texels_at(gpu::kGbBindNormals, state->normals, VK_FORMAT_R32_SFLOAT),
+                                                      vk::Bind::texels_at(gpu::kGbBindIndices, state->indices, VK_FORMAT_R32_UINT)});
         VkCommandBuffer cmd = r.cmd();
         vkCmdBeginRenderPass(cmd, &bi, VK_SUBPASS_CONTENTS_INLINE);
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipe.pipeline.get());
@@ -511,8 +511,10 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
         r.barrier();  // copies -> the resolve pass's reads
         const GbResolve push{tg.width, tg.height};
         r.dispatch(*state->resolve,
-                   {vk::Bind::buffer_at(gpu::kGbBindFrame, state->frame), vk::Bind::buffer_at(gpu::kGbBindPositions, state->positions),
-                    vk::Bind::buffer_at(gpu::kGbBindNormals, state->normals), vk::Bind::buffer_at(gpu::kGbBindIndices, state->indices),
+                   {vk::Bind::buffer_at(gpu::kGbBindFrame, state->frame),
+                    vk::Bind::texels_at(gpu::kGbBindPositions, state->positions, VK_FORMAT_R32_SFLOAT),
+                    vk::Bind::texels_at(gpu::kGbBindNormals, state->normals, VK_FORMAT_R32_SFLOAT),
+                    vk::Bind::texels_at(gpu::kGbBindIndices, state->indices, VK_FORMAT_R32_UINT),
                     vk::Bind::buffer_at(gpu::kGbBindObjects, state->objects),
                     vk::Bind::buffer_at(gpu::kGbBindIds, tg.readback[gpu::kGbOutIds]),
                     vk::Bind::buffer_at(gpu::kGbBindBarycentric, tg.readback[gpu::kGbOutBarycentric]),

@@ -12,9 +12,16 @@ layout(set = 0, binding = kGbBindFrame, std140) uniform GbFrame {
   vec4 image2;           // aspect (width / height), unused x3
 } frame;
 
-layout(set = 0, binding = kGbBindPositions, std430) readonly buffer GbPositions { float positions[]; };
-layout(set = 0, binding = kGbBindNormals, std430) readonly buffer GbNormals { float normals[]; };
-layout(set = 0, binding = kGbBindIndices, std430) readonly buffer GbIndices { uint indices[]; };
+// Vertex arrays through texel buffers: a SIMD device fetches texels for all lanes at once, where it
+// reads a storage buffer lane by lane with a bounds check per component (llvmpipe).
+layout(set = 0, binding = kGbBindPositions) uniform samplerBuffer positions;
+layout(set = 0, binding = kGbBindNormals) uniform samplerBuffer normals;
+layout(set = 0, binding = kGbBindIndices) uniform usamplerBuffer indices;
 
-vec3 fetch_position(uint v) { return vec3(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]); }
-vec3 fetch_normal(uint v) { return vec3(normals[3u * v], normals[3u * v + 1u], normals[3u * v + 2u]); }
+vec3 fetch3(samplerBuffer b, uint v) {
+  const int k = int(3u * v);
+  return vec3(texelFetch(b, k).x, texelFetch(b, k + 1).x, texelFetch(b, k + 2).x);
+}
+vec3 fetch_position(uint v) { return fetch3(positions, v); }
+vec3 fetch_normal(uint v) { return fetch3(normals, v); }
+uint fetch_index(uint k) { return texelFetch(indices, int(k)).x; }

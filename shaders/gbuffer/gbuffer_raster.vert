@@ -16,7 +16,7 @@ layout(location = 1) flat out uint out_triangle;
 void main() {
   const uint k = uint(gl_VertexIndex);  // includes firstVertex = 3 * first triangle of the object
   const uint corner = k % 3u;
-  gl_Position = frame.clip_from_world * vec4(fetch_position(indices[k]), 1.0);
+  gl_Position = frame.clip_from_world * vec4(fetch_position(fetch_index(k)), 1.0);
   out_weights = vec3(corner == 0u ? 1.0 : 0.0, corner == 1u ? 1.0 : 0.0, corner == 2u ? 1.0 : 0.0);
   out_triangle = k / 3u;
 }

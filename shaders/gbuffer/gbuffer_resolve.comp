@@ -31,7 +31,7 @@ void main() {
   const uvec2 obj = objects[id.x];
   const float u = bary[i].x, v = bary[i].y, w = 1.0 - u - v;
   const uint t = obj.x + uint(id.y);
-  const uint i0 = indices[3u * t], i1 = indices[3u * t + 1u], i2 = indices[3u * t + 2u];
+  const uint i0 = fetch_index(3u * t), i1 = fetch_index(3u * t + 1u), i2 = fetch_index(3u * t + 2u);
   const vec3 p0 = fetch_position(i0), p1 = fetch_position(i1), p2 = fetch_position(i2);
   const vec3 p = w * p0 + u * p1 + v * p2;
 
