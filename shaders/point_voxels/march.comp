@@ -6,6 +6,7 @@
 // driver's loop-iteration limit an invocation that runs out of budget saves where it stopped and the
 // host dispatches again (pv_march).
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_vote : require
 #include "pv_shared.h"
 #include "pv_common.glsl"
 

@@ -22,10 +22,11 @@ vec3 pv_sky_radiance(vec3 w) {
 // march_ray with a loop budget: the first voxel along o + t d (t in [t_min, t_max]) whose discs the
 // ray hits, -1 when it leaves the grid, -2 when `budget` loop iterations ran out first; then `steps`
 // (cells stepped) and `disc` (next disc of the current cell) say where to resume, and the next call
-// with them replays the DDA to that cell without testing discs. One loop whose every iteration is a
-// disc test or a DDA step: a driver that limits loop iterations per SIMD batch of invocations (llvmpipe)
-// counts at most the budget for the batch, whatever the lanes' paths (nested loops would count the
-// inner loop's longest lane once per outer iteration). Expects `discs` (the sorted proxies as RGBA32F
+// with them replays the DDA to that cell without testing discs. A driver that limits loop iterations
+// per SIMD batch of invocations (llvmpipe) counts every iteration the batch runs, of the outer loop
+// (a DDA step) and of the inner one (a disc test), however many of its lanes take part; so every
+// lane counts every iteration in `spent`, which the subgroup keeps equal in all its lanes (the inner
+// loop runs for the whole subgroup), and the batch stops at the budget. Expects `discs` (the sorted proxies as RGBA32F
 // texels, 4 per proxy) and `cell_start` (cell ranges, R32UI texels) declared: a SIMD device fetches
 // texels for all lanes at once, where it reads a storage buffer lane by lane.
 int pv_march(vec3 o, vec3 d, float t_min, float t_max, inout uint steps, inout uint disc, uint budget) {
@@ -80,18 +81,22 @@ int pv_march(vec3 o, vec3 d, float t_min, float t_max, inout uint steps, inout u
       disc = i - cell_b;
       return -2;
     }
-    if (i < e) {
-      // The cell's discs in a loop of their own: a SIMD device runs every branch of this loop's
-      // body for every iteration (masked), so each disc test would pay for a DDA step too. Its
-      // iterations still count in `spent`.
-      while (i < e && spent < budget) {
+    if (subgroupAny(i < e)) {
+      // The cells' discs in a loop of their own: a SIMD device runs every branch of this loop's
+      // body for every iteration (masked), so each disc test would pay for a DDA step too. The
+      // subgroup runs it until none of its lanes has a disc left, and every lane counts every
+      // iteration: `spent` stays the same in all lanes and equal to the iterations the SIMD batch
+      // ran, which is what the driver limits (a lane that counted only its own discs would let the
+      // batch run past the limit while its lanes wait on the longest).
+      while (spent < budget && subgroupAny(i < e)) {
         ++spent;
-        const float t = pv_ray_disc(o, d, texelFetch(discs, int(4u * i)).xyz, texelFetch(discs, int(4u * i + 1u)).xyz, r);
-        if (t >= t_min && t <= t_max) return int(k);
-        ++i;
+        if (i < e) {
+          const float t = pv_ray_disc(o, d, texelFetch(discs, int(4u * i)).xyz, texelFetch(discs, int(4u * i + 1u)).xyz, r);
+          if (t >= t_min && t <= t_max) return int(k);
+          ++i;
+        }
       }
-      if (i < e) spent = budget;  // out of budget: the next iteration saves the place
-      continue;
+      continue;  // out of budget (spent == budget): the next iteration saves the place
     }
     int a = 0;
     if (t_next[1] < t_next[a]) a = 1;
