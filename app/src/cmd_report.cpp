@@ -334,7 +334,8 @@ void run_report(const ReportArgs& a, bool quiet, int concurrent_jobs) {
     if (static_cast<int>(i % shard.second) == shard.first) mine.push_back(plan[i]);
   std::cerr << "report: " << plan.size() << " jobs planned (" << s.scenes.size() << " scene(s), " << s.techniques.size()
             << " technique(s), " << s.backends.size() << " backend(s), " << s.budget.frame_times.size() << " frame(s)"
-            << (s.static_scenes.empty() ? std::string() : ", one for each of " + std::to_string(s.static_scenes.size()) + " static scene(s)")
+            << (s.static_scenes.empty() ? std::string()
+                                        : ", one for each of " + std::to_string(s.static_scenes.size()) + " static scene(s)")
             << ")";
   if (shard.second > 1) std::cerr << "; shard " << shard.first << "/" << shard.second << " runs " << mine.size();
   std::cerr << "\n";

@@ -553,7 +553,8 @@ Buffer Context::create_buffer(VkDeviceSize bytes, VkBufferUsageFlags usage, Memo
   bi.size = bytes;
   bi.usage = usage | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   // A storage buffer may also be read through texel views (Bind::texels_at).
-  if (usage & VK_BUFFER_USAGE_STORAGE_BUFFER_BIT) bi.usage |= VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_TEXEL_BUFFER_BIT;
+  if (usage & VK_BUFFER_USAGE_STORAGE_BUFFER_BIT)
+    bi.usage |= VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_TEXEL_BUFFER_BIT;
   bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   const std::string what = "buffer '" + name + "'";
   check(vkCreateBuffer(device_, &bi, nullptr, &b.buffer_), ("vkCreateBuffer for " + what + " of " + mib(bytes)).c_str());
@@ -609,9 +610,6 @@ void Context::download(const Buffer& src, void* dst, std::size_t bytes, std::siz
   }, "download from '" + src.name() + "'");
   std::memcpy(dst, staging.mapped(), bytes);
 }
-
-namespace {
-}  // namespace
 
 // Bytes per texel of the uncompressed formats softgi and its tests use (0: not known here, and the
 // driver alone judges the image's size).

@@ -404,6 +404,9 @@ VkDescriptorSet Recorder::descriptor_set(const PipelineLayout& layout, std::uint
         throw std::invalid_argument(where(rb.binding) + ": expects a buffer with a texel format (Bind::texels_at)");
       const std::uint64_t texel = texel_bytes(found->texel_format);
       const std::uint64_t bytes = found->range == VK_WHOLE_SIZE ? found->buffer->size() - found->offset : found->range;
+      if (texel > 0 && bytes < texel)
+        throw std::invalid_argument(where(rb.binding) + ": buffer '" + found->buffer->name() + "' holds " + std::to_string(bytes) +
+                                    " bytes, less than one texel of " + std::to_string(texel));
       if (texel > 0 && bytes / texel > ctx_.device_info().limits.maxTexelBufferElements)
         throw std::invalid_argument(where(rb.binding) + ": buffer '" + found->buffer->name() + "' holds " + std::to_string(bytes / texel) +
                                     " texels, more than the maxTexelBufferElements of " +

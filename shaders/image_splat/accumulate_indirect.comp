@@ -9,6 +9,7 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #include "softgi_shared.h"
+#include "texels.glsl"
 #include "image_splat_indirect_shared.h"
 
 layout(constant_id = 0) const uint N = 3;  // indirect order
@@ -45,9 +46,9 @@ layout(push_constant) uniform Push {
   uint chunk_add;    // 1: add to the sums of the chunks before (read back from outv); 0: the first chunk
 } pc;
 
-float lt(uint k, uint c) { return texelFetch(consts, int(3 * k + c)).x; }
-float vh(uint l) { return texelFetch(consts, int(3 * N * N + l)).x; }
-float hc(uint l) { return texelFetch(consts, int(3 * N * N + N + l)).x; }
+float lt(uint k, uint c) { return texel1(consts, 3 * k + c); }
+float vh(uint l) { return texel1(consts, 3 * N * N + l); }
+float hc(uint l) { return texel1(consts, 3 * N * N + N + l); }
 uint sh_index(uint l, int m) { return uint(int(l * l + l) + m); }
 
 // Paper 000 eqs. 16-17, Impl::pair's exact branch: I . H(N) = (M(theta) R L~) . H(R N) with
@@ -95,7 +96,7 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
     }
     [[unroll]] for (uint i = 0; i < w; ++i) {  // Q^T
       vec3 s = vec3(0.0);
-      [[unroll]] for (uint j = 0; j < w; ++j) s += texelFetch(qrot, int(qo + j * w + i)).x * t[j];
+      [[unroll]] for (uint j = 0; j < w; ++j) s += texel1(qrot, qo + j * w + i) * t[j];
       g[i] = s;
     }
     [[unroll]] for (uint m = 1; m <= l; ++m) {  // rotate_z(-beta)
@@ -105,7 +106,7 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
     }
     [[unroll]] for (uint i = 0; i < w; ++i) {  // Q
       vec3 s = vec3(0.0);
-      [[unroll]] for (uint j = 0; j < w; ++j) s += texelFetch(qrot, int(qo + i * w + j)).x * g[j];
+      [[unroll]] for (uint j = 0; j < w; ++j) s += texel1(qrot, qo + i * w + j) * g[j];
       f[base + i] = s;
     }
     qo += w * w;
@@ -123,8 +124,8 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
       vec3 r = vec3(0.0);
       [[unroll]] for (uint b = 0; b < w; ++b) {
         const uint e = mo + a * w + b;
-        const float m0 = texelFetch(mtab, int(r0 + e)).x;
-        r += (m0 + fr * (texelFetch(mtab, int(r1 + e)).x - m0)) * f[sh_index(am + b, m)];
+        const float m0 = texel1(mtab, r0 + e);
+        r += (m0 + fr * (texel1(mtab, r1 + e) - m0)) * f[sh_index(am + b, m)];
       }
       acc += hp[sh_index(am + a, m)] * r;
     }
@@ -136,8 +137,8 @@ vec3 exact_pair(const vec3 d, const vec3 Nrm, const uint k, const float fr) {
 void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
   if (i >= pc.end) return;
-  const vec3 P = vec3(texelFetch(rec, int(i)).x, texelFetch(rec, int(pc.count + i)).x, texelFetch(rec, int(2 * pc.count + i)).x);
-  const vec3 Nrm = vec3(texelFetch(rec, int(3 * pc.count + i)).x, texelFetch(rec, int(4 * pc.count + i)).x, texelFetch(rec, int(5 * pc.count + i)).x);
+  const vec3 P = vec3(texel1(rec, i), texel1(rec, pc.count + i), texel1(rec, 2 * pc.count + i));
+  const vec3 Nrm = vec3(texel1(rec, 3 * pc.count + i), texel1(rec, 4 * pc.count + i), texel1(rec, 5 * pc.count + i));
   const bool cut = pc.eta > 0.0;
   const uvec2 range = texelFetch(ranges, int(texelFetch(rlist, int(i)).x)).xy;
   if (pc.chunk_add != 0u && pc.chunk_first >= range.y) return;  // this list ended in an earlier chunk
@@ -164,14 +165,14 @@ void main() {
     const float fr = u - float(k);
     const uint row = uint(k) * 2u * N;
     // omega_i = sqrt(4pi) V_i,0 = F_0 (eq. 2 through the DC term).
-    om += texelFetch(vis, int(row)).x + fr * texelFetch(vis, int(row + 1)).x;
+    om += texel1(vis, row) + fr * texel1(vis, row + 1);
     if (OP == kIndOpExact) {
       acc += texelFetch(albedo, int(j)).xyz * exact_pair(d, Nrm, uint(k), fr);  // eqs. 16-17
       continue;
     }
     // V . H(N) = sum_l F_l vh_l P_l(d . N) (addition theorem).
     float F[kAccumMaxOrder];
-    [[unroll]] for (uint l = 0; l < N; ++l) F[l] = texelFetch(vis, int(row + 2 * l)).x + fr * texelFetch(vis, int(row + 2 * l + 1)).x;
+    [[unroll]] for (uint l = 0; l < N; ++l) F[l] = texel1(vis, row + 2 * l) + fr * texel1(vis, row + 2 * l + 1);
     const float t = clamp(dot(d, Nrm), -1.0, 1.0);
     float p0 = 1.0, p1 = t;
     float vdoth = F[0] * vh(0) + (N > 1 ? F[1] * vh(1) * t : 0.0);
@@ -187,7 +188,8 @@ void main() {
       [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = (l & 1u) != 0u ? -1.0 : 1.0;
     } else {
       const uint d0 = uint(k) * N;
-      [[unroll]] for (uint l = 0; l < N; ++l) fac[l] = texelFetch(dfac, int(d0 + l)).x + fr * (texelFetch(dfac, int(d0 + N + l)).x - texelFetch(dfac, int(d0 + l)).x);
+      [[unroll]] for (uint l = 0; l < N; ++l)
+        fac[l] = texel1(dfac, d0 + l) + fr * (texel1(dfac, d0 + N + l) - texel1(dfac, d0 + l));
     }
     // B_l = sum_m y_lm(d) L~_lm per channel; kappa = sum_l fac_l B_l. Basis by the SHEXP recurrence.
     float y[kAccumMaxCoeffs];

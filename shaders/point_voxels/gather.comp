@@ -211,8 +211,10 @@ void main() {
       // word's code too. The iterations still count in `spent`.
       while (vi < ve && spent < pc.budget) {
         ++spent;
-        if (near_mine) gather_vpl(texelFetch(discs, int(4u * vi)).xyz, texelFetch(discs, int(4u * vi + 1u)).xyz, texelFetch(radiance, int(vi)).xyz,
-                                  weight, esum);
+        if (near_mine) {
+          const int k = int(4u * vi);
+          gather_vpl(texelFetch(discs, k).xyz, texelFetch(discs, k + 1).xyz, texelFetch(radiance, int(vi)).xyz, weight, esum);
+        }
         ++vi;
       }
       if (vi < ve) {

@@ -25,6 +25,7 @@
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #include "softgi_shared.h"
+#include "texels.glsl"
 #include "sl_shared.h"
 
 layout(constant_id = 0) const uint N = SH_PLAN_FIXED_ORDER;  // SH order
@@ -73,8 +74,8 @@ layout(push_constant) uniform Push {
   uint resume;        // 0: the first pass; 1: continue from the state
 } pc;
 
-float hcoef(uint l) { return texelFetch(consts, int(l)).x; }
-float zh_rot(uint l) { return texelFetch(consts, int(N + l)).x; }
+float hcoef(uint l) { return texel1(consts, l); }
+float zh_rot(uint l) { return texel1(consts, N + l); }
 
 // The SL's sphere after the replacement rules at (P, Nrm); radius 0 where the rules eliminate it or
 // p is not outside it.
@@ -98,7 +99,7 @@ void sl_log_vector(vec4 adj, vec3 P, out float G[kAccumMaxCoeffs]) {
   const uint row = uint(kr) * 2u * N;
   float Y[kAccumMaxCoeffs], F[kAccumMaxOrder];
   sh_basis_eval(d / dist, Y);
-  [[unroll]] for (uint l = 0; l < N; ++l) F[l] = texelFetch(log_table, int(row + 2 * l)).x + fr * texelFetch(log_table, int(row + 2 * l + 1)).x;
+  [[unroll]] for (uint l = 0; l < N; ++l) F[l] = texel1(log_table, row + 2 * l) + fr * texel1(log_table, row + 2 * l + 1);
   [[unroll]] for (uint q = 0; q < N * N; ++q) G[q] = F[kShBand[q]] * Y[q];
 }
 
@@ -111,7 +112,9 @@ vec3 sl_average_radiance(uint k, vec3 P) {
   const float theta = D > r ? accum_asin01(min(1.0, r / D)) : kAccumHalfPi;
   const vec3 u = D > 0.0 ? d / D : vec3(0.0);
   // transpose(R) u: into the SL's rest frame.
-  const vec3 dl = D > 0.0 ? vec3(dot(texelFetch(rotation, int(3 * k)).xyz, u), dot(texelFetch(rotation, int(3 * k + 1)).xyz, u), dot(texelFetch(rotation, int(3 * k + 2)).xyz, u))
+  const int rk = int(3 * k);
+  const vec3 dl = D > 0.0 ? vec3(dot(texelFetch(rotation, rk).xyz, u), dot(texelFetch(rotation, rk + 1).xyz, u),
+                                 dot(texelFetch(rotation, rk + 2).xyz, u))
                           : vec3(0.0, 0.0, 1.0);
   const float th = theta > 0.0 ? theta : 0.0;
   const float x = min(th, kAccumHalfPi) * pc.weight_scale;
@@ -119,14 +122,15 @@ vec3 sl_average_radiance(uint k, vec3 P) {
   const float f = min(1.0, x - float(kw));
   float Y[kAccumMaxCoeffs];
   sh_basis_eval(dl, Y);
-  const uint n2 = N * N, base = texelFetch(entry_sl, int(k)).x * 3 * n2;
+  const uint n2 = N * N, base = texel1(entry_sl, k) * 3 * n2;
   float wl[kAccumMaxOrder];
   [[unroll]] for (uint l = 0; l < N; ++l) {
-    const float a = texelFetch(weight, int(uint(kw) * N + l)).x, b = texelFetch(weight, int(uint(kw + 1) * N + l)).x;
+    const float a = texel1(weight, uint(kw) * N + l), b = texel1(weight, uint(kw + 1) * N + l);
     wl[l] = (a + f * (b - a)) * zh_rot(l);
   }
   vec3 acc = vec3(0.0);
-  [[unroll]] for (uint q = 0; q < n2; ++q) acc += (wl[kShBand[q]] * Y[q]) * vec3(texelFetch(lc, int(base + q)).x, texelFetch(lc, int(base + n2 + q)).x, texelFetch(lc, int(base + 2 * n2 + q)).x);
+  [[unroll]] for (uint q = 0; q < n2; ++q)
+    acc += (wl[kShBand[q]] * Y[q]) * vec3(texel1(lc, base + q), texel1(lc, base + n2 + q), texel1(lc, base + 2 * n2 + q));
   // Eq. 26: a parent of the hierarchy scaled by its reflection ratio.
   return acc * texelFetch(ratio, int(k)).xyz;
 }
@@ -141,7 +145,7 @@ bool before(uint a, uint b) {
   if (BLOCKING == kSlPerObject) {
     const float da = od_[a - lb_], db = od_[b - lb_];
     if (da != db) return da < db;
-    const uint oa = texelFetch(object, int(a)).x, ob = texelFetch(object, int(b)).x;
+    const uint oa = texel1(object, a), ob = texel1(object, b);
     if (oa != ob) return oa < ob;
   }
   const float ka = key_[a - lb_], kb = key_[b - lb_];
@@ -166,8 +170,8 @@ void main() {
     last = floatBitsToUint(state[sbase + n2 + 3u]);
     if (last == kSlStateDone) return;
   }
-  const vec3 P = vec3(texelFetch(rec, int(i)).x, texelFetch(rec, int(pc.count + i)).x, texelFetch(rec, int(2 * pc.count + i)).x);
-  const vec3 Nrm = vec3(texelFetch(rec, int(3 * pc.count + i)).x, texelFetch(rec, int(4 * pc.count + i)).x, texelFetch(rec, int(5 * pc.count + i)).x);
+  const vec3 P = vec3(texel1(rec, i), texel1(rec, pc.count + i), texel1(rec, 2 * pc.count + i));
+  const vec3 Nrm = vec3(texel1(rec, 3 * pc.count + i), texel1(rec, 4 * pc.count + i), texel1(rec, 5 * pc.count + i));
   if (!(dot(Nrm, Nrm) > 0.0)) {
     outv[i] = vec4(0.0);
     state[sbase + n2 + 3u] = uintBitsToFloat(kSlStateDone);
@@ -218,8 +222,8 @@ void main() {
     }
     // Eq. 21: S_k, the G of the SLs before k less those of its own object that intersect it.
     [[unroll]] for (uint q = 0; q < n2; ++q) S[q] = prefix[q];
-    for (uint t = texelFetch(inter_begin, int(k)).x; t < texelFetch(inter_begin, int(k + 1)).x; ++t) {
-      const uint j = texelFetch(inter_list, int(t)).x;
+    for (uint t = texel1(inter_begin, k); t < texel1(inter_begin, k + 1); ++t) {
+      const uint j = texel1(inter_list, t);
       if (key_[j - lb_] >= 0.0 && before(j, k)) {
         sl_log_vector(sl_adjusted(j, P, Nrm), P, G);
         [[unroll]] for (uint q = 0; q < n2; ++q) S[q] -= G[q];
@@ -233,7 +237,7 @@ void main() {
       n1 += SG[q] * SG[q];
     }
     SG[0] = S[0] + G[0];
-    const uint cost = cost_pair_fixed() + subgroupMax(texelFetch(inter_begin, int(k + 1)).x - texelFetch(inter_begin, int(k)).x) * cost_sphere() +
+    const uint cost = cost_pair_fixed() + subgroupMax(texel1(inter_begin, k + 1) - texel1(inter_begin, k)) * cost_sphere() +
                       cost_exp(subgroupMax(sh_exp_squarings(sqrt(n0), METHOD))) + cost_exp(subgroupMax(sh_exp_squarings(sqrt(n1), METHOD)));
     if (pc.budget != 0xffffffffu) {
       if (cost + 2u * list_max + cost_sphere() > pc.budget) atomicMin(status[kSlStatusBudget], i + 1);

@@ -219,8 +219,10 @@ vk::SubmitResult run_exponentiate(vk::Context& dev, const vk::ComputePipeline& p
   };
   const std::uint32_t budget = loop_budget(dev.device_info());
   const std::vector<vk::Bind> binds = {
-      vk::Bind::texels_at(gpu::kExpBindIn, b.in, VK_FORMAT_R32_SFLOAT), vk::Bind::buffer_at(gpu::kExpBindOut, b.out),
-      vk::Bind::texels_at(gpu::kExpBindOl, b.ol, VK_FORMAT_R32_SFLOAT), vk::Bind::texels_at(gpu::kExpBindSeries, b.series, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kExpBindIn, b.in, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kExpBindOut, b.out),
+      vk::Bind::texels_at(gpu::kExpBindOl, b.ol, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kExpBindSeries, b.series, VK_FORMAT_R32_SFLOAT),
       vk::Bind::buffer_at(gpu::kExpBindStatus, b.status)};
   return dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("exponentiate");

@@ -69,7 +69,8 @@ void dispatch_chunks(vk::Recorder& rec, const vk::ComputePipeline& p, const std:
 // A host vector into a reused device buffer (at least one element large, so empty inputs bind).
 template <class V>
 void put(vk::Context& dev, vk::Buffer& b, const V& v, const std::string& name) {
-  const std::size_t bytes = std::max<std::size_t>(1, v.size()) * sizeof(v[0]);
+  // At least one 16-byte texel: an unused binding may still be viewed as vec4 texels.
+  const std::size_t bytes = std::max<std::size_t>(16, std::max<std::size_t>(1, v.size()) * sizeof(v[0]));
   dev.ensure_buffer(b, bytes, kStorage, vk::MemoryKind::Device, name);
   if (!v.empty()) dev.upload(b, v.data(), v.size() * sizeof(v[0]));
 }

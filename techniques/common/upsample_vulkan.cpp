@@ -220,7 +220,8 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   };
   const std::vector<vk::Bind> binds = {vk::Bind::texels_at(gpu::kApBindIndex, g.up_index, VK_FORMAT_R32G32B32A32_SINT),
                                        vk::Bind::texels_at(gpu::kApBindWeight, g.up_weight, VK_FORMAT_R32G32B32A32_SFLOAT),
-                                       vk::Bind::texels_at(gpu::kApBindIn, g.ap_in, VK_FORMAT_R32_SFLOAT), vk::Bind::texels_at(gpu::kApBindOut, g.ap_out, VK_FORMAT_R32_SFLOAT)};
+                                       vk::Bind::texels_at(gpu::kApBindIn, g.ap_in, VK_FORMAT_R32_SFLOAT),
+                                       vk::Bind::texels_at(gpu::kApBindOut, g.ap_out, VK_FORMAT_R32_SFLOAT)};
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("upsample_apply");
     dispatch_chunks<Push>(rec, p, binds, nf, gpu::kUpsampleGroupX * gpu::kUpsampleGroupY,

@@ -207,6 +207,16 @@ TEST_F(ValidatedTest, TexelBufferViewsOfStorageBuffers) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("texels_at"), std::string::npos) << e.what();
   }
+  // A view needs one texel at least: a 4-byte buffer as RGBA32F texels is refused, naming it.
+  Buffer tiny = ctx().create_buffer(4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, MemoryKind::Device, "tiny");
+  try {
+    ctx().submit([&](Recorder& rec) {
+      rec.dispatch(p, {Bind::texels_at(0, tiny, VK_FORMAT_R32G32B32A32_SFLOAT), Bind::texels_at(1, by, VK_FORMAT_R32_SFLOAT)}, push, 1);
+    }, "texel view smaller than a texel");
+    ADD_FAILURE() << "a view of less than one texel was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'tiny' holds 4 bytes, less than one texel of 16"), std::string::npos) << e.what();
+  }
 }
 
 TEST_F(ValidatedTest, DispatchChecksBindingsAndPushConstantsAgainstTheShader) {
