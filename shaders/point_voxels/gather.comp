@@ -190,7 +190,9 @@ void main() {
     mine = (tbits[0] | tbits[1] | tbits[2] | tbits[3]) & ~((1u << (resume_voxel % 32u)) - 1u);
   }
   m = subgroupOr(mine);
-  // One loop whose every iteration is a word, a voxel or a VPL (pv_march says why).
+  // The outer loop's iterations are bitset words and voxels, the inner loop's a near voxel's VPLs;
+  // the subgroup runs both together, so `spent` is the same in every lane and counts what the SIMD
+  // batch runs (pv_march says why).
   uint vox = 0u, cell_b = 0u, vi = 0u, ve = 0u;
   float weight = 0.0;
   vec3 esum = vec3(0.0);
@@ -208,7 +210,7 @@ void main() {
     if (near_voxel) {
       // The voxel's VPLs in a loop of their own: a SIMD device runs every branch of the outer
       // loop's body for every iteration (masked), so each VPL would pay for the voxel's and the
-      // word's code too. The iterations still count in `spent`.
+      // word's code too. Its iterations count in `spent` like the outer loop's.
       while (vi < ve && spent < pc.budget) {
         ++spent;
         if (near_mine) {
