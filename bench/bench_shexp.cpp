@@ -512,7 +512,7 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
       if (const auto c = p.counters.find("bytes_moved"); c != p.counters.end()) moved[p.name] += c->second;
       if (p.name != "gbuffer") continue;
       if (const auto c = p.counters.find("bvh_update_seconds"); c != p.counters.end()) bvh += c->second;
-      if (const auto c = p.counters.find("trace_seconds"); c != p.counters.end()) trace += c->second;
+      if (const auto c = p.counters.find("visibility_seconds"); c != p.counters.end()) trace += c->second;
       if (const auto c = p.counters.find("resolve_seconds"); c != p.counters.end()) resolve += c->second;
     }
     double t = 0.0;

@@ -5,14 +5,14 @@
 
 namespace softgi::backends {
 
-void register_cpu_shared_passes();  // gbuffer_embree.cpp
+void register_cpu_shared_passes();  // gbuffer_cpu.cpp
 
 void register_cpu_backend() {
   static std::once_flag once;
   std::call_once(once, [] {
     render::BackendInfo info;
     info.name = cpu::kBackendName;
-    info.description = "CPU reference: host code on every core (TBB), Embree primary visibility";
+    info.description = "CPU reference: host code on every core (TBB), rasterised or Embree primary visibility";
     info.unavailable = [] { return std::string(); };
     info.create = [](const render::BackendOptions& o) -> std::unique_ptr<render::Backend> {
       auto b = std::make_unique<CpuBackend>();

@@ -4,7 +4,7 @@
 // scene::evaluate) into a visibility buffer (object, primitive, barycentrics), a compute pass
 // (gbuffer_resolve.comp) turns each pixel of it into position, depth and normal, and the result is
 // read back into a render::GBuffer with the meaning of every plane of the CPU G-buffer
-// (backends/cpu/gbuffer_embree.cpp):
+// (backends/cpu/gbuffer_cpu.cpp):
 //
 //   position, depth  resolve pass: w p0 + b1 p1 + b2 p2 of the triangle's posed corners (fetched
 //                    from the same vertex arrays), depth (p - e) . E (paper 000 section 4)
@@ -582,7 +582,7 @@ void raster_counters(render::PassRecord& rec, const RasterStats& st) {
 
 // The "gbuffer" and "receiver_gbuffer" renderer. Paper 000 section 4, receiver setup: the receiver
 // buffer at 1/s of the display resolution per axis (the CPU pass's contract:
-// backends/cpu/gbuffer_embree.cpp). Held: the device buffers and attachments kept for the next frame.
+// backends/cpu/gbuffer_cpu.cpp). Held: the device buffers and attachments kept for the next frame.
 render::GBuffer produce_gbuffer(render::FrameContext& fc, int s, const char* pass, std::size_t& held) {
   RasterStats st;
   render::GBuffer gb = rasterise(fc, s, pass, st);

@@ -2,7 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 // G-buffer resolve: position, depth and normal of every pixel from the visibility buffer (object,
 // primitive, b1, b2) that gbuffer_raster rasterised. The CPU G-buffer's per-hit rules
-// (backends/cpu/gbuffer_embree.cpp, shade_hit) applied to the rasterised barycentrics, with the
+// (backends/cpu/gbuffer_cpu.cpp, shade_hit) applied to the rasterised barycentrics, with the
 // triangle's corners fetched from the same posed vertex arrays, so that both backends compute
 // position, normal and depth with the same arithmetic from (object, primitive, b1, b2).
 #include "gbuffer_common.glsl"

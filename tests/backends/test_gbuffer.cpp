@@ -1,10 +1,13 @@
 // The CPU G-buffer pass on a plane-and-sphere scene built in code, against closed forms: the plane's
 // ray intersection and depth per pixel, sphere normals (p - c) / |p - c|, barycentrics reproducing
-// the analytic hit point, and the camera shared with the reference renderer.
+// the analytic hit point, and the camera shared with the reference renderer; with each of its
+// primary-visibility methods (SOFTGI_CPU_VISIBILITY: raster, the default, and embree).
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <string>
 
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/reference/reference.hpp"
@@ -31,6 +34,38 @@ constexpr float kAlbedoTol = 1e-5f;
 // Enough pixels of each kind that the test cannot pass by not looking (the framing gives several
 // hundred sphere pixels and thousands of plane pixels at 128 x 96).
 constexpr int kMinPixelsOfEachKind = 200;
+
+// Sets SOFTGI_CPU_VISIBILITY for the scope ("" unsets it: the default), restoring what was there.
+class ScopedVisibility {
+ public:
+  explicit ScopedVisibility(const std::string& v) {
+    if (const char* old = std::getenv("SOFTGI_CPU_VISIBILITY")) saved_ = old, had_ = true;
+    if (v.empty())
+      unsetenv("SOFTGI_CPU_VISIBILITY");
+    else
+      setenv("SOFTGI_CPU_VISIBILITY", v.c_str(), 1);
+  }
+  ~ScopedVisibility() {
+    if (had_)
+      setenv("SOFTGI_CPU_VISIBILITY", saved_.c_str(), 1);
+    else
+      unsetenv("SOFTGI_CPU_VISIBILITY");
+  }
+  ScopedVisibility(const ScopedVisibility&) = delete;
+  ScopedVisibility& operator=(const ScopedVisibility&) = delete;
+
+ private:
+  std::string saved_;
+  bool had_ = false;
+};
+
+// Each visibility method: "" is the default (rasterised, checked by the counter).
+class GBufferVisibility : public ::testing::TestWithParam<std::string> {
+ protected:
+  ScopedVisibility visibility_{GetParam()};
+};
+INSTANTIATE_TEST_SUITE_P(CpuVisibility, GBufferVisibility, ::testing::Values("", "embree"),
+                         [](const ::testing::TestParamInfo<std::string>& i) { return i.param.empty() ? std::string("default_raster") : i.param; });
 
 render::GBuffer run_gbuffer(const scene::Scene& sc, render::FrameResult& result, double t = 0.0) {
   backends::CpuBackend backend;  // registers the CPU shared passes
@@ -103,7 +138,7 @@ TEST(Camera, PinholeGeometryFromFovAndAspect) {
   expect_error(bad, 10, 10, "not finite");
 }
 
-TEST(GBuffer, PlaneAndSphereMatchClosedForms) {
+TEST_P(GBufferVisibility, PlaneAndSphereMatchClosedForms) {
   const scene::Scene sc = softgi::testing::make_plane_sphere_scene();
   render::FrameResult result;
   const render::GBuffer gb = run_gbuffer(sc, result);
@@ -185,9 +220,10 @@ TEST(GBuffer, PlaneAndSphereMatchClosedForms) {
   EXPECT_EQ(rec.counters.at("hits"), static_cast<double>(hits));
   EXPECT_EQ(rec.counters.at("triangles"), static_cast<double>(sc.meshes[0].triangles.size() + sc.meshes[1].triangles.size()));
   EXPECT_GE(rec.bytes, gb.bytes()) << "bytes include the G-buffer planes";
+  EXPECT_EQ(rec.counters.at("raster"), GetParam() == "embree" ? 0.0 : 1.0);
 }
 
-TEST(GBuffer, SeesWhatTheUnjitteredReferenceSees) {
+TEST_P(GBufferVisibility, SeesWhatTheUnjitteredReferenceSees) {
   // Black surfaces under a uniform white sky: the reference's pixel is 1 exactly where its camera ray
   // escapes, so its background mask must be the G-buffer's. A camera off by a quarter pixel
   // horizontally already disagrees on 23 silhouette pixels here (measured by shifting the rays).
@@ -205,8 +241,9 @@ TEST(GBuffer, SeesWhatTheUnjitteredReferenceSees) {
   const render::GBuffer gb = run_gbuffer(sc, result);
   ASSERT_EQ(ref.final_image.width, gb.width);
   ASSERT_EQ(ref.final_image.height, gb.height);
-  // Different BVH builds may round a ray that grazes the silhouette differently; two such pixels are
-  // tolerated, far fewer than a camera mismatch would produce.
+  // Different BVH builds (or the rasteriser's edge functions) may round a ray that grazes the
+  // silhouette differently; two such pixels are tolerated, far fewer than a camera mismatch would
+  // produce.
   constexpr int kMaxGrazingMismatches = 2;
   int mismatches = 0;
   for (std::size_t i = 0; i < gb.object.size(); ++i) {
@@ -216,7 +253,7 @@ TEST(GBuffer, SeesWhatTheUnjitteredReferenceSees) {
   EXPECT_LE(mismatches, kMaxGrazingMismatches);
 }
 
-TEST(GBuffer, BadGeometryIsAnErrorNamingTheMesh) {
+TEST_P(GBufferVisibility, BadGeometryIsAnErrorNamingTheMesh) {
   scene::Scene sc = softgi::testing::make_plane_sphere_scene(16, 16);
   sc.meshes[0].triangles.push_back({0, 1, 99});
   render::FrameResult result;
@@ -230,6 +267,7 @@ TEST(GBuffer, BadGeometryIsAnErrorNamingTheMesh) {
 }
 
 TEST(GBuffer, KeptSceneRefitsAndMatchesAFreshBuild) {
+  const ScopedVisibility embree("embree");
   // The Embree scene persists across frames: the same pose reuses it, a moved sphere refits it, a
   // different topology rebuilds it. A refitted scene must see what a fresh build of that pose sees.
   const scene::Scene moving = softgi::testing::animated(softgi::testing::make_plane_sphere_scene());

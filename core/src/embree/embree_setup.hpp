@@ -1,5 +1,5 @@
 // Embree 3 set-up shared by the two places that trace the posed triangles: the CPU backend's
-// G-buffer pass (backends/cpu/gbuffer_embree.cpp) and the reference renderer
+// G-buffer pass (backends/cpu/gbuffer_cpu.cpp) and the reference renderer
 // (core/src/reference/reference.cpp). One definition of the device and its error channel, the
 // triangle geometry of a posed object, the ray and intersect-context initialisation and the
 // surface a hit stands for, so that a G-buffer pixel and the reference's un-jittered sample of the

@@ -1,7 +1,12 @@
-// The CPU implementation of the shared "gbuffer" pass: primary visibility through Embree 3, one ray
-// through each pixel centre of the shared pinhole camera (softgi/render/camera.hpp), so that pixel
-// (x, y) sees what the reference renderer's un-jittered sample of (x, y) sees; and of the shared
-// "receiver_gbuffer" pass (paper 000 section 4), the same trace through every s-th display point.
+// The CPU implementation of the shared "gbuffer" pass: primary visibility through each pixel centre
+// of the shared pinhole camera (softgi/render/camera.hpp), so that pixel (x, y) sees what the
+// reference renderer's un-jittered sample of (x, y) sees; and of the shared "receiver_gbuffer" pass
+// (paper 000 section 4), the same through every s-th display point. Two ways to find what each
+// sample sees, chosen by SOFTGI_CPU_VISIBILITY: "raster" (the default; raster_visibility.cpp, the
+// camera rays tested against every triangle over the screen tiles it overlaps) and "embree" (one
+// Embree ray per sample; measured several times slower for these coherent rays, bench/README.md).
+// Both answer with the same object, triangle and barycentrics up to rounding at shared edges and
+// silhouettes, and the surface attributes are resolved from them by the one function below.
 // One of the two translation units that include Embree (with the reference renderer; the set-up they
 // share, rays, geometry and the surface a hit stands for, is core/src/embree/embree_setup.hpp).
 //
@@ -26,6 +31,7 @@
 #include <chrono>
 #include <cstring>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <mutex>
 #include <stdexcept>
@@ -33,6 +39,7 @@
 #include <vector>
 
 #include "../../core/src/embree/embree_setup.hpp"
+#include "raster_visibility.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -206,40 +213,39 @@ void shade_hit(const scene::Scene& sc, const scene::PosedObject& obj, int object
   gb.view_dir[i] = -dir;
 }
 
-// What one trace over a buffer did, for the pass records.
+enum class Visibility { Raster, Embree };
+
+// SOFTGI_CPU_VISIBILITY, read at every frame so that a benchmark can compare the two in one process.
+Visibility visibility_from_environment() {
+  const char* env = std::getenv("SOFTGI_CPU_VISIBILITY");
+  const std::string v = env ? env : "";
+  if (v.empty() || v == "raster") return Visibility::Raster;
+  if (v == "embree") return Visibility::Embree;
+  throw std::invalid_argument("SOFTGI_CPU_VISIBILITY is '" + v + "'; expected raster or embree");
+}
+
+// What finding the visible surfaces of one buffer did, for the pass records.
 struct TraceStats {
+  Visibility visibility = Visibility::Raster;
   long long rays = 0, hits = 0;
-  double update_seconds = 0.0, trace_seconds = 0.0, resolve_seconds = 0.0;
+  double update_seconds = 0.0, visibility_seconds = 0.0, resolve_seconds = 0.0;
   EmbreeScene::Update update = EmbreeScene::Update::Reused;
+  cpu_raster::RasterStats raster;
 };
 
-// The one primary-visibility loop of the CPU backend: a buffer of ceil(W/s) x ceil(H/s) pixels whose
-// pixel (x, y) holds the hit of the display camera's ray through display point ((x + 0.5) s,
-// (y + 0.5) s). s = 1 is the display G-buffer; s > 1 the receiver buffer of paper 000 section 4, whose
-// samples then lie exactly on display points, so that upsampling can place them (gbuffer.hpp).
-render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* who, TraceStats& stats) {
+// Embree: one ray per sample, tiles of coherent rays as streams. Fills object, primitive and
+// barycentric of every pixel of gb.
+void trace_visibility(render::FrameContext& ctx, const render::PinholeCamera& cam, render::GBuffer& gb, TraceStats& stats) {
   using clock = std::chrono::steady_clock;
-  const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, who);
   std::lock_guard<std::mutex> lock(cache_mutex());
   const auto t0 = clock::now();
   EmbreeScene& es = cached_scene();
   stats.update = es.update(ctx.posed);
   stats.update_seconds = std::chrono::duration<double>(clock::now() - t0).count();
-
-  const int W = (ctx.width + scale - 1) / scale, H = (ctx.height + scale - 1) / scale;
-  // Every pixel is written below (a hit by shade_hit, a miss by set_background), in last frame's
-  // buffers. Two phases, timed apart: the trace finds each pixel's object, triangle and barycentrics
-  // (what a rasteriser's visibility buffer holds); the resolve derives the surface attributes from
-  // them, with the same direction, so the result is the one a single pass would give.
-  render::GBuffer gb = render::GBuffer::for_overwrite(W, H, scale, ctx.pool());
-  const float fs = static_cast<float>(scale);
-  auto ray_dir = [&](int x, int y) {
-    // (x + 0.5) * 1 is exact in float, so s = 1 traces exactly pixel_center_direction(x, y).
-    return cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs);
-  };
+  const int W = gb.width, H = gb.height;
+  const float fs = static_cast<float>(gb.scale);
   const int tiles_x = (W + kTile - 1) / kTile, tiles = tiles_x * ((H + kTile - 1) / kTile);
   std::atomic<long long> hits{0};
-  const auto t1 = clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1), [&](const tbb::blocked_range<int>& range) {
     long long local_hits = 0;
     RTCIntersectContext rc;
@@ -252,7 +258,9 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
       for (int y = ty; y < std::min(H, ty + kTile); ++y)
         for (int x = tx; x < std::min(W, tx + kTile); ++x) {
           pixel[m] = static_cast<std::size_t>(y) * W + x;
-          rays[m++] = embree::make_ray_hit(cam.position, ray_dir(x, y));
+          // (x + 0.5) * 1 is exact in float, so s = 1 traces exactly pixel_center_direction(x, y).
+          rays[m++] = embree::make_ray_hit(
+              cam.position, cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs));
         }
       // A tile's rays as one coherent stream: Embree packetises them (measured about 15% faster
       // than one rtcIntersect1 per pixel on `spheres` at 512x512).
@@ -261,7 +269,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
         const RTCRayHit& rh = rays[k];
         const std::size_t i = pixel[k];
         if (!embree::is_hit(rh)) {
-          gb.object[i] = -1;
+          gb.object[i] = gb.primitive[i] = -1;
           continue;
         }
         gb.object[i] = es.object_of(rh.hit.geomID);
@@ -273,8 +281,36 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
     hits += local_hits;
   });
   es.check("tracing primary rays");
+  // The BVH update counts as visibility work, as the rasteriser's set-up does.
+  stats.visibility_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  stats.hits = hits.load();
+}
+
+// The one primary-visibility loop of the CPU backend: a buffer of ceil(W/s) x ceil(H/s) pixels whose
+// pixel (x, y) holds the hit of the display camera's ray through display point ((x + 0.5) s,
+// (y + 0.5) s). s = 1 is the display G-buffer; s > 1 the receiver buffer of paper 000 section 4, whose
+// samples then lie exactly on display points, so that upsampling can place them (gbuffer.hpp).
+render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* who, TraceStats& stats) {
+  using clock = std::chrono::steady_clock;
+  const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, who);
+  stats.visibility = visibility_from_environment();
+  const int W = (ctx.width + scale - 1) / scale, H = (ctx.height + scale - 1) / scale;
+  // Every pixel is written below (a hit by shade_hit, a miss by set_background), in last frame's
+  // buffers. Two phases, timed apart: visibility finds each pixel's object, triangle and
+  // barycentrics (a visibility buffer); the resolve derives the surface attributes from them.
+  render::GBuffer gb = render::GBuffer::for_overwrite(W, H, scale, ctx.pool());
+  if (stats.visibility == Visibility::Embree) {
+    trace_visibility(ctx, cam, gb, stats);
+  } else {
+    cpu_raster::rasterise_visibility(cam, ctx.posed, who, gb, stats.raster);
+    stats.visibility_seconds = stats.raster.setup_seconds + stats.raster.raster_seconds;
+    stats.hits = stats.raster.hits;
+  }
+  const float fs = static_cast<float>(scale);
+  auto ray_dir = [&](int x, int y) {
+    return cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs);
+  };
   const auto t2 = clock::now();
-  stats.trace_seconds = std::chrono::duration<double>(t2 - t1).count();
   tbb::parallel_for(tbb::blocked_range<int>(0, H, 4), [&](const tbb::blocked_range<int>& rows) {
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < W; ++x) {
@@ -290,18 +326,25 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
   });
   stats.resolve_seconds = std::chrono::duration<double>(clock::now() - t2).count();
   stats.rays = static_cast<long long>(W) * H;
-  stats.hits = hits.load();
   return gb;
 }
 
 void trace_counters(render::PassRecord& rec, const TraceStats& st) {
-  const EmbreeScene& es = cached_scene();
   rec.counters["rays"] = static_cast<double>(st.rays);
   rec.counters["hits"] = static_cast<double>(st.hits);
+  rec.counters["visibility_seconds"] = st.visibility_seconds;
+  rec.counters["resolve_seconds"] = st.resolve_seconds;
+  rec.counters["raster"] = st.visibility == Visibility::Raster ? 1.0 : 0.0;
+  if (st.visibility == Visibility::Raster) {
+    rec.counters["triangles"] = static_cast<double>(st.raster.triangles);
+    rec.counters["triangles_set_up"] = static_cast<double>(st.raster.set_up);
+    rec.counters["tile_entries"] = static_cast<double>(st.raster.tile_entries);
+    rec.counters["raster_setup_seconds"] = st.raster.setup_seconds;
+    return;
+  }
+  const EmbreeScene& es = cached_scene();
   rec.counters["triangles"] = static_cast<double>(es.triangles());
   rec.counters["bvh_update_seconds"] = st.update_seconds;
-  rec.counters["trace_seconds"] = st.trace_seconds;
-  rec.counters["resolve_seconds"] = st.resolve_seconds;
   rec.counters["bvh_rebuilt"] = st.update == EmbreeScene::Update::Rebuilt ? 1.0 : 0.0;
   rec.counters["bvh_refit"] = st.update == EmbreeScene::Update::Refit ? 1.0 : 0.0;
   rec.counters["embree_bytes"] = static_cast<double>(es.bytes());
@@ -315,7 +358,7 @@ render::GBuffer produce_gbuffer(render::FrameContext& ctx, int s, const char* pa
   TraceStats st;
   render::GBuffer gb = trace_buffer(ctx, s, pass, st);
   trace_counters(ctx.record(), st);
-  held = static_cast<std::size_t>(std::max(0LL, cached_scene().bytes()));
+  held = st.visibility == Visibility::Embree ? static_cast<std::size_t>(std::max(0LL, cached_scene().bytes())) : 0;
   return gb;
 }
 

@@ -1,0 +1,442 @@
+// Primary visibility by rasterisation (raster_visibility.hpp).
+//
+// Every sample ray leaves the eye e along d(x, y) = F + sx(x) R + sy(y) U (the pinhole camera of
+// softgi/render/camera.hpp before normalisation: F forward, R right, U up, so d . F = 1 and the ray
+// parameter of a hit is its eye depth). With a_k = v_k - e, the ray meets the triangle's plane at
+// depth t = det / (d . ng), det = a0 . ng, ng = (a1 - a0) x (a2 - a0), and the meeting point has the
+// barycentrics b_k = E_k / (E_0 + E_1 + E_2) of the scalar triple products
+//     E_0 = d . (a1 x a2),  E_1 = d . (a2 x a0),  E_2 = d . (a0 x a1)
+// (their sum is d . ng). The ray meets the triangle in front of the eye exactly when all three E_k
+// and d . ng have the sign of det. Every one of them is linear in (sx, sy): a triangle is set up once
+// (twelve dot products) and each sample then costs four multiply-adds and a multiply, the same
+// arithmetic whichever way the triangle faces (surfaces are two-sided), without a perspective
+// division, and with no special case for triangles that reach behind the eye (only their screen
+// bounds, which merely cull, are clipped). The nearest hit is the largest inverse depth
+// (d . ng) / det. The samples are grouped in 32 x 32 tiles; each triangle is binned to the tiles its
+// bounds overlap, and each tile, on one thread, tests its triangles against all its samples.
+//
+// Watertight: two triangles that share an edge compute its E from the same two vertices in opposite
+// (or equal) order (edge_normal), so their values are exact negations (or equal) of each other at
+// every sample, and a sample on the edge (E = 0 exactly) is covered by both; no sample falls
+// through a crack. Equal depths keep the triangle that comes first (object, then triangle index),
+// so the result does not depend on the number of threads.
+#include "raster_visibility.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace softgi::backends::cpu_raster {
+
+namespace {
+
+using glm::vec3;
+// Tile edge in samples: a tile's inverse depths and triangle ids (8 KiB) stay in L1 while every
+// triangle that overlaps it is tested; 32 x 32 gives 1024 tiles at 1024 x 1024 for two cores.
+constexpr int kTile = 32;
+// Triangles per set-up task, at least.
+constexpr std::size_t kChunk = 4096;
+
+// A triangle set up for its tiles: the sign-normalised linear forms E_k = (ef + sy eu) + sx er and
+// S = d . ng = (sf + sy su) + sx sr, and 1 / |det|.
+struct Tri {
+  float ef[3], eu[3], er[3];
+  float sf, su, sr;
+  float inv_det;
+  int x0, y0, x1, y1;  // samples [x0, x1) x [y0, y1) that its projection can cover; empty: culled
+  int object, prim;
+};
+
+// A posed vertex seen from the camera: z its eye depth (p - e) . F, and where z > 0, (x, y) its
+// projection in buffer sample coordinates. Computed once per vertex, shared by its triangles.
+struct Projected {
+  float x, y, z;
+};
+
+// Working memory kept from frame to frame: a frame's set-up and tile lists are megabytes, and
+// allocated afresh their page faults cost more than the set-up itself. A frame that finds it in use
+// by another (concurrent frames) allocates its own.
+struct Scratch {
+  std::vector<Tri> tris;
+  std::vector<std::uint32_t> count, list;
+  std::vector<std::uint64_t> start;
+  std::vector<float> sx, sy;
+  std::vector<Projected> proj;
+  std::size_t bytes() const {
+    return tris.capacity() * sizeof(Tri) + proj.capacity() * sizeof(Projected) + (count.capacity() + list.capacity()) * sizeof(std::uint32_t) +
+           start.capacity() * sizeof(std::uint64_t) + (sx.capacity() + sy.capacity()) * sizeof(float);
+  }
+};
+std::mutex& scratch_mutex() {
+  static std::mutex m;
+  return m;
+}
+Scratch& kept_scratch() {
+  static Scratch s;
+  return s;
+}
+
+// The buffer coordinate x (sample x sits at sx(x)) of camera-plane coordinate u = sx, and likewise
+// for y: the inverses of PinholeCamera::direction's maps, for the conservative bounds only.
+struct Inverse {
+  float ax, bx, ay, by;
+  float x(float u) const { return u * ax + bx; }
+  float y(float v) const { return v * ay + by; }
+};
+
+// a_i x a_j (a = p - e) for the edge from p_i to p_j, as a_lo x (p_hi - p_lo) with (lo, hi) the two
+// ends in lexicographic order: the edge vector is taken between the vertices themselves, so the
+// result carries rounding of the order of the float spacing at the eye distance, not of its square
+// (a_i x a_j directly cancels catastrophically for a small triangle far away); and an edge shared
+// by two triangles is computed from the same operands in both, so their values are exact negations
+// of each other (or equal), which keeps the test watertight.
+// Branch-free: the order is as often one way as the other, and a mispredicted branch per edge cost
+// more than the rest of the edge's arithmetic (the selects move bits, so lo and hi are exactly the
+// vertices).
+vec3 edge_normal(const vec3& e, const vec3& pi, const vec3& pj) {
+  const bool swap = (pj.x < pi.x) | ((pj.x == pi.x) & ((pj.y < pi.y) | ((pj.y == pi.y) & (pj.z < pi.z))));
+  const std::uint32_t m = 0u - static_cast<std::uint32_t>(swap);
+  auto pick = [m](float a, float b) {  // b where swap, else a
+    return std::bit_cast<float>((std::bit_cast<std::uint32_t>(a) & ~m) | (std::bit_cast<std::uint32_t>(b) & m));
+  };
+  const vec3 lo(pick(pi.x, pj.x), pick(pi.y, pj.y), pick(pi.z, pj.z));
+  const vec3 hi(pick(pj.x, pi.x), pick(pj.y, pi.y), pick(pj.z, pi.z));
+  const vec3 n = glm::cross(lo - e, hi - lo);
+  const float sg = swap ? -1.0f : 1.0f;
+  return n * sg;
+}
+
+Projected project(const render::PinholeCamera& cam, const Inverse& inv, const vec3& p) {
+  const vec3 a = p - cam.position;
+  const float z = glm::dot(a, cam.forward), r = 1.0f / z;
+  return {inv.x(glm::dot(a, cam.right) * r), inv.y(glm::dot(a, cam.up) * r), z};
+}
+
+// Sets t up; false when its arithmetic overflows float (t is then culled). The cheap part first:
+// the conservative sample bounds of the triangle's projection, which cull most triangles that lie
+// off screen or behind the eye before the edge functions are formed.
+bool set_up(const render::PinholeCamera& cam, const Inverse& inv, int W, int H, const vec3& p0, const vec3& p1,
+            const vec3& p2, const Projected& q0, const Projected& q1, const Projected& q2, Tri& t) {
+  t.x0 = t.x1 = t.y0 = t.y1 = 0;
+  const vec3& e = cam.position;
+  const float z[3] = {q0.z, q1.z, q2.z};
+  const float zmax = std::max(z[0], std::max(z[1], z[2]));
+  if (!std::isfinite(zmax)) return false;  // coordinates relative to the eye overflowed
+  if (zmax <= 0.0f) return true;           // wholly behind the eye
+  // The projection of the triangle's part in front of the eye, clipped at zc, a millionth of its
+  // farthest depth (the sliver nearer the eye than that projects beyond any screen of less than a
+  // million pixels per side).
+  const float zc = std::max(zmax * 1e-6f, std::numeric_limits<float>::min());
+  float xmin = std::numeric_limits<float>::infinity(), xmax = -xmin, ymin = xmin, ymax = -xmin;
+  auto add = [&](const vec3& p, float pz) {
+    const float r = 1.0f / pz;
+    const float x = inv.x(glm::dot(p, cam.right) * r), y = inv.y(glm::dot(p, cam.up) * r);
+    xmin = std::min(xmin, x);
+    xmax = std::max(xmax, x);
+    ymin = std::min(ymin, y);
+    ymax = std::max(ymax, y);
+  };
+  if (z[0] >= zc && z[1] >= zc && z[2] >= zc) {
+    xmin = std::min(q0.x, std::min(q1.x, q2.x));
+    xmax = std::max(q0.x, std::max(q1.x, q2.x));
+    ymin = std::min(q0.y, std::min(q1.y, q2.y));
+    ymax = std::max(q0.y, std::max(q1.y, q2.y));
+  } else {
+    const vec3 a[3] = {p0 - e, p1 - e, p2 - e};
+    for (int k = 0; k < 3; ++k) {
+      const int j = k == 2 ? 0 : k + 1;
+      if (z[k] >= zc) add(a[k], z[k]);
+      if ((z[k] < zc) != (z[j] < zc)) {  // the edge crosses the clip plane
+        const float s = (zc - z[k]) / (z[j] - z[k]);
+        add(a[k] + s * (a[j] - a[k]), zc);
+      }
+    }
+  }
+  // One sample of margin on either side for the rounding of these bounds (the coverage test itself
+  // is exact). Clamped in float first (also NaN, which keeps the whole buffer), then truncated:
+  // trunc(v) - 1 <= floor(v) and trunc(v) + 2 >= ceil(v) + 1 for v >= -1.
+  const float fw = static_cast<float>(W), fh = static_cast<float>(H);
+  const auto lo = [](float v, float hi) { return static_cast<int>(v >= -1.0f ? std::min(v, hi) : -1.0f) - 1; };
+  const auto up = [](float v, float hi) { return static_cast<int>(v <= hi ? std::max(v, -1.0f) : hi) + 2; };
+  t.x0 = std::max(0, lo(xmin, fw));
+  t.x1 = std::min(W, up(xmax, fw));
+  t.y0 = std::max(0, lo(ymin, fh));
+  t.y1 = std::min(H, up(ymax, fh));
+  if (t.x0 >= t.x1 || t.y0 >= t.y1) {
+    t.x1 = t.x0;
+    // Off screen; a triangle whose bounds overflowed still has its arithmetic checked below.
+    if (std::isfinite(xmin + xmax + ymin + ymax)) return true;
+  }
+  const vec3 ng = glm::cross(p1 - p0, p2 - p0);
+  const float det = glm::dot(p0 - e, ng);
+  const vec3 n[3] = {edge_normal(e, p1, p2), edge_normal(e, p2, p0), edge_normal(e, p0, p1)};
+  if (!std::isfinite(det) || !std::isfinite(ng.x + ng.y + ng.z) ||
+      !std::isfinite(n[0].x + n[0].y + n[0].z + n[1].x + n[1].y + n[1].z + n[2].x + n[2].y + n[2].z)) {
+    t.x1 = t.x0;
+    return false;
+  }
+  // det = 0: degenerate, or the eye lies in the triangle's plane; no ray meets it at a point.
+  if (det == 0.0f || t.x0 >= t.x1) {
+    t.x1 = t.x0;
+    return true;
+  }
+  // Multiplying by the sign of det is exact, so shared edges stay exact negations (watertight).
+  const float sg = det > 0.0f ? 1.0f : -1.0f;
+  for (int k = 0; k < 3; ++k) {
+    t.ef[k] = sg * glm::dot(n[k], cam.forward);
+    t.eu[k] = sg * glm::dot(n[k], cam.up);
+    t.er[k] = sg * glm::dot(n[k], cam.right);
+  }
+  t.sf = sg * glm::dot(ng, cam.forward);
+  t.su = sg * glm::dot(ng, cam.up);
+  t.sr = sg * glm::dot(ng, cam.right);
+  t.inv_det = 1.0f / std::fabs(det);
+  if (!std::isfinite(t.inv_det)) t.x1 = t.x0;  // |det| below float's range: no sample can resolve it
+  return true;
+}
+
+// Tests the triangles of one tile against its samples and keeps the nearest. Compiled for AVX2 as
+// well, chosen at load time; the two versions compute the same values (no contraction into FMA).
+__attribute__((target_clones("avx2", "default"))) void raster_tile(const Tri* __restrict tris, const std::uint32_t* list,
+                                                                     std::size_t count, const float* __restrict sx,
+                                                                     const float* __restrict sy, int ty, int rows,
+                                                                     float* __restrict wbuf, std::int32_t* __restrict ibuf) {
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::int32_t id = static_cast<std::int32_t>(list[k]);
+    const Tri& t = tris[id];
+    const int ya = std::max(t.y0 - ty, 0), yb = std::min(t.y1 - ty, rows);
+    const float er0 = t.er[0], er1 = t.er[1], er2 = t.er[2], sr = t.sr, inv = t.inv_det;
+    for (int y = ya; y < yb; ++y) {
+      const float s_y = sy[y];
+      const float r0 = t.ef[0] + s_y * t.eu[0], r1 = t.ef[1] + s_y * t.eu[1], r2 = t.ef[2] + s_y * t.eu[2];
+      const float rs = t.sf + s_y * t.su;
+      float* __restrict w = wbuf + y * kTile;
+      std::int32_t* __restrict ids = ibuf + y * kTile;
+      for (int x = 0; x < kTile; ++x) {
+        const float s_x = sx[x];
+        const float e0 = r0 + s_x * er0, e1 = r1 + s_x * er1, e2 = r2 + s_x * er2;
+        const float wv = (rs + s_x * sr) * inv;  // inverse depth; > 0 only in front of the eye
+        // Nearer, or as near and first in (object, triangle) order.
+        const bool take = (e0 >= 0.0f) & (e1 >= 0.0f) & (e2 >= 0.0f) & ((wv > w[x]) | ((wv == w[x]) & (id < ids[x])));
+        w[x] = take ? wv : w[x];
+        ids[x] = take ? id : ids[x];
+      }
+    }
+  }
+}
+
+}  // namespace
+
+void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who,
+                          render::GBuffer& gb, RasterStats& stats) {
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  const int W = gb.width, H = gb.height;
+  const float fs = static_cast<float>(gb.scale);
+  const std::string prefix = std::string(who) + ": mesh '";
+
+  // Validation first, in order, so that the error names the first bad vertex or index. Triangles
+  // are numbered across the objects: object k's triangle t is first[k] + t.
+  std::vector<int> objects;
+  std::vector<std::size_t> first, vfirst;  // vfirst: object k's vertex v is vfirst[k] + v
+  std::size_t total = 0, vertices = 0;
+  for (std::size_t oi = 0; oi < posed.objects.size(); ++oi) {
+    const scene::PosedObject& o = posed.objects[oi];
+    if (!o.source || o.source->triangles.empty() || o.positions.empty()) continue;
+    for (std::size_t v = 0; v < o.positions.size(); ++v) {
+      const vec3& p = o.positions[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw std::invalid_argument(prefix + o.source->name + "': posed vertex " + std::to_string(v) + " is not finite");
+    }
+    const auto& tris = o.source->triangles;
+    for (std::size_t t = 0; t < tris.size(); ++t)
+      for (int k = 0; k < 3; ++k)
+        if (tris[t][k] >= o.positions.size())
+          throw std::invalid_argument(prefix + o.source->name + "': triangle " + std::to_string(t) + " has vertex index " +
+                                      std::to_string(tris[t][k]) + " >= " + std::to_string(o.positions.size()));
+    objects.push_back(static_cast<int>(oi));
+    first.push_back(total);
+    vfirst.push_back(vertices);
+    total += tris.size();
+    vertices += o.positions.size();
+  }
+  if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    throw std::invalid_argument(std::string(who) + ": " + std::to_string(total) + " triangles; the rasteriser takes at most 2^31 - 1");
+
+  std::unique_lock<std::mutex> lock(scratch_mutex(), std::try_to_lock);
+  Scratch own;
+  Scratch& sc = lock.owns_lock() ? kept_scratch() : own;
+
+  // Sample ray coordinates, computed as PinholeCamera::direction does (so the rays are the ones the
+  // ray tracer casts); sx padded to whole tiles.
+  const int tiles_x = (W + kTile - 1) / kTile, tiles_y = (H + kTile - 1) / kTile;
+  std::vector<float>& sx = sc.sx;
+  std::vector<float>& sy = sc.sy;
+  sx.resize(static_cast<std::size_t>(tiles_x) * kTile);
+  sy.resize(static_cast<std::size_t>(tiles_y) * kTile);
+  const float cw = static_cast<float>(cam.width), ch = static_cast<float>(cam.height);
+  for (std::size_t x = 0; x < sx.size(); ++x)
+    sx[x] = (2.0f * ((static_cast<float>(x) + 0.5f) * fs) / cw - 1.0f) * cam.tan_half_fov_y * cam.aspect;
+  for (std::size_t y = 0; y < sy.size(); ++y)
+    sy[y] = (1.0f - 2.0f * ((static_cast<float>(y) + 0.5f) * fs) / ch) * cam.tan_half_fov_y;
+  // x = (px / s - 0.5) with px = (sx / (tan aspect) + 1) w / 2; y likewise with sy = (1 - 2 py / h) tan.
+  const Inverse inv{cw / (2.0f * fs * cam.tan_half_fov_y * cam.aspect), cw / (2.0f * fs) - 0.5f,
+                    -ch / (2.0f * fs * cam.tan_half_fov_y), ch / (2.0f * fs) - 0.5f};
+
+  std::vector<Projected>& proj = sc.proj;
+  proj.resize(vertices);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, objects.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      const auto& pos = posed.objects[static_cast<std::size_t>(objects[k])].positions;
+      Projected* out = proj.data() + vfirst[k];
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pos.size(), 8192), [&](const tbb::blocked_range<std::size_t>& vr) {
+        for (std::size_t v = vr.begin(); v != vr.end(); ++v) out[v] = project(cam, inv, pos[v]);
+      });
+    }
+  });
+
+  // Set-up and binning by counting, over at most kMaxChunks fixed ranges of triangles: each range
+  // counts its triangles into the tiles their bounds overlap (a count array per range, so no two
+  // threads write one counter), the counts become list offsets per (tile, range), and a second
+  // sweep scatters the triangle indices. Each tile's list is in triangle order.
+  constexpr std::size_t kMaxChunks = 64;
+  const std::size_t chunk = std::max(kChunk, (total + kMaxChunks - 1) / kMaxChunks);
+  const std::size_t chunks = (total + chunk - 1) / chunk;
+  const std::size_t tiles = static_cast<std::size_t>(tiles_x) * tiles_y;
+  std::vector<Tri>& tris = sc.tris;
+  tris.resize(total);
+  std::vector<std::uint32_t>& count = sc.count;
+  count.assign(chunks * tiles, 0u);
+  auto each_tile = [&](const Tri& t, auto&& f) {
+    for (int by = t.y0 / kTile; by <= (t.y1 - 1) / kTile; ++by)
+      for (int bx = t.x0 / kTile; bx <= (t.x1 - 1) / kTile; ++bx) f(static_cast<std::size_t>(by) * tiles_x + bx);
+  };
+  // The first triangle whose set-up overflowed float, for the error.
+  std::atomic<std::size_t> first_large{std::numeric_limits<std::size_t>::max()};
+  std::atomic<long long> set_up_count{0};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+    long long kept = 0;
+    for (std::size_t c = r.begin(); c != r.end(); ++c) {
+      std::uint32_t* cnt = count.data() + c * tiles;
+      const std::size_t g0 = c * chunk, g1 = std::min(total, g0 + chunk);
+      std::size_t k = static_cast<std::size_t>(std::upper_bound(first.begin(), first.end(), g0) - first.begin()) - 1;
+      for (std::size_t g = g0; g < g1; ++g) {
+        while (k + 1 < first.size() && g >= first[k + 1]) ++k;
+        const scene::PosedObject& o = posed.objects[static_cast<std::size_t>(objects[k])];
+        const std::size_t t = g - first[k];
+        const glm::uvec3 tri = o.source->triangles[t];
+        Tri& out = tris[g];
+        out.object = objects[k];
+        out.prim = static_cast<int>(t);
+        const Projected* q = proj.data() + vfirst[k];
+        if (!set_up(cam, inv, W, H, o.positions[tri.x], o.positions[tri.y], o.positions[tri.z], q[tri.x], q[tri.y],
+                    q[tri.z], out)) {
+          std::size_t cur = first_large.load();
+          while (g < cur && !first_large.compare_exchange_weak(cur, g)) {
+          }
+          continue;
+        }
+        if (out.x0 >= out.x1 || out.y0 >= out.y1) continue;
+        ++kept;
+        each_tile(out, [&](std::size_t tile) { ++cnt[tile]; });
+      }
+    }
+    set_up_count += kept;
+  });
+  if (const std::size_t g = first_large.load(); g < total) {
+    const Tri& t = tris[g];
+    throw std::invalid_argument(prefix + posed.objects[static_cast<std::size_t>(t.object)].source->name + "': triangle " +
+                                std::to_string(t.prim) +
+                                " is too large for float arithmetic (its vertices, relative to the camera, reach about "
+                                "1e19 or more)");
+  }
+  // Offsets: tile by tile, range by range; count[] becomes each (range, tile)'s fill position.
+  std::vector<std::uint64_t>& start = sc.start;
+  start.resize(tiles + 1);
+  std::uint64_t entries = 0;
+  for (std::size_t tile = 0; tile < tiles; ++tile) {
+    start[tile] = entries;
+    for (std::size_t c = 0; c < chunks; ++c) {
+      const std::uint64_t n = count[c * tiles + tile];
+      count[c * tiles + tile] = static_cast<std::uint32_t>(std::min<std::uint64_t>(entries, 0xFFFFFFFFu));
+      entries += n;
+    }
+  }
+  start[tiles] = entries;
+  // Each entry is 4 bytes and offsets are 32-bit: a scene that would need more than 2^31 of them
+  // (8 GiB) is refused.
+  if (entries > (std::uint64_t(1) << 31))
+    throw std::invalid_argument(std::string(who) + ": " + std::to_string(entries) +
+                                " triangle-tile pairs to rasterise (more than 2^31); use a smaller image or the Embree "
+                                "visibility (SOFTGI_CPU_VISIBILITY=embree)");
+  std::vector<std::uint32_t>& list = sc.list;
+  list.resize(entries);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t c = r.begin(); c != r.end(); ++c) {
+      std::uint32_t* fill = count.data() + c * tiles;
+      for (std::size_t i = c * chunk; i < std::min(total, (c + 1) * chunk); ++i) {
+        const Tri& t = tris[i];
+        if (t.x0 >= t.x1 || t.y0 >= t.y1) continue;
+        each_tile(t, [&](std::size_t tile) { list[fill[tile]++] = static_cast<std::uint32_t>(i); });
+      }
+    }
+  });
+  const auto t1 = clock::now();
+
+  std::atomic<long long> hits{0};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+    alignas(64) std::array<float, kTile * kTile> wbuf;
+    alignas(64) std::array<std::int32_t, kTile * kTile> ibuf;
+    long long local_hits = 0;
+    for (std::size_t tile = r.begin(); tile != r.end(); ++tile) {
+      const int tx = static_cast<int>(tile % tiles_x) * kTile, ty = static_cast<int>(tile / tiles_x) * kTile;
+      const int rows = std::min(kTile, H - ty), cols = std::min(kTile, W - tx);
+      wbuf.fill(0.0f);
+      ibuf.fill(-1);
+      raster_tile(tris.data(), list.data() + start[tile], start[tile + 1] - start[tile], sx.data() + tx, sy.data() + ty,
+                  ty, rows, wbuf.data(), ibuf.data());
+      for (int y = 0; y < rows; ++y)
+        for (int x = 0; x < cols; ++x) {
+          const std::size_t i = static_cast<std::size_t>(ty + y) * W + (tx + x);
+          const std::int32_t id = ibuf[static_cast<std::size_t>(y) * kTile + x];
+          if (id < 0) {
+            gb.object[i] = gb.primitive[i] = -1;
+            continue;
+          }
+          const Tri& t = tris[static_cast<std::size_t>(id)];
+          const float s_x = sx[static_cast<std::size_t>(tx + x)], s_y = sy[static_cast<std::size_t>(ty + y)];
+          float e[3];
+          for (int k = 0; k < 3; ++k) e[k] = std::max(0.0f, (t.ef[k] + s_y * t.eu[k]) + s_x * t.er[k]);
+          const float sum = e[0] + e[1] + e[2];
+          gb.object[i] = t.object;
+          gb.primitive[i] = t.prim;
+          gb.barycentric[i] = sum > 0.0f ? glm::vec2(e[1] / sum, e[2] / sum) : glm::vec2(1.0f / 3.0f);
+          ++local_hits;
+        }
+    }
+    hits += local_hits;
+  });
+  const auto t2 = clock::now();
+
+  stats.triangles = static_cast<long long>(total);
+  stats.set_up = set_up_count.load();
+  stats.held_bytes = lock.owns_lock() ? sc.bytes() : 0;
+  stats.tile_entries = static_cast<long long>(entries);
+  stats.hits = hits.load();
+  stats.setup_seconds = std::chrono::duration<double>(t1 - t0).count();
+  stats.raster_seconds = std::chrono::duration<double>(t2 - t1).count();
+}
+
+}  // namespace softgi::backends::cpu_raster

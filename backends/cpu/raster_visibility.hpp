@@ -1,0 +1,33 @@
+// Primary visibility of the CPU backend by rasterisation: for every sample of a G-buffer (pixel
+// (x, y) of a buffer at 1/scale of the display resolution samples display point ((x + 0.5) scale,
+// (y + 0.5) scale), gbuffer.hpp), the posed triangle that the camera ray through that point meets
+// first, and the barycentrics of the meeting point. The same question the Embree trace answers
+// (gbuffer_cpu.cpp), answered in image space: each triangle is tested against the sample rays of
+// the screen tiles its projection overlaps.
+#pragma once
+
+#include <cstddef>
+
+#include "softgi/render/camera.hpp"
+#include "softgi/render/gbuffer.hpp"
+#include "softgi/scene/scene.hpp"
+
+namespace softgi::backends::cpu_raster {
+
+struct RasterStats {
+  long long triangles = 0;     // triangles of the posed objects
+  long long set_up = 0;        // of them, those that can meet a sample ray (in front, not degenerate, on screen)
+  long long tile_entries = 0;  // (triangle, tile) pairs tested
+  long long hits = 0;          // samples that see a triangle
+  std::size_t held_bytes = 0;  // working memory kept for the next frame
+  double setup_seconds = 0.0, raster_seconds = 0.0;
+};
+
+// Writes gb.object, gb.primitive and gb.barycentric of every pixel of gb (width, height and scale
+// set; -1 / -1 where the ray meets nothing, the other planes untouched). Throws
+// std::invalid_argument, prefixed with `who` and naming the mesh, for a vertex index out of range,
+// a posed vertex that is not finite, or a triangle too large for float arithmetic.
+void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who,
+                          render::GBuffer& gb, RasterStats& stats);
+
+}  // namespace softgi::backends::cpu_raster
