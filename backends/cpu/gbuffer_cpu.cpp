@@ -195,22 +195,19 @@ EmbreeScene& cached_scene() {
 }
 
 
-// Fills pixel i from an Embree hit of object `obj` (the same attribute rules as the reference
-// renderer's intersect(), so both see the same surface).
-void shade_hit(const scene::Scene& sc, const scene::PosedObject& obj, int object_index, unsigned prim, float u, float v,
-               const vec3& dir, const render::PinholeCamera& cam, render::GBuffer& gb, std::size_t i) {
-  const embree::Surface sf = embree::surface_at(obj, prim, u, v, dir);
-  const vec3 p = sf.p, ns = sf.ns;
-  const vec3 albedo = scene::surface_albedo(sc, obj, prim, u, v);
-
-  gb.position[i] = p;
-  gb.normal[i] = ns;
-  gb.depth[i] = cam.depth(p);
-  gb.albedo[i] = albedo;
-  gb.object[i] = object_index;
-  gb.primitive[i] = static_cast<std::int32_t>(prim);
-  gb.barycentric[i] = glm::vec2(u, v);
-  gb.view_dir[i] = -dir;
+// Fills pixel i from the hit of triangle `prim` of object `obj` at barycentrics (u, v) (the same
+// attribute rules as the reference renderer's intersect(), so both see the same surface); only the
+// planes gb holds beyond the visibility planes, which are already written.
+void shade_hit(const scene::Scene& sc, const scene::PosedObject& obj, unsigned prim, float u, float v, const vec3& dir,
+               const render::PinholeCamera& cam, render::GBuffer& gb, std::size_t i) {
+  if (gb.planes & render::kGBufferSurface) {
+    const embree::Surface sf = embree::surface_at(obj, prim, u, v, dir);
+    gb.position[i] = sf.p;
+    gb.normal[i] = sf.ns;
+    gb.depth[i] = cam.depth(sf.p);
+  }
+  if (gb.planes & render::kGBufferAlbedo) gb.albedo[i] = scene::surface_albedo(sc, obj, prim, u, v);
+  if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = -dir;
 }
 
 enum class Visibility { Raster, Embree };
@@ -290,7 +287,7 @@ void trace_visibility(render::FrameContext& ctx, const render::PinholeCamera& ca
 // pixel (x, y) holds the hit of the display camera's ray through display point ((x + 0.5) s,
 // (y + 0.5) s). s = 1 is the display G-buffer; s > 1 the receiver buffer of paper 000 section 4, whose
 // samples then lie exactly on display points, so that upsampling can place them (gbuffer.hpp).
-render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* who, TraceStats& stats) {
+render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned planes, const char* who, TraceStats& stats) {
   using clock = std::chrono::steady_clock;
   const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, who);
   stats.visibility = visibility_from_environment();
@@ -298,7 +295,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
   // Every pixel is written below (a hit by shade_hit, a miss by set_background), in last frame's
   // buffers. Two phases, timed apart: visibility finds each pixel's object, triangle and
   // barycentrics (a visibility buffer); the resolve derives the surface attributes from them.
-  render::GBuffer gb = render::GBuffer::for_overwrite(W, H, scale, ctx.pool());
+  render::GBuffer gb = render::GBuffer::for_overwrite(W, H, scale, ctx.pool(), planes);
   if (stats.visibility == Visibility::Embree) {
     trace_visibility(ctx, cam, gb, stats);
   } else {
@@ -319,8 +316,8 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, const char* w
         const int oi = gb.object[i];
         if (oi < 0)
           gb.set_background(i, dir);
-        else
-          shade_hit(ctx.scene, ctx.posed.objects[oi], oi, static_cast<unsigned>(gb.primitive[i]), gb.barycentric[i].x,
+        else if (gb.planes != render::kGBufferVisibility)
+          shade_hit(ctx.scene, ctx.posed.objects[oi], static_cast<unsigned>(gb.primitive[i]), gb.barycentric[i].x,
                     gb.barycentric[i].y, dir, cam, gb, i);
       }
   });
@@ -356,8 +353,12 @@ void trace_counters(render::PassRecord& rec, const TraceStats& st) {
 // Embree keeps for the next frame (geometry copies and BVHs).
 render::GBuffer produce_gbuffer(render::FrameContext& ctx, int s, const char* pass, std::size_t& held) {
   TraceStats st;
-  render::GBuffer gb = trace_buffer(ctx, s, pass, st);
+  // The display G-buffer holds the planes the frame's passes read; a receiver buffer holds all.
+  const unsigned planes = s == 1 && std::string(pass) == "gbuffer" ? ctx.gbuffer_planes() : render::kGBufferAll;
+  render::GBuffer gb = trace_buffer(ctx, s, planes, pass, st);
   trace_counters(ctx.record(), st);
+  // For the benchmarks' bandwidth shares: every plane written once.
+  ctx.record().counters["bytes_moved"] = static_cast<double>(gb.bytes());
   held = st.visibility == Visibility::Embree ? static_cast<std::size_t>(std::max(0LL, cached_scene().bytes())) : 0;
   return gb;
 }

@@ -350,7 +350,7 @@ bool drawn(const scene::PosedObject& o) { return o.source && !o.source->triangle
 
 // The one rasterisation of the Vulkan backend: a buffer of ceil(W/s) x ceil(H/s) pixels whose pixel
 // (x, y) holds what the display camera sees through display point ((x + 0.5) s, (y + 0.5) s).
-render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, RasterStats& stats) {
+render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, const char* who, RasterStats& stats) {
   using clock = std::chrono::steady_clock;
   const render::PinholeCamera cam = render::make_pinhole_camera(fc.scene, fc.width, fc.height, who);
   const int bw = (fc.width + scale - 1) / scale, bh = (fc.height + scale - 1) / scale;
@@ -416,7 +416,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
   stats.triangles = static_cast<long long>(triangle_total);
   stats.draws = static_cast<long long>(draws.size());
 
-  render::GBuffer gb = render::GBuffer::background(bw, bh, scale, &fc.pool());
+  render::GBuffer gb = render::GBuffer::background(bw, bh, scale, &fc.pool(), planes);
   const float fs = static_cast<float>(scale);
   auto ray = [&](int x, int y) {
     // (x + 0.5) * 1 is exact in float: at s = 1 this is pixel_center_direction(x, y), as on the CPU.
@@ -539,7 +539,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
       const vec3 dir = ray(x, y);
       const int oi = ids[i].x;
       if (oi < 0) {
-        gb.view_dir[i] = dir;
+        if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = dir;
         continue;
       }
       const int prim = ids[i].y;
@@ -548,19 +548,24 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, const char* who, 
         throw std::logic_error(std::string(who) + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) +
                                ") read back object " + std::to_string(oi) + " primitive " + std::to_string(prim) +
                                ", which the frame did not draw");
-      gb.position[i] = vec3(pd[i]);
-      gb.depth[i] = pd[i].w;
-      gb.normal[i] = vec3(nm[i]);
+      if (gb.planes & render::kGBufferSurface) {
+        gb.position[i] = vec3(pd[i]);
+        gb.depth[i] = pd[i].w;
+        gb.normal[i] = vec3(nm[i]);
+      }
       gb.object[i] = oi;
       gb.primitive[i] = prim;
       gb.barycentric[i] = bc[i];
-      gb.albedo[i] = scene::surface_albedo(fc.scene, fc.posed.objects[oi], static_cast<std::size_t>(prim), bc[i].x, bc[i].y);
-      gb.view_dir[i] = -dir;
+      if (gb.planes & render::kGBufferAlbedo)
+        gb.albedo[i] = scene::surface_albedo(fc.scene, fc.posed.objects[oi], static_cast<std::size_t>(prim), bc[i].x, bc[i].y);
+      if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = -dir;
       ++hits;
     }
   stats.readback_seconds = std::chrono::duration<double>(clock::now() - t1).count();
-  // The four readback targets were read through their mapping.
-  ctx.note_transfer(0, static_cast<std::size_t>(bw) * bh * (2 * sizeof(glm::vec4) + sizeof(glm::ivec2) + sizeof(glm::vec2)));
+  // The readback targets read through their mapping: ids and barycentrics, and the resolved
+  // position-depth and normal where the frame's G-buffer holds the surface planes.
+  ctx.note_transfer(0, static_cast<std::size_t>(bw) * bh *
+                           ((gb.planes & render::kGBufferSurface ? 2 * sizeof(glm::vec4) : 0) + sizeof(glm::ivec2) + sizeof(glm::vec2)));
   stats.hits = hits;
   std::size_t held = state->positions.size() + state->normals.size() + state->indices.size() + state->objects.size() + state->frame.size();
   for (const auto& t : state->targets) held += t->bytes();
@@ -585,7 +590,9 @@ void raster_counters(render::PassRecord& rec, const RasterStats& st) {
 // backends/cpu/gbuffer_cpu.cpp). Held: the device buffers and attachments kept for the next frame.
 render::GBuffer produce_gbuffer(render::FrameContext& fc, int s, const char* pass, std::size_t& held) {
   RasterStats st;
-  render::GBuffer gb = rasterise(fc, s, pass, st);
+  // The display G-buffer holds the planes the frame's passes read; a receiver buffer holds all.
+  const unsigned planes = s == 1 && std::string(pass) == "gbuffer" ? fc.gbuffer_planes() : render::kGBufferAll;
+  render::GBuffer gb = rasterise(fc, s, planes, pass, st);
   raster_counters(fc.record(), st);
   held = st.held_bytes;
   return gb;

@@ -806,6 +806,9 @@ class SphericalLights final : public render::Technique {
     return memory_items(scene, params, width, height);
   }
 
+  // The images read the visibility planes, albedo and (for the background) view_dir: the surface
+  // planes, which cost most of the G-buffer at display resolution, are left out.
+  unsigned gbuffer_planes(const render::ParamSet&) const override { return render::kGBufferAlbedo | render::kGBufferViewDir; }
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);
     render::add_scene_facts(scene, empty);

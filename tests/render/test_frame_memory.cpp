@@ -112,6 +112,19 @@ TEST(FrameMemory, ClosedFormsOfTheSharedResources) {
   EXPECT_EQ(render::gbuffer_bytes(16384, 16384), std::size_t{68} * 16384 * 16384);  // no 32-bit overflow
   // What GBuffer::background allocates is what gbuffer_bytes says (GBuffer::bytes() counts the same planes).
   EXPECT_EQ(render::GBuffer::background(37, 23).bytes(), render::gbuffer_bytes(37, 23));
+  // Plane groups left out: 16 bytes of visibility planes always, 28 for the surface (position,
+  // normal, depth), 12 each for albedo and view_dir; allocated and counted alike.
+  using render::kGBufferAlbedo, render::kGBufferSurface, render::kGBufferViewDir, render::kGBufferVisibility;
+  EXPECT_EQ(render::gbuffer_bytes(10, 10, kGBufferVisibility), std::size_t{16} * 100);
+  EXPECT_EQ(render::gbuffer_bytes(10, 10, kGBufferSurface), std::size_t{44} * 100);
+  EXPECT_EQ(render::gbuffer_bytes(10, 10, kGBufferAlbedo | kGBufferViewDir), std::size_t{40} * 100);
+  for (unsigned planes = 0; planes <= render::kGBufferAll; ++planes) {
+    const render::GBuffer g = render::GBuffer::background(37, 23, 1, nullptr, planes);
+    EXPECT_EQ(g.bytes(), render::gbuffer_bytes(37, 23, planes)) << planes;
+    EXPECT_EQ(g.planes, planes);
+    render::FramePool pool;
+    EXPECT_EQ(render::GBuffer::background(37, 23, 1, &pool, planes).bytes(), render::gbuffer_bytes(37, 23, planes)) << planes;
+  }
   EXPECT_EQ(render::scaled_size(1023, 2), 512);
   EXPECT_EQ(render::scaled_size(1024, 8), 128);
   EXPECT_EQ(render::scaled_size(1025, 8), 129);
@@ -137,10 +150,20 @@ TEST(FrameMemory, ShexpEstimateGrowsWithTheImageSizedResources) {
   const scene::Scene sc = scene::make_builtin("spheres");
   backends::CpuBackend cpu;
   const auto small = estimate(cpu, "shexp", sc, 320, 240), large = estimate(cpu, "shexp", sc, 1280, 960);
-  // G-buffer 68, the direct image in the frame and in the result 2 x 12, the final image 12.
-  const std::size_t per_pixel = 68 + 24 + 12;
+  // G-buffer 40 (the planes to_image reads: object, primitive, barycentric, albedo, view_dir), the
+  // direct image in the frame and in the result 2 x 12, the final image 12.
+  const std::size_t per_pixel = 40 + 24 + 12;
   EXPECT_EQ(large.bytes(MemoryPlace::Host) - small.bytes(MemoryPlace::Host), per_pixel * (1280 * 960 - 320 * 240));
-  EXPECT_EQ(item_bytes(large, render::kGBuffer), render::gbuffer_bytes(1280, 960));
+  EXPECT_EQ(item_bytes(large, render::kGBuffer),
+            render::gbuffer_bytes(1280, 960, render::kGBufferAlbedo | render::kGBufferViewDir));
+  // A frame that hands the G-buffer over as an output holds every plane.
+  render::RenderRequest with_gbuffer;
+  with_gbuffer.width = 1280;
+  with_gbuffer.height = 960;
+  with_gbuffer.outputs = {render::kFinal, render::kGBuffer};
+  auto t = render::create_technique("shexp");
+  EXPECT_EQ(item_bytes(cpu.estimate_memory(*t, sc, render::default_params(*t), with_gbuffer), render::kGBuffer),
+            render::gbuffer_bytes(1280, 960));
   EXPECT_EQ(item_bytes(large, render::kFinal), render::image_bytes(1280, 960));
   // The per-vertex receivers: 6 floats and 3 indices per vertex of the scene.
   EXPECT_EQ(item_bytes(large, "shexp.receivers"), render::scene_vertex_count(sc) * 36);
@@ -203,16 +226,16 @@ TEST(FrameMemory, DeclaredLimitRefusesTheFrameBeforeTheFirstPass) {
   const scene::Scene sc = scene::make_builtin("spheres");
   auto cpu = render::create_backend("cpu", render::BackendOptions{"", -1, 16 * kMiB});
   EXPECT_EQ(cpu->memory_limit(), 16 * kMiB);
-  // 1024 x 1024: the G-buffer alone is 68 MiB.
+  // 1024 x 1024: the G-buffer alone (the planes SHEXP reads) is 40 MiB.
   try {
     render_frame(*cpu, "shexp", sc, nullptr, request(1024, 1024));
     FAIL() << "a 1024x1024 frame fitted into 16 MiB";
   } catch (const render::FrameMemoryError& e) {
     const std::string msg = e.what();
     EXPECT_EQ(e.resource(), render::kGBuffer);
-    EXPECT_EQ(e.bytes(), render::gbuffer_bytes(1024, 1024));
+    EXPECT_EQ(e.bytes(), render::gbuffer_bytes(1024, 1024, render::kGBufferAlbedo | render::kGBufferViewDir));
     EXPECT_EQ(e.limit(), 16 * kMiB);
-    for (const char* part : {"render: shexp at 1024x1024 needs about", "of host memory", "'gbuffer' 68.0 MiB",
+    for (const char* part : {"render: shexp at 1024x1024 needs about", "of host memory", "'gbuffer' 40.0 MiB",
                              "the cpu backend has 16.0 MiB available", "declared limit"})
       EXPECT_NE(msg.find(part), std::string::npos) << "no '" << part << "' in: " << msg;
   }

@@ -843,3 +843,35 @@ TEST(ShexpRender, EditedProxySetRebuildsTheHierarchy) {
     }
   }
 }
+
+TEST(ShexpRender, TheGBufferHoldsOnlyThePlanesToImageReads) {
+  // to_image reads the visibility planes, albedo and view_dir: the frame's G-buffer leaves out
+  // position, normal and depth, and the image is the one a frame with the whole G-buffer (requested
+  // as an output) makes, to the bit.
+  techniques::register_all();
+  backends::CpuBackend cpu;
+  auto t = render::create_technique("shexp");
+  const render::ParamSet p = render::default_params(*t);
+  EXPECT_EQ(t->gbuffer_planes(p), render::kGBufferAlbedo | render::kGBufferViewDir);
+  scene::Scene s = scene::make_builtin("character");
+  s.camera.width = 64;
+  s.camera.height = 48;
+  render::RenderRequest plain;
+  render::RenderRequest whole;
+  whole.outputs = {render::kDirect, render::kGBuffer};
+  const render::FrameResult a = cpu.render(*t, s, p, plain);
+  const render::FrameResult b = cpu.render(*t, s, p, whole);
+  ASSERT_EQ(a.direct.rgb.size(), b.direct.rgb.size());
+  for (std::size_t i = 0; i < a.direct.rgb.size(); ++i) ASSERT_EQ(a.direct.rgb[i], b.direct.rgb[i]) << "pixel " << i;
+  const auto& gb = std::any_cast<const render::GBuffer&>(b.resources.at(render::kGBuffer));
+  EXPECT_EQ(gb.planes, unsigned(render::kGBufferAll));
+  EXPECT_EQ(gb.position.size(), gb.object.size());
+  auto pass_bytes = [](const render::FrameResult& r) {
+    for (const auto& pr : r.passes)
+      if (pr.name == "gbuffer") return pr.counters.at("bytes_moved");
+    return -1.0;
+  };
+  const auto n = static_cast<double>(s.camera.width * s.camera.height);
+  EXPECT_EQ(pass_bytes(a), n * 40.0) << "object, primitive, barycentric, albedo, view_dir";
+  EXPECT_EQ(pass_bytes(b), n * 68.0) << "every plane";
+}

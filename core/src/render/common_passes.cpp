@@ -17,13 +17,14 @@
 namespace softgi::render {
 
 std::size_t GBuffer::bytes() const {
-  return position.size() * sizeof(glm::vec3) * 4 + depth.size() * sizeof(float) + object.size() * 8 +
+  return (position.size() + normal.size() + albedo.size() + view_dir.size()) * sizeof(glm::vec3) +
+         depth.size() * sizeof(float) + (object.size() + primitive.size()) * sizeof(std::int32_t) +
          barycentric.size() * sizeof(glm::vec2);
 }
 
-GBuffer GBuffer::background(int w, int h, int scale, FramePool* pool) {
+GBuffer GBuffer::background(int w, int h, int scale, FramePool* pool, unsigned planes) {
   if (pool) {
-    GBuffer gb = for_overwrite(w, h, scale, *pool);
+    GBuffer gb = for_overwrite(w, h, scale, *pool, planes);
     for (std::size_t i = 0; i < gb.object.size(); ++i) gb.set_background(i, glm::vec3(0.0f));
     return gb;
   }
@@ -31,15 +32,18 @@ GBuffer GBuffer::background(int w, int h, int scale, FramePool* pool) {
   gb.width = w;
   gb.height = h;
   gb.scale = scale;
+  gb.planes = planes & kGBufferAll;
   const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
-  gb.position.assign(n, glm::vec3(0.0f));
-  gb.normal.assign(n, glm::vec3(0.0f));
-  gb.depth.assign(n, std::numeric_limits<float>::infinity());
-  gb.albedo.assign(n, glm::vec3(0.0f));
+  if (planes & kGBufferSurface) {
+    gb.position.assign(n, glm::vec3(0.0f));
+    gb.normal.assign(n, glm::vec3(0.0f));
+    gb.depth.assign(n, std::numeric_limits<float>::infinity());
+  }
+  if (planes & kGBufferAlbedo) gb.albedo.assign(n, glm::vec3(0.0f));
   gb.object.assign(n, -1);
   gb.primitive.assign(n, -1);
   gb.barycentric.assign(n, glm::vec2(0.0f));
-  gb.view_dir.assign(n, glm::vec3(0.0f));
+  if (planes & kGBufferViewDir) gb.view_dir.assign(n, glm::vec3(0.0f));
   return gb;
 }
 
@@ -95,7 +99,8 @@ void run_receiver_gbuffer_pass(FrameContext& ctx, const std::function<GBuffer(in
   rec.counters["scale"] = s;
   rec.counters["requested_scale"] = requested;
   GBuffer gb;
-  if (s == 1 && ctx.has(kGBuffer)) {  // the display G-buffer itself: no second trace
+  // The display G-buffer itself, when it holds every plane: no second trace.
+  if (s == 1 && ctx.has(kGBuffer) && ctx.get<GBuffer>(kGBuffer).has(kGBufferAll)) {
     gb = ctx.get<GBuffer>(kGBuffer);
     gb.scale = 1;
     std::size_t hits = 0;

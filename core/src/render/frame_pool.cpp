@@ -46,20 +46,23 @@ void FramePool::give(Image&& img) {
   img = Image();
 }
 
-GBuffer GBuffer::for_overwrite(int w, int h, int scale, FramePool& pool) {
+GBuffer GBuffer::for_overwrite(int w, int h, int scale, FramePool& pool, unsigned planes) {
   GBuffer gb;
   gb.width = w;
   gb.height = h;
   gb.scale = scale;
+  gb.planes = planes & kGBufferAll;
   const std::size_t n = static_cast<std::size_t>(std::max(w, 0)) * static_cast<std::size_t>(std::max(h, 0));
-  gb.position = pool.take_for_overwrite<glm::vec3>(n);
-  gb.normal = pool.take_for_overwrite<glm::vec3>(n);
-  gb.depth = pool.take_for_overwrite<float>(n);
-  gb.albedo = pool.take_for_overwrite<glm::vec3>(n);
+  if (planes & kGBufferSurface) {
+    gb.position = pool.take_for_overwrite<glm::vec3>(n);
+    gb.normal = pool.take_for_overwrite<glm::vec3>(n);
+    gb.depth = pool.take_for_overwrite<float>(n);
+  }
+  if (planes & kGBufferAlbedo) gb.albedo = pool.take_for_overwrite<glm::vec3>(n);
   gb.object = pool.take_for_overwrite<std::int32_t>(n);
   gb.primitive = pool.take_for_overwrite<std::int32_t>(n);
   gb.barycentric = pool.take_for_overwrite<glm::vec2>(n);
-  gb.view_dir = pool.take_for_overwrite<glm::vec3>(n);
+  if (planes & kGBufferViewDir) gb.view_dir = pool.take_for_overwrite<glm::vec3>(n);
   return gb;
 }
 

@@ -82,10 +82,20 @@ std::size_t pixel_count(int width, int height) {
   return static_cast<std::size_t>(std::max(width, 0)) * static_cast<std::size_t>(std::max(height, 0));
 }
 
-std::size_t gbuffer_bytes(int width, int height) {
+std::size_t gbuffer_bytes(int width, int height, unsigned planes) {
   // The planes GBuffer::background allocates.
-  return pixel_count(width, height) *
-         (4 * sizeof(glm::vec3) + sizeof(float) + 2 * sizeof(std::int32_t) + sizeof(glm::vec2));
+  std::size_t per_pixel = 2 * sizeof(std::int32_t) + sizeof(glm::vec2);
+  if (planes & kGBufferSurface) per_pixel += 2 * sizeof(glm::vec3) + sizeof(float);
+  if (planes & kGBufferAlbedo) per_pixel += sizeof(glm::vec3);
+  if (planes & kGBufferViewDir) per_pixel += sizeof(glm::vec3);
+  return pixel_count(width, height) * per_pixel;
+}
+
+unsigned frame_gbuffer_planes(const Technique& technique, const ParamSet& params, const std::vector<std::string>& outputs) {
+  // A G-buffer requested as an output is handed over whole.
+  for (const auto& o : outputs)
+    if (o == kGBuffer) return kGBufferAll;
+  return technique.gbuffer_planes(params) & kGBufferAll;
 }
 
 std::size_t image_bytes(int width, int height) { return pixel_count(width, height) * sizeof(glm::vec3); }
@@ -335,7 +345,8 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
   // Before anything large is allocated (the posed scene included). The pool's buffers count as used
   // memory in the limits; when the frame does not fit beside them, they are freed and it is asked
   // again.
-  const FrameMemory need = estimate_compiled(technique, scene, params, graph, compiled, w, h);
+  const FrameMemory need =
+      estimate_compiled(technique, scene, params, graph, compiled, w, h, frame_gbuffer_planes(technique, params, request.outputs));
   try {
     check_frame_memory(need, memory_limits(), memory_device_name());
   } catch (const FrameMemoryError&) {
@@ -347,6 +358,7 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
   result.pruned = compiled.pruned;
   result.warnings = compiled.warnings;
   FrameContext ctx(scene, posed, params, w, h, result, device(), &pool_);
+  ctx.set_gbuffer_planes(frame_gbuffer_planes(technique, params, request.outputs));
   for (int i : compiled.order) {
     const PassDesc& pass = graph.passes()[i];
     result.passes.push_back(PassRecord{pass.name});
@@ -382,7 +394,8 @@ void Backend::recycle(FrameResult&& frame) {
 }
 
 FrameMemory Backend::estimate_compiled(Technique& technique, const scene::Scene& scene, const ParamSet& params,
-                                       const PassGraph& graph, const CompiledGraph& compiled, int w, int h) {
+                                       const PassGraph& graph, const CompiledGraph& compiled, int w, int h,
+                                       unsigned gbuffer_planes) {
   FrameMemory m;
   m.technique = technique.name();
   m.backend = name();
@@ -397,7 +410,8 @@ FrameMemory Backend::estimate_compiled(Technique& technique, const scene::Scene&
   // The posed scene: world-space positions and normals of every vertex (scene::evaluate).
   m.items.push_back({"posed scene", scene_vertex_count(scene) * 2 * sizeof(glm::vec3), MemoryPlace::Host, "", false, false});
   // The shared passes' resources, whatever implementation runs them.
-  if (runs.count("gbuffer")) m.items.push_back({kGBuffer, gbuffer_bytes(w, h), MemoryPlace::Host, "gbuffer", false, false});
+  if (runs.count("gbuffer"))
+    m.items.push_back({kGBuffer, gbuffer_bytes(w, h, gbuffer_planes), MemoryPlace::Host, "gbuffer", false, false});
   if (runs.count("receiver_gbuffer")) {
     const int s = params.has("receiver_scale") ? params.get_int("receiver_scale") : 1;
     m.items.push_back({kReceiverGBuffer, gbuffer_bytes(scaled_size(w, s), scaled_size(h, s)), MemoryPlace::Host, "receiver_gbuffer",
@@ -428,7 +442,8 @@ FrameMemory Backend::estimate_memory(Technique& technique, const scene::Scene& s
   std::set<std::string> empty;
   PassGraph graph = technique.plan(scene, params, empty);
   const CompiledGraph compiled = graph.compile(request.outputs, empty);
-  return estimate_compiled(technique, scene, params, graph, compiled, w, h);
+  return estimate_compiled(technique, scene, params, graph, compiled, w, h,
+                           frame_gbuffer_planes(technique, params, request.outputs));
 }
 
 const PassFn* find_pass_impl(const PassDesc& pass, const std::string& backend) {

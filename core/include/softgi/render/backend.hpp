@@ -131,7 +131,7 @@ class Backend {
 
  private:
   FrameMemory estimate_compiled(Technique& technique, const scene::Scene& scene, const ParamSet& params, const PassGraph& graph,
-                                const CompiledGraph& compiled, int width, int height);
+                                const CompiledGraph& compiled, int width, int height, unsigned gbuffer_planes);
   std::size_t memory_limit_ = 0;
   FramePool pool_;
 };

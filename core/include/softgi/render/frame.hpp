@@ -11,6 +11,7 @@
 
 #include "softgi/image.hpp"
 #include "softgi/render/frame_pool.hpp"
+#include "softgi/render/gbuffer.hpp"
 #include "softgi/render/params.hpp"
 #include "softgi/render/pass_graph.hpp"
 #include "softgi/scene/scene.hpp"
@@ -158,6 +159,10 @@ class FrameContext {
   void on_release(std::function<void(FramePool&)> fn) { on_release_.push_back(std::move(fn)); }
   // The record of the pass being executed (counters, bytes).
   PassRecord& record() { return result.passes.back(); }
+  // The planes the frame's G-buffer holds (GBufferPlanes): what the technique's passes read
+  // (Technique::gbuffer_planes), all of them when the G-buffer is a requested output.
+  unsigned gbuffer_planes() const { return gbuffer_planes_; }
+  void set_gbuffer_planes(unsigned planes) { gbuffer_planes_ = planes; }
   // Adds a frame warning (FrameResult::warnings) once, however many passes report it.
   void warn(const std::string& message) {
     for (const auto& w : result.warnings)
@@ -172,6 +177,7 @@ class FrameContext {
   std::vector<std::function<void(FramePool&)>> on_release_;
   FramePool own_pool_;
   FramePool* pool_;
+  unsigned gbuffer_planes_ = kGBufferAll;
 };
 
 // Peak resident set size of this process (VmHWM), 0 where unavailable.

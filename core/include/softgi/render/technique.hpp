@@ -47,9 +47,13 @@ struct MemoryItem {
 
 // Sizes of the common image-sized resources, the closed forms technique estimates are made of.
 std::size_t pixel_count(int width, int height);
-// A render::GBuffer of width x height pixels (every plane: position, normal, albedo, view_dir,
-// depth, object, primitive, barycentric).
-std::size_t gbuffer_bytes(int width, int height);
+// A render::GBuffer of width x height pixels holding `planes` (GBufferPlanes; by default every
+// plane: position, normal, albedo, view_dir, depth, object, primitive, barycentric).
+std::size_t gbuffer_bytes(int width, int height, unsigned planes = kGBufferAll);
+// The planes of a frame's G-buffer: technique.gbuffer_planes(params), or every plane when `outputs`
+// requests the G-buffer itself.
+class Technique;
+unsigned frame_gbuffer_planes(const Technique& technique, const ParamSet& params, const std::vector<std::string>& outputs);
 // A render::Image (linear RGB float).
 std::size_t image_bytes(int width, int height);
 // ceil(size / scale): the receiver buffer's edge (common_passes.hpp, add_receiver_gbuffer_pass).
@@ -92,6 +96,12 @@ class Technique {
   // The pass graph for this scene and settings. `empty` receives the resources that are empty for
   // this scene (no moving object, no re-radiating proxy, ...), so compile() leaves out their passes.
   virtual PassGraph plan(const scene::Scene& scene, const ParamSet& params, std::set<std::string>& empty) = 0;
+  // The G-buffer planes (GBufferPlanes) this technique's passes read with these settings; the
+  // visibility planes are always there. Every plane by default.
+  virtual unsigned gbuffer_planes(const ParamSet& params) const {
+    (void)params;
+    return kGBufferAll;
+  }
   // Frame resources that overlay() reads: a viewer that draws the overlay adds them to
   // RenderRequest::outputs. None by default.
   virtual std::vector<std::string> overlay_outputs() const { return {}; }
