@@ -79,14 +79,14 @@ inline void BM_StreamTriad(benchmark::State& state) {
 // gathers to_image makes (three vertices per pixel) add more where they miss the cache.
 //   gbuffer:  writes every G-buffer plane (the CPU pass records its own count: the planes the
 //             frame's G-buffer holds);
-//   to_image: reads object, primitive (4 bytes each), barycentric (8) and albedo (12), writes one
-//             image;
+//   to_image: reads object, primitive (4 bytes each) and barycentric (8), writes one image (the
+//             albedo it multiplies by is derived from the scene, not read);
 //   compose:  reads direct and indirect, writes final (its own counter knows when there is no indirect).
 inline double display_pass_bytes(const std::string& pass, int width, int height) {
   const double px = static_cast<double>(render::pixel_count(width, height));
   const double image = static_cast<double>(render::image_bytes(width, height));
   if (pass == "gbuffer") return static_cast<double>(render::gbuffer_bytes(width, height));
-  if (pass == "to_image") return px * 28.0 + image;
+  if (pass == "to_image") return px * 16.0 + image;
   if (pass == "compose") return 3.0 * image;
   return -1.0;
 }

@@ -312,11 +312,15 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < W; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * W + x;
-        const vec3 dir = ray_dir(x, y);
         const int oi = gb.object[i];
+        if (gb.planes == render::kGBufferVisibility) {  // no ray direction needed
+          if (oi < 0) gb.set_background(i, vec3(0.0f));
+          continue;
+        }
+        const vec3 dir = ray_dir(x, y);
         if (oi < 0)
           gb.set_background(i, dir);
-        else if (gb.planes != render::kGBufferVisibility)
+        else
           shade_hit(ctx.scene, ctx.posed.objects[oi], static_cast<unsigned>(gb.primitive[i]), gb.barycentric[i].x,
                     gb.barycentric[i].y, dir, cam, gb, i);
       }

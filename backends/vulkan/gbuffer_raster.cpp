@@ -510,16 +510,18 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
         }
         r.barrier();  // copies -> the resolve pass's reads
         const GbResolve push{tg.width, tg.height};
-        r.dispatch(*state->resolve,
-                   {vk::Bind::buffer_at(gpu::kGbBindFrame, state->frame),
-                    vk::Bind::texels_at(gpu::kGbBindPositions, state->positions, VK_FORMAT_R32_SFLOAT),
-                    vk::Bind::texels_at(gpu::kGbBindNormals, state->normals, VK_FORMAT_R32_SFLOAT),
-                    vk::Bind::texels_at(gpu::kGbBindIndices, state->indices, VK_FORMAT_R32_UINT),
-                    vk::Bind::buffer_at(gpu::kGbBindObjects, state->objects),
-                    vk::Bind::buffer_at(gpu::kGbBindIds, tg.readback[gpu::kGbOutIds]),
-                    vk::Bind::buffer_at(gpu::kGbBindBarycentric, tg.readback[gpu::kGbOutBarycentric]),
-                    vk::Bind::buffer_at(gpu::kGbBindPositionDepth, tg.position_depth), vk::Bind::buffer_at(gpu::kGbBindNormal, tg.normal)},
-                   push, state->resolve->groups_x(n));
+        // The resolve computes the surface planes only: a G-buffer without them skips it.
+        if (planes & render::kGBufferSurface)
+          r.dispatch(*state->resolve,
+                     {vk::Bind::buffer_at(gpu::kGbBindFrame, state->frame),
+                      vk::Bind::texels_at(gpu::kGbBindPositions, state->positions, VK_FORMAT_R32_SFLOAT),
+                      vk::Bind::texels_at(gpu::kGbBindNormals, state->normals, VK_FORMAT_R32_SFLOAT),
+                      vk::Bind::texels_at(gpu::kGbBindIndices, state->indices, VK_FORMAT_R32_UINT),
+                      vk::Bind::buffer_at(gpu::kGbBindObjects, state->objects),
+                      vk::Bind::buffer_at(gpu::kGbBindIds, tg.readback[gpu::kGbOutIds]),
+                      vk::Bind::buffer_at(gpu::kGbBindBarycentric, tg.readback[gpu::kGbOutBarycentric]),
+                      vk::Bind::buffer_at(gpu::kGbBindPositionDepth, tg.position_depth), vk::Bind::buffer_at(gpu::kGbBindNormal, tg.normal)},
+                     push, state->resolve->groups_x(n));
         r.end_timer();
         r.barrier();  // resolve -> host reads
       },

@@ -554,8 +554,12 @@ void pass_to_image(FrameContext& ctx) {
   const render::BackgroundFn bg = render::environment_background(ctx.scene.environment);
   // Irradiance is interpolated per vertex (section 8: vertex-rate shading); albedo is per pixel, so
   // textures keep their detail.
+  // The G-buffer holds the visibility planes only (gbuffer_planes): albedo and the background's ray
+  // directions are derived here, in the one pass over the pixels.
+  const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, "to_image");
   Image img = render::interpolate_vertex_values(gb, ctx.posed, shading.irradiance, bg,
-                                                ctx.pool().image_for_overwrite(gb.width, gb.height), true);
+                                                ctx.pool().image_for_overwrite(gb.width, gb.height), true,
+                                                render::DerivedPlanes{&ctx.scene, &cam});
   const std::size_t np = img.rgb.size();
   auto& rec = ctx.record();
   rec.counters["pixels"] = static_cast<double>(np);
@@ -655,9 +659,9 @@ class Shexp final : public render::Technique {
     return memory_items(scene, params, width, height);
   }
 
-  // to_image reads the visibility planes, albedo and (for the background) view_dir: the surface
-  // planes, which cost most of the G-buffer at display resolution, are left out.
-  unsigned gbuffer_planes(const render::ParamSet&) const override { return render::kGBufferAlbedo | render::kGBufferViewDir; }
+  // to_image reads the visibility planes and derives albedo and the background's ray directions
+  // itself: the other planes, most of the G-buffer's cost at display resolution, are left out.
+  unsigned gbuffer_planes(const render::ParamSet&) const override { return render::kGBufferVisibility; }
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);
     render::add_scene_facts(scene, empty);

@@ -710,8 +710,11 @@ Image vertex_image(FrameContext& ctx, const Shading& sh, const Receivers& r, boo
     for (std::size_t v = 0; v < r.index[o].size(); ++v) per_vertex[o][v] = sh.value[r.index[o][v]];
   }
   const render::BackgroundFn bg = background ? render::environment_background(ctx.scene.environment) : render::BackgroundFn{};
+  // The G-buffer holds the visibility planes only (gbuffer_planes): albedo and the background's ray
+  // directions are derived here, in the one pass over the pixels.
+  const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, "to_image");
   Image img = render::interpolate_vertex_values(gb, ctx.posed, per_vertex, bg, ctx.pool().image_for_overwrite(gb.width, gb.height),
-                                                true);
+                                                true, render::DerivedPlanes{&ctx.scene, &cam});
   ctx.record().counters["pixels"] = static_cast<double>(img.rgb.size());
   ctx.record().bytes = img.rgb.size() * sizeof(glm::vec3);
   return img;
@@ -806,9 +809,9 @@ class SphericalLights final : public render::Technique {
     return memory_items(scene, params, width, height);
   }
 
-  // The images read the visibility planes, albedo and (for the background) view_dir: the surface
-  // planes, which cost most of the G-buffer at display resolution, are left out.
-  unsigned gbuffer_planes(const render::ParamSet&) const override { return render::kGBufferAlbedo | render::kGBufferViewDir; }
+  // The images read the visibility planes and derive albedo and the background's ray directions
+  // themselves: the other planes, most of the G-buffer's cost at display resolution, are left out.
+  unsigned gbuffer_planes(const render::ParamSet&) const override { return render::kGBufferVisibility; }
   render::PassGraph plan(const scene::Scene& scene, const render::ParamSet& params, std::set<std::string>& empty) override {
     const Settings s = read_settings(params);
     render::add_scene_facts(scene, empty);

@@ -92,3 +92,36 @@ TEST(VertexImage, MismatchedValuesNameTheObject) {
   v.resize(1);
   EXPECT_THROW(render::interpolate_vertex_values(f.gb, f.posed, v), std::invalid_argument);
 }
+
+TEST(VertexImage, DerivedPlanesGiveTheImageOfTheWholeGBuffer) {
+  // A G-buffer of the visibility planes alone: albedo and the background's ray directions derived
+  // from the scene and the camera give the image of the whole G-buffer to the bit; without them,
+  // the missing planes are an error.
+  const Frame f;
+  render::GBuffer vis = f.gb;
+  vis.planes = render::kGBufferVisibility;
+  vis.position.clear();
+  vis.normal.clear();
+  vis.depth.clear();
+  vis.albedo.clear();
+  vis.view_dir.clear();
+  const render::BackgroundFn bg = render::environment_background(f.scene.environment);
+  const Image whole = render::interpolate_vertex_values(f.gb, f.posed, f.per_vertex(), bg, Image(), true);
+  const render::PinholeCamera cam = render::make_pinhole_camera(f.scene, f.gb.width, f.gb.height, "test");
+  const Image derived =
+      render::interpolate_vertex_values(vis, f.posed, f.per_vertex(), bg, Image(), true, render::DerivedPlanes{&f.scene, &cam});
+  ASSERT_EQ(whole.rgb.size(), derived.rgb.size());
+  int background = 0;
+  for (std::size_t i = 0; i < whole.rgb.size(); ++i) {
+    ASSERT_EQ(whole.rgb[i], derived.rgb[i]) << "pixel " << i;
+    background += f.gb.hit(i) ? 0 : 1;
+  }
+  EXPECT_GT(background, 100) << "the background is looked at";
+  try {
+    render::interpolate_vertex_values(vis, f.posed, f.per_vertex(), bg, Image(), true, render::DerivedPlanes{nullptr, &cam});
+    ADD_FAILURE() << "albedo neither held nor derived";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("none is derived"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(render::interpolate_vertex_values(vis, f.posed, f.per_vertex(), bg), std::invalid_argument);
+}

@@ -150,12 +150,12 @@ TEST(FrameMemory, ShexpEstimateGrowsWithTheImageSizedResources) {
   const scene::Scene sc = scene::make_builtin("spheres");
   backends::CpuBackend cpu;
   const auto small = estimate(cpu, "shexp", sc, 320, 240), large = estimate(cpu, "shexp", sc, 1280, 960);
-  // G-buffer 40 (the planes to_image reads: object, primitive, barycentric, albedo, view_dir), the
-  // direct image in the frame and in the result 2 x 12, the final image 12.
-  const std::size_t per_pixel = 40 + 24 + 12;
+  // G-buffer 16 (the planes to_image reads: object, primitive, barycentric), the direct image in
+  // the frame and in the result 2 x 12, the final image 12.
+  const std::size_t per_pixel = 16 + 24 + 12;
   EXPECT_EQ(large.bytes(MemoryPlace::Host) - small.bytes(MemoryPlace::Host), per_pixel * (1280 * 960 - 320 * 240));
   EXPECT_EQ(item_bytes(large, render::kGBuffer),
-            render::gbuffer_bytes(1280, 960, render::kGBufferAlbedo | render::kGBufferViewDir));
+            render::gbuffer_bytes(1280, 960, render::kGBufferVisibility));
   // A frame that hands the G-buffer over as an output holds every plane.
   render::RenderRequest with_gbuffer;
   with_gbuffer.width = 1280;
@@ -226,16 +226,17 @@ TEST(FrameMemory, DeclaredLimitRefusesTheFrameBeforeTheFirstPass) {
   const scene::Scene sc = scene::make_builtin("spheres");
   auto cpu = render::create_backend("cpu", render::BackendOptions{"", -1, 16 * kMiB});
   EXPECT_EQ(cpu->memory_limit(), 16 * kMiB);
-  // 1024 x 1024: the G-buffer alone (the planes SHEXP reads) is 40 MiB.
+  // 1024 x 1024: the G-buffer alone is 16 MiB (the planes SHEXP reads), the direct and final
+  // images 12 MiB each: the largest item is the G-buffer.
   try {
     render_frame(*cpu, "shexp", sc, nullptr, request(1024, 1024));
     FAIL() << "a 1024x1024 frame fitted into 16 MiB";
   } catch (const render::FrameMemoryError& e) {
     const std::string msg = e.what();
     EXPECT_EQ(e.resource(), render::kGBuffer);
-    EXPECT_EQ(e.bytes(), render::gbuffer_bytes(1024, 1024, render::kGBufferAlbedo | render::kGBufferViewDir));
+    EXPECT_EQ(e.bytes(), render::gbuffer_bytes(1024, 1024, render::kGBufferVisibility));
     EXPECT_EQ(e.limit(), 16 * kMiB);
-    for (const char* part : {"render: shexp at 1024x1024 needs about", "of host memory", "'gbuffer' 40.0 MiB",
+    for (const char* part : {"render: shexp at 1024x1024 needs about", "of host memory", "'gbuffer' 16.0 MiB",
                              "the cpu backend has 16.0 MiB available", "declared limit"})
       EXPECT_NE(msg.find(part), std::string::npos) << "no '" << part << "' in: " << msg;
   }

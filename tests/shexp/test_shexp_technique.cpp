@@ -845,14 +845,14 @@ TEST(ShexpRender, EditedProxySetRebuildsTheHierarchy) {
 }
 
 TEST(ShexpRender, TheGBufferHoldsOnlyThePlanesToImageReads) {
-  // to_image reads the visibility planes, albedo and view_dir: the frame's G-buffer leaves out
-  // position, normal and depth, and the image is the one a frame with the whole G-buffer (requested
-  // as an output) makes, to the bit.
+  // to_image reads the visibility planes and derives albedo and the background's directions itself:
+  // the frame's G-buffer leaves out every other plane, and the image is the one a frame with the
+  // whole G-buffer (requested as an output, so to_image reads the planes) makes, to the bit.
   techniques::register_all();
   backends::CpuBackend cpu;
   auto t = render::create_technique("shexp");
   const render::ParamSet p = render::default_params(*t);
-  EXPECT_EQ(t->gbuffer_planes(p), render::kGBufferAlbedo | render::kGBufferViewDir);
+  EXPECT_EQ(t->gbuffer_planes(p), render::kGBufferVisibility);
   scene::Scene s = scene::make_builtin("character");
   s.camera.width = 64;
   s.camera.height = 48;
@@ -872,6 +872,6 @@ TEST(ShexpRender, TheGBufferHoldsOnlyThePlanesToImageReads) {
     return -1.0;
   };
   const auto n = static_cast<double>(s.camera.width * s.camera.height);
-  EXPECT_EQ(pass_bytes(a), n * 40.0) << "object, primitive, barycentric, albedo, view_dir";
+  EXPECT_EQ(pass_bytes(a), n * 16.0) << "object, primitive, barycentric";
   EXPECT_EQ(pass_bytes(b), n * 68.0) << "every plane";
 }

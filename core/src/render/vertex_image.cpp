@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -16,12 +17,21 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
 Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& posed,
                                 const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background,
                                 Image storage, bool times_albedo) {
+  return interpolate_vertex_values(gb, posed, per_vertex, background, std::move(storage), times_albedo, DerivedPlanes{});
+}
+
+Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& posed,
+                                const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background,
+                                Image storage, bool times_albedo, const DerivedPlanes& derive) {
   const std::size_t n = static_cast<std::size_t>(gb.width) * gb.height;
+  const bool own_dir = gb.view_dir.size() != n && derive.camera;
+  const bool own_albedo = times_albedo && gb.albedo.size() != n && derive.scene;
   if (gb.width < 0 || gb.height < 0 || gb.object.size() != n || gb.primitive.size() != n || gb.barycentric.size() != n ||
-      gb.view_dir.size() != n || (times_albedo && gb.albedo.size() != n))
+      (gb.view_dir.size() != n && !own_dir) || (times_albedo && gb.albedo.size() != n && !own_albedo))
     throw std::invalid_argument("interpolate_vertex_values: G-buffer of " + std::to_string(gb.width) + "x" +
                                 std::to_string(gb.height) + " has incomplete object/primitive/barycentric/view_dir" +
-                                (times_albedo ? "/albedo" : "") + " planes");
+                                (times_albedo ? "/albedo" : "") + " planes and none is derived");
+  const float fs = static_cast<float>(gb.scale);
   // The checks a visible pixel needs, made where the loop reads it (one pass over the G-buffer): its
   // object, that object's mesh and per-vertex values (once per run of pixels of one object), its
   // triangle. Objects no pixel sees need no values.
@@ -50,7 +60,14 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
         const std::size_t i = static_cast<std::size_t>(y) * gb.width + x;
         const int o = gb.object[i];
         if (o < 0) {
-          out.rgb[i] = background ? background(gb.view_dir[i]) : glm::vec3(0.0f);
+          if (!background) {
+            out.rgb[i] = glm::vec3(0.0f);
+          } else {
+            // The G-buffer's ray for this pixel (its view_dir for background pixels).
+            out.rgb[i] = background(own_dir ? derive.camera->direction((static_cast<float>(x) + 0.5f) * fs,
+                                                                       (static_cast<float>(y) + 0.5f) * fs)
+                                            : gb.view_dir[i]);
+          }
           continue;
         }
         if (o != checked) {
@@ -66,7 +83,11 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
         const std::vector<glm::vec3>& v = per_vertex[o];
         const glm::vec2 b = gb.barycentric[i];
         const glm::vec3 e = (1.0f - b.x - b.y) * v[tri.x] + b.x * v[tri.y] + b.y * v[tri.z];
-        out.rgb[i] = times_albedo ? e * gb.albedo[i] : e;
+        if (!times_albedo)
+          out.rgb[i] = e;
+        else
+          out.rgb[i] = e * (own_albedo ? scene::surface_albedo(*derive.scene, posed.objects[o], static_cast<std::size_t>(t), b.x, b.y)
+                                       : gb.albedo[i]);
       }
   });
   return out;

@@ -9,6 +9,7 @@
 #include <glm/glm.hpp>
 
 #include "softgi/image.hpp"
+#include "softgi/render/camera.hpp"
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/scene/scene.hpp"
 
@@ -43,6 +44,21 @@ Image interpolate_vertex_values(const GBuffer& gbuffer, const scene::PosedScene&
 Image interpolate_vertex_values(const GBuffer& gbuffer, const scene::PosedScene& posed,
                                 const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background,
                                 Image storage, bool times_albedo);
+
+// What the pass derives itself where the G-buffer leaves a plane out (GBuffer::planes), so that a
+// technique whose G-buffer is the visibility planes alone reads each pixel once: the albedo by
+// scene::surface_albedo from `scene` (the G-buffer's own rule, so the value is the same to the
+// bit), the background ray direction from `camera` (the G-buffer's rays:
+// camera.direction((x + 0.5) s, (y + 0.5) s) at the buffer's scale s).
+struct DerivedPlanes {
+  const scene::Scene* scene = nullptr;
+  const PinholeCamera* camera = nullptr;
+};
+// The same with planes derived: throws std::invalid_argument when a plane the pass needs is neither
+// in the G-buffer nor derivable (albedo without `scene`, view_dir without `camera`).
+Image interpolate_vertex_values(const GBuffer& gbuffer, const scene::PosedScene& posed,
+                                const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background,
+                                Image storage, bool times_albedo, const DerivedPlanes& derive);
 
 // The background of every image, techniques' and reference's alike: the environment's radiance
 // along the camera ray, Environment::radiance(ray_dir).
