@@ -635,10 +635,16 @@ TEST(io_gltf, TexturedMaterialWithoutTexcoordUsesTheBaseColourFactor) {
   ASSERT_EQ(posed.objects.size(), 2u);
   for (const auto& o : posed.objects) {
     const glm::vec3 albedo = softgi::scene::surface_albedo(s, o, 0, 0.3f, 0.3f);
+    // The textured primitive's albedo depends on the point; the other's is its factor everywhere.
+    glm::vec3 constant(-1.0f);
+    const bool uniform = softgi::scene::constant_albedo(s, o, constant);
     if (o.mesh == 0) {
       EXPECT_EQ(albedo, glm::vec3(0.25f, 0.0f, 0.0f));
+      EXPECT_FALSE(uniform);
     } else {
       EXPECT_EQ(albedo, glm::vec3(0.25f, 0.5f, 0.75f));
+      EXPECT_TRUE(uniform);
+      EXPECT_EQ(constant, albedo);
     }
   }
   EXPECT_NO_THROW(softgi::scene::validate(s));

@@ -55,6 +55,8 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
   out.rgb.resize(n);  // every pixel is written below
   tbb::parallel_for(tbb::blocked_range<int>(0, gb.height), [&](const tbb::blocked_range<int>& rows) {
     int checked = -1;
+    bool uniform = false;  // the checked object's albedo is the same everywhere: `albedo`
+    glm::vec3 albedo(0.0f);
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < gb.width; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * gb.width + x;
@@ -73,6 +75,7 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
         if (o != checked) {
           check_object(i, o);
           checked = o;
+          uniform = own_albedo && scene::constant_albedo(*derive.scene, posed.objects[o], albedo);
         }
         const scene::Mesh& mesh = *posed.objects[o].source;
         const int t = gb.primitive[i];
@@ -86,8 +89,9 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
         if (!times_albedo)
           out.rgb[i] = e;
         else
-          out.rgb[i] = e * (own_albedo ? scene::surface_albedo(*derive.scene, posed.objects[o], static_cast<std::size_t>(t), b.x, b.y)
-                                       : gb.albedo[i]);
+          out.rgb[i] = e * (uniform      ? albedo
+                            : own_albedo ? scene::surface_albedo(*derive.scene, posed.objects[o], static_cast<std::size_t>(t), b.x, b.y)
+                                         : gb.albedo[i]);
       }
   });
   return out;
@@ -96,7 +100,9 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
 glm::vec3 background_radiance(const scene::Environment& env, const glm::vec3& ray_dir) { return env.radiance(ray_dir); }
 
 BackgroundFn environment_background(const scene::Environment& env) {
-  return [&env](const glm::vec3& d) { return background_radiance(env, d); };
+  // Prepared once: per pixel, Environment::radiance would work out the sun's direction and the
+  // cosines again.
+  return [eval = scene::EnvironmentRadiance(env)](const glm::vec3& d) { return eval(d); };
 }
 
 }  // namespace softgi::render

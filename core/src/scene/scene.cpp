@@ -118,16 +118,25 @@ glm::mat4 Node::local() const {
   return m;
 }
 
-glm::vec3 Environment::radiance(const glm::vec3& dir) const {
-  // The map/sky is turned by rotation_y about +y: world direction d sees the content at R^-1 d.
-  const glm::vec3 d = rotate_y(dir, -rotation_y);
-  if (kind == Kind::Map) return intensity * map_lookup(*this, d);
-  if (sun_radius > 0.0f) {
-    const glm::vec3 sun = safe_normalize(sun_direction, glm::vec3(0.0f, 1.0f, 0.0f));
-    if (glm::dot(d, sun) >= std::cos(sun_radius)) return intensity * sun_radiance;
-  }
-  return intensity * sky_gradient(*this, d.y);
+EnvironmentRadiance::EnvironmentRadiance(const Environment& env)
+    : env_(&env),
+      rotated_(-env.rotation_y != 0.0f),
+      cos_r_(std::cos(-env.rotation_y)),
+      sin_r_(std::sin(-env.rotation_y)),
+      sun_(safe_normalize(env.sun_direction, glm::vec3(0.0f, 1.0f, 0.0f))),
+      cos_sun_(std::cos(env.sun_radius)) {}
+
+glm::vec3 EnvironmentRadiance::operator()(const glm::vec3& dir) const {
+  const Environment& env = *env_;
+  // The map/sky is turned by rotation_y about +y: world direction d sees the content at R^-1 d
+  // (rotate_y's arithmetic).
+  const glm::vec3 d = rotated_ ? glm::vec3(cos_r_ * dir.x + sin_r_ * dir.z, dir.y, -sin_r_ * dir.x + cos_r_ * dir.z) : dir;
+  if (env.kind == Environment::Kind::Map) return env.intensity * map_lookup(env, d);
+  if (env.sun_radius > 0.0f && glm::dot(d, sun_) >= cos_sun_) return env.intensity * env.sun_radiance;
+  return env.intensity * sky_gradient(env, d.y);
 }
+
+glm::vec3 Environment::radiance(const glm::vec3& dir) const { return EnvironmentRadiance(*this)(dir); }
 
 std::vector<glm::vec3> environment_sh(const Environment& env, int order) {
   sh::check_order(order, "scene::environment_sh");
@@ -874,10 +883,26 @@ void validate(const Scene& scene) {
   }
 }
 
-glm::vec3 surface_albedo(const Scene& sc, const PosedObject& obj, std::size_t prim, float b1, float b2) {
+namespace {
+const Material& material_of(const Scene& sc, const PosedObject& obj) {
   static const Material kDefault{};
-  const Material& m =
-      obj.material >= 0 && obj.material < static_cast<int>(sc.materials.size()) ? sc.materials[obj.material] : kDefault;
+  return obj.material >= 0 && obj.material < static_cast<int>(sc.materials.size()) ? sc.materials[obj.material] : kDefault;
+}
+}  // namespace
+
+bool constant_albedo(const Scene& sc, const PosedObject& obj, glm::vec3& albedo) {
+  // The branches of surface_albedo that read the point: a texture with uvs, vertex colours.
+  const Material& m = material_of(sc, obj);
+  albedo = m.albedo;
+  if (!obj.source) return true;
+  const Mesh& mesh = *obj.source;
+  const bool textured = m.albedo_texture >= 0 && m.albedo_texture < static_cast<int>(sc.textures.size()) &&
+                        mesh.uvs.size() == mesh.positions.size();
+  return !textured && mesh.colors.size() != mesh.positions.size();
+}
+
+glm::vec3 surface_albedo(const Scene& sc, const PosedObject& obj, std::size_t prim, float b1, float b2) {
+  const Material& m = material_of(sc, obj);
   glm::vec3 albedo = m.albedo;
   if (!obj.source || prim >= obj.source->triangles.size()) return albedo;
   const Mesh& mesh = *obj.source;

@@ -127,6 +127,22 @@ struct Environment {
   glm::vec3 radiance(const glm::vec3& dir) const;  // dir unit, world space
 };
 
+// Environment::radiance with what does not depend on the direction (the rotation's sine and cosine,
+// the sun's unit direction and the cosine of its radius) worked out once: for passes that evaluate
+// it per pixel. radiance() is this, so both give the same value to the bit. `env` must outlive it.
+class EnvironmentRadiance {
+ public:
+  explicit EnvironmentRadiance(const Environment& env);
+  glm::vec3 operator()(const glm::vec3& dir) const;
+
+ private:
+  const Environment* env_;
+  bool rotated_;
+  float cos_r_, sin_r_;  // of -rotation_y
+  glm::vec3 sun_;
+  float cos_sun_;
+};
+
 // Local spherical light source (paper 004 section 7 "Analytic Lights", paper 001 section 7.3).
 struct SphericalLight {
   std::string name;
@@ -174,6 +190,9 @@ struct PosedScene {
 // albedo texture at the interpolated uv x interpolated vertex colour. The one rule of the reference
 // renderer and of every backend's G-buffer.
 glm::vec3 surface_albedo(const Scene& scene, const PosedObject& obj, std::size_t prim, float b1, float b2);
+// True when surface_albedo of `obj` is the same at every point (no albedo texture, no vertex
+// colours), and then `albedo` is that value, bit for bit: per-pixel passes look it up once per object.
+bool constant_albedo(const Scene& scene, const PosedObject& obj, glm::vec3& albedo);
 
 // Poses the scene at time t (seconds) with its active clip: node hierarchy, linear-blend skinning
 // of meshes, proxies moved with their node or bones. Throws std::invalid_argument for a
