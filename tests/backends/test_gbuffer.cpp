@@ -35,34 +35,10 @@ constexpr float kAlbedoTol = 1e-5f;
 // hundred sphere pixels and thousands of plane pixels at 128 x 96).
 constexpr int kMinPixelsOfEachKind = 200;
 
-// Sets SOFTGI_CPU_VISIBILITY for the scope ("" unsets it: the default), restoring what was there.
-class ScopedVisibility {
- public:
-  explicit ScopedVisibility(const std::string& v) {
-    if (const char* old = std::getenv("SOFTGI_CPU_VISIBILITY")) saved_ = old, had_ = true;
-    if (v.empty())
-      unsetenv("SOFTGI_CPU_VISIBILITY");
-    else
-      setenv("SOFTGI_CPU_VISIBILITY", v.c_str(), 1);
-  }
-  ~ScopedVisibility() {
-    if (had_)
-      setenv("SOFTGI_CPU_VISIBILITY", saved_.c_str(), 1);
-    else
-      unsetenv("SOFTGI_CPU_VISIBILITY");
-  }
-  ScopedVisibility(const ScopedVisibility&) = delete;
-  ScopedVisibility& operator=(const ScopedVisibility&) = delete;
-
- private:
-  std::string saved_;
-  bool had_ = false;
-};
-
 // Each visibility method: "" is the default (rasterised, checked by the counter).
 class GBufferVisibility : public ::testing::TestWithParam<std::string> {
  protected:
-  ScopedVisibility visibility_{GetParam()};
+  softgi::testing::ScopedVisibility visibility_{GetParam()};
 };
 INSTANTIATE_TEST_SUITE_P(CpuVisibility, GBufferVisibility, ::testing::Values("", "embree"),
                          [](const ::testing::TestParamInfo<std::string>& i) { return i.param.empty() ? std::string("default_raster") : i.param; });
@@ -267,7 +243,7 @@ TEST_P(GBufferVisibility, BadGeometryIsAnErrorNamingTheMesh) {
 }
 
 TEST(GBuffer, KeptSceneRefitsAndMatchesAFreshBuild) {
-  const ScopedVisibility embree("embree");
+  const softgi::testing::ScopedVisibility embree("embree");
   // The Embree scene persists across frames: the same pose reuses it, a moved sphere refits it, a
   // different topology rebuilds it. A refitted scene must see what a fresh build of that pose sees.
   const scene::Scene moving = softgi::testing::animated(softgi::testing::make_plane_sphere_scene());

@@ -18,38 +18,19 @@
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/render/params.hpp"
 #include "softgi/scene/builtin.hpp"
+#include "test_scene_util.hpp"
 
 using namespace softgi;
+using softgi::testing::silhouette;
 
 namespace {
-
-// Sets SOFTGI_CPU_VISIBILITY for the scope, restoring what was there.
-class ScopedVisibility {
- public:
-  explicit ScopedVisibility(const char* v) {
-    if (const char* old = std::getenv("SOFTGI_CPU_VISIBILITY")) saved_ = old, had_ = true;
-    setenv("SOFTGI_CPU_VISIBILITY", v, 1);
-  }
-  ~ScopedVisibility() {
-    if (had_)
-      setenv("SOFTGI_CPU_VISIBILITY", saved_.c_str(), 1);
-    else
-      unsetenv("SOFTGI_CPU_VISIBILITY");
-  }
-  ScopedVisibility(const ScopedVisibility&) = delete;
-  ScopedVisibility& operator=(const ScopedVisibility&) = delete;
-
- private:
-  std::string saved_;
-  bool had_ = false;
-};
 
 // The shared pass on the CPU backend with the given visibility: "gbuffer" at scale 1, else
 // "receiver_gbuffer" at `scale` (no display G-buffer in the frame, so it is not copied).
 render::GBuffer run(const scene::Scene& sc, const scene::PosedScene& posed, const char* visibility, int scale, int w,
                     int h, render::PassRecord* rec = nullptr) {
   backends::register_cpu_backend();
-  ScopedVisibility v(visibility);
+  softgi::testing::ScopedVisibility v(visibility);
   const std::string pass = scale == 1 ? "gbuffer" : "receiver_gbuffer";
   const render::PassFn* fn = render::find_shared_pass_impl(pass, backends::cpu::kBackendName);
   if (!fn) throw std::logic_error("no CPU " + pass);
@@ -65,17 +46,6 @@ render::GBuffer run(const scene::Scene& sc, const scene::PosedScene& posed, cons
 
 render::GBuffer run(const scene::Scene& sc, const char* visibility, render::PassRecord* rec = nullptr) {
   return run(sc, scene::evaluate(sc, 0.0), visibility, 1, sc.camera.width, sc.camera.height, rec);
-}
-
-bool silhouette(const render::GBuffer& g, int x, int y) {
-  const int o = g.object[static_cast<std::size_t>(y) * g.width + x];
-  for (int dy = -1; dy <= 1; ++dy)
-    for (int dx = -1; dx <= 1; ++dx) {
-      const int xx = x + dx, yy = y + dy;
-      if (xx < 0 || yy < 0 || xx >= g.width || yy >= g.height) continue;
-      if (g.object[static_cast<std::size_t>(yy) * g.width + xx] != o) return true;
-    }
-  return false;
 }
 
 // A square grid mesh of n x n cells over [-h, h]^2 in the plane z = z0, each cell split along the

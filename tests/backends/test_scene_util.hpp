@@ -4,10 +4,13 @@
 #pragma once
 
 #include <cmath>
+#include <cstdlib>
 #include <optional>
+#include <string>
 
 #include <glm/glm.hpp>
 
+#include "softgi/render/gbuffer.hpp"
 #include "softgi/scene/scene.hpp"
 
 namespace softgi::testing {
@@ -129,6 +132,43 @@ inline std::optional<float> hit_plane(const glm::vec3& o, const glm::vec3& d) {
 inline float ray_center_distance(const glm::vec3& o, const glm::vec3& d) {
   const glm::vec3 oc = PlaneSphere::center() - o;
   return glm::length(oc - glm::dot(oc, d) * d);
+}
+
+// Sets SOFTGI_CPU_VISIBILITY (the CPU G-buffer's visibility method) for the scope; "" unsets it
+// (the default). Restores what was there.
+class ScopedVisibility {
+ public:
+  explicit ScopedVisibility(const std::string& v) {
+    if (const char* old = std::getenv("SOFTGI_CPU_VISIBILITY")) saved_ = old, had_ = true;
+    if (v.empty())
+      unsetenv("SOFTGI_CPU_VISIBILITY");
+    else
+      setenv("SOFTGI_CPU_VISIBILITY", v.c_str(), 1);
+  }
+  ~ScopedVisibility() {
+    if (had_)
+      setenv("SOFTGI_CPU_VISIBILITY", saved_.c_str(), 1);
+    else
+      unsetenv("SOFTGI_CPU_VISIBILITY");
+  }
+  ScopedVisibility(const ScopedVisibility&) = delete;
+  ScopedVisibility& operator=(const ScopedVisibility&) = delete;
+
+ private:
+  std::string saved_;
+  bool had_ = false;
+};
+
+// A silhouette pixel: its 3x3 neighbourhood in g holds more than one object (or background).
+inline bool silhouette(const render::GBuffer& g, int x, int y) {
+  const int o = g.object[static_cast<std::size_t>(y) * g.width + x];
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int xx = x + dx, yy = y + dy;
+      if (xx < 0 || yy < 0 || xx >= g.width || yy >= g.height) continue;
+      if (g.object[static_cast<std::size_t>(yy) * g.width + xx] != o) return true;
+    }
+  return false;
 }
 
 }  // namespace softgi::testing

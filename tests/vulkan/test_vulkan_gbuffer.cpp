@@ -21,9 +21,11 @@
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/render/params.hpp"
 #include "softgi/scene/builtin.hpp"
+#include "../backends/test_scene_util.hpp"
 #include "vulkan_test_util.hpp"
 
 using namespace softgi;
+using softgi::testing::silhouette;
 using softgi::testing::ValidatedTest;
 
 namespace {
@@ -109,17 +111,6 @@ class VulkanGBuffer : public ValidatedTest {
   std::unique_ptr<backends::CpuBackend> cpu_;
   std::unique_ptr<backends::VulkanBackend> vulkan_;
 };
-
-bool silhouette(const render::GBuffer& g, int x, int y) {
-  const int o = g.object[static_cast<std::size_t>(y) * g.width + x];
-  for (int dy = -1; dy <= 1; ++dy)
-    for (int dx = -1; dx <= 1; ++dx) {
-      const int xx = x + dx, yy = y + dy;
-      if (xx < 0 || yy < 0 || xx >= g.width || yy >= g.height) continue;
-      if (g.object[static_cast<std::size_t>(yy) * g.width + xx] != o) return true;
-    }
-  return false;
-}
 
 }  // namespace
 
