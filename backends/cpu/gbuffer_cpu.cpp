@@ -4,13 +4,15 @@
 // (paper 000 section 4), the same through every s-th display point. Two ways to find what each
 // sample sees, chosen by SOFTGI_CPU_VISIBILITY: "raster" (the default; raster_visibility.cpp, the
 // camera rays tested against every triangle over the screen tiles it overlaps) and "embree" (one
-// Embree ray per sample; measured several times slower for these coherent rays, bench/README.md).
+// Embree ray per sample, BVH refitted or rebuilt as objects move; 1.2x to 2.8x slower on the
+// built-in scenes, bench/README.md).
 // Both answer with the same object, triangle and barycentrics up to rounding at shared edges and
 // silhouettes, and the surface attributes are resolved from them by the one function below.
 // One of the two translation units that include Embree (with the reference renderer; the set-up they
 // share, rays, geometry and the surface a hit stands for, is core/src/embree/embree_setup.hpp).
 //
-// What each plane holds (softgi/render/gbuffer.hpp):
+// What each plane holds (softgi/render/gbuffer.hpp; the display G-buffer holds the planes the
+// frame's passes read, FrameContext::gbuffer_planes, the visibility planes always):
 //   position    w p0 + b1 p1 + b2 p2 of the visible triangle (world space), so that the barycentrics
 //               reproduce it exactly; 0 for background pixels
 //   normal      interpolated vertex normal, normalised, turned to the side of the geometric normal
@@ -198,15 +200,19 @@ EmbreeScene& cached_scene() {
 // Fills pixel i from the hit of triangle `prim` of object `obj` at barycentrics (u, v) (the same
 // attribute rules as the reference renderer's intersect(), so both see the same surface); only the
 // planes gb holds beyond the visibility planes, which are already written.
+// `tri`: the triangle's part of the surface (embree::triangle_surface) and `uniform`: the object's
+// albedo is `albedo` everywhere (scene::constant_albedo), each worked out once per run of pixels
+// that share them.
 void shade_hit(const scene::Scene& sc, const scene::PosedObject& obj, unsigned prim, float u, float v, const vec3& dir,
-               const render::PinholeCamera& cam, render::GBuffer& gb, std::size_t i) {
+               const render::PinholeCamera& cam, const embree::TriangleSurface& tri, bool uniform, const vec3& albedo,
+               render::GBuffer& gb, std::size_t i) {
   if (gb.planes & render::kGBufferSurface) {
-    const embree::Surface sf = embree::surface_at(obj, prim, u, v, dir);
+    const embree::Surface sf = embree::surface_at(tri, u, v, dir);
     gb.position[i] = sf.p;
     gb.normal[i] = sf.ns;
     gb.depth[i] = cam.depth(sf.p);
   }
-  if (gb.planes & render::kGBufferAlbedo) gb.albedo[i] = scene::surface_albedo(sc, obj, prim, u, v);
+  if (gb.planes & render::kGBufferAlbedo) gb.albedo[i] = uniform ? albedo : scene::surface_albedo(sc, obj, prim, u, v);
   if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = -dir;
 }
 
@@ -309,6 +315,10 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
   };
   const auto t2 = clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, H, 4), [&](const tbb::blocked_range<int>& rows) {
+    int last = -1, last_prim = -1;
+    bool uniform = false;
+    vec3 albedo(0.0f);
+    embree::TriangleSurface tri;
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < W; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * W + x;
@@ -318,11 +328,22 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
           continue;
         }
         const vec3 dir = ray_dir(x, y);
-        if (oi < 0)
+        if (oi < 0) {
           gb.set_background(i, dir);
-        else
-          shade_hit(ctx.scene, ctx.posed.objects[oi], static_cast<unsigned>(gb.primitive[i]), gb.barycentric[i].x,
-                    gb.barycentric[i].y, dir, cam, gb, i);
+          continue;
+        }
+        const int prim = gb.primitive[i];
+        if (oi != last) {
+          last = oi;
+          last_prim = -1;
+          uniform = scene::constant_albedo(ctx.scene, ctx.posed.objects[oi], albedo);
+        }
+        if (prim != last_prim && (gb.planes & render::kGBufferSurface)) {
+          last_prim = prim;
+          tri = embree::triangle_surface(ctx.posed.objects[oi], static_cast<unsigned>(prim));
+        }
+        shade_hit(ctx.scene, ctx.posed.objects[oi], static_cast<unsigned>(prim), gb.barycentric[i].x, gb.barycentric[i].y,
+                  dir, cam, tri, uniform, albedo, gb, i);
       }
   });
   stats.resolve_seconds = std::chrono::duration<double>(clock::now() - t2).count();

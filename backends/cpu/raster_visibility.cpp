@@ -65,9 +65,9 @@ struct Projected {
   float x, y, z;
 };
 
-// Working memory kept from frame to frame: a frame's set-up and tile lists are megabytes, and
-// allocated afresh their page faults cost more than the set-up itself. A frame that finds it in use
-// by another (concurrent frames) allocates its own.
+// Working memory kept from frame to frame: a frame's set-up and tile lists are megabytes, which a
+// frame should not pay page faults for each time. A frame that finds it in use by another
+// (concurrent frames) allocates its own.
 struct Scratch {
   std::vector<Tri> tris;
   std::vector<std::uint32_t> count, list;
@@ -75,8 +75,9 @@ struct Scratch {
   std::vector<float> sx, sy;
   std::vector<Projected> proj;
   std::size_t bytes() const {
-    return tris.capacity() * sizeof(Tri) + proj.capacity() * sizeof(Projected) + (count.capacity() + list.capacity()) * sizeof(std::uint32_t) +
-           start.capacity() * sizeof(std::uint64_t) + (sx.capacity() + sy.capacity()) * sizeof(float);
+    return tris.capacity() * sizeof(Tri) + proj.capacity() * sizeof(Projected) +
+           (count.capacity() + list.capacity()) * sizeof(std::uint32_t) + start.capacity() * sizeof(std::uint64_t) +
+           (sx.capacity() + sy.capacity()) * sizeof(float);
   }
 };
 std::mutex& scratch_mutex() {
@@ -102,9 +103,8 @@ struct Inverse {
 // (a_i x a_j directly cancels catastrophically for a small triangle far away); and an edge shared
 // by two triangles is computed from the same operands in both, so their values are exact negations
 // of each other (or equal), which keeps the test watertight.
-// Branch-free: the order is as often one way as the other, and a mispredicted branch per edge cost
-// more than the rest of the edge's arithmetic (the selects move bits, so lo and hi are exactly the
-// vertices).
+// The order is picked without branches (it goes either way as often): the selects move bits, so lo
+// and hi are exactly the vertices.
 vec3 edge_normal(const vec3& e, const vec3& pi, const vec3& pj) {
   const bool swap = (pj.x < pi.x) | ((pj.x == pi.x) & ((pj.y < pi.y) | ((pj.y == pi.y) & (pj.z < pi.z))));
   const std::uint32_t m = 0u - static_cast<std::uint32_t>(swap);
@@ -136,8 +136,8 @@ bool set_up(const render::PinholeCamera& cam, const Inverse& inv, int W, int H, 
   if (!std::isfinite(zmax)) return false;  // coordinates relative to the eye overflowed
   if (zmax <= 0.0f) return true;           // wholly behind the eye
   // The projection of the triangle's part in front of the eye, clipped at zc, a millionth of its
-  // farthest depth (the sliver nearer the eye than that projects beyond any screen of less than a
-  // million pixels per side).
+  // farthest depth: the bounds leave out the sliver nearer the eye's plane than that, which a sample
+  // ray meets only where the triangle passes within a millionth of its own depth of the eye.
   const float zc = std::max(zmax * 1e-6f, std::numeric_limits<float>::min());
   float xmin = std::numeric_limits<float>::infinity(), xmax = -xmin, ymin = xmin, ymax = -xmin;
   auto add = [&](const vec3& p, float pz) {
@@ -207,9 +207,10 @@ bool set_up(const render::PinholeCamera& cam, const Inverse& inv, int W, int H, 
   return true;
 }
 
-// Tests the triangles of one tile against its samples and keeps the nearest. Compiled for AVX2 as
-// well, chosen at load time; the two versions compute the same values (no contraction into FMA).
-__attribute__((target_clones("avx2", "default"))) void raster_tile(const Tri* __restrict tris, const std::uint32_t* list,
+// Tests the triangles of one tile against its samples and keeps the nearest. Compiled for AVX-512 and
+// AVX2 as well, chosen at load time; every version computes the same values (ISO C++ mode: no
+// contraction into FMA).
+__attribute__((target_clones("avx512f", "avx2", "default"))) void raster_tile(const Tri* __restrict tris, const std::uint32_t* list,
                                                                      std::size_t count, const float* __restrict sx,
                                                                      const float* __restrict sy, int ty, int rows,
                                                                      float* __restrict wbuf, std::int32_t* __restrict ibuf) {

@@ -178,20 +178,42 @@ inline void init_context(RTCIntersectContext& ctx, bool coherent = false) {
 struct Surface {
   glm::vec3 p{0.0f}, ng{0.0f}, ns{0.0f};
 };
-inline Surface surface_at(const scene::PosedObject& obj, unsigned prim, float u, float v, const glm::vec3& dir) {
+// What surface_at needs of the triangle alone, worked out once for every hit on it: its corners,
+// vertex normals (null without them) and unit geometric normal (unit_ng false where it is
+// degenerate).
+struct TriangleSurface {
+  const glm::vec3 *p0 = nullptr, *p1 = nullptr, *p2 = nullptr;
+  const glm::vec3 *n0 = nullptr, *n1 = nullptr, *n2 = nullptr;
+  glm::vec3 ng{0.0f};
+  bool unit_ng = false;
+};
+inline TriangleSurface triangle_surface(const scene::PosedObject& obj, unsigned prim) {
   const glm::uvec3 tri = obj.source->triangles[prim];
-  const float w = 1.0f - u - v;
-  const glm::vec3 &p0 = obj.positions[tri.x], &p1 = obj.positions[tri.y], &p2 = obj.positions[tri.z];
-  Surface s;
-  s.p = w * p0 + u * p1 + v * p2;
-  glm::vec3 ng = glm::cross(p1 - p0, p2 - p0);
+  TriangleSurface t;
+  t.p0 = &obj.positions[tri.x];
+  t.p1 = &obj.positions[tri.y];
+  t.p2 = &obj.positions[tri.z];
+  if (obj.normals.size() == obj.positions.size()) {
+    t.n0 = &obj.normals[tri.x];
+    t.n1 = &obj.normals[tri.y];
+    t.n2 = &obj.normals[tri.z];
+  }
+  const glm::vec3 ng = glm::cross(*t.p1 - *t.p0, *t.p2 - *t.p0);
   const float len = glm::length(ng);
-  ng = len > 0.0f ? ng / len : -dir;
+  t.unit_ng = len > 0.0f;
+  if (t.unit_ng) t.ng = ng / len;
+  return t;
+}
+inline Surface surface_at(const TriangleSurface& t, float u, float v, const glm::vec3& dir) {
+  const float w = 1.0f - u - v;
+  Surface s;
+  s.p = w * *t.p0 + u * *t.p1 + v * *t.p2;
+  glm::vec3 ng = t.unit_ng ? t.ng : -dir;
   if (glm::dot(ng, dir) > 0.0f) ng = -ng;
   s.ng = ng;
   s.ns = ng;
-  if (obj.normals.size() == obj.positions.size()) {
-    glm::vec3 n = w * obj.normals[tri.x] + u * obj.normals[tri.y] + v * obj.normals[tri.z];
+  if (t.n0) {
+    glm::vec3 n = w * *t.n0 + u * *t.n1 + v * *t.n2;
     const float nl = glm::length(n);
     if (nl > 1e-12f && std::isfinite(nl)) {
       n /= nl;
@@ -199,6 +221,9 @@ inline Surface surface_at(const scene::PosedObject& obj, unsigned prim, float u,
     }
   }
   return s;
+}
+inline Surface surface_at(const scene::PosedObject& obj, unsigned prim, float u, float v, const glm::vec3& dir) {
+  return surface_at(triangle_surface(obj, prim), u, v, dir);
 }
 
 }  // namespace softgi::embree
