@@ -375,7 +375,8 @@ void trace_counters(render::PassRecord& rec, const TraceStats& st) {
 // The "gbuffer" and "receiver_gbuffer" renderer. Paper 000 section 4, receiver setup: the receiver
 // buffer at 1/s of the display resolution per axis; at s = 1 it is the display G-buffer itself,
 // copied when the frame has one (render::run_receiver_gbuffer_pass: no second trace). Held: what
-// Embree keeps for the next frame (geometry copies and BVHs).
+// the visibility method keeps for the next frame (the rasteriser's working memory; Embree's geometry
+// copies and BVHs).
 render::GBuffer produce_gbuffer(render::FrameContext& ctx, int s, const char* pass, std::size_t& held) {
   TraceStats st;
   // The display G-buffer holds the planes the frame's passes read; a receiver buffer holds all.
@@ -384,7 +385,8 @@ render::GBuffer produce_gbuffer(render::FrameContext& ctx, int s, const char* pa
   trace_counters(ctx.record(), st);
   // For the benchmarks' bandwidth shares: every plane written once.
   ctx.record().counters["bytes_moved"] = static_cast<double>(gb.bytes());
-  held = st.visibility == Visibility::Embree ? static_cast<std::size_t>(std::max(0LL, cached_scene().bytes())) : 0;
+  held = st.visibility == Visibility::Embree ? static_cast<std::size_t>(std::max(0LL, cached_scene().bytes()))
+                                             : st.raster.held_bytes;
   return gb;
 }
 
