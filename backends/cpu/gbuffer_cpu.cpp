@@ -305,7 +305,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
   if (stats.visibility == Visibility::Embree) {
     trace_visibility(ctx, cam, gb, stats);
   } else {
-    cpu_raster::rasterise_visibility(cam, ctx.posed, who, gb, stats.raster);
+    cpu_raster::rasterise_visibility(cam, ctx.posed, who, gb, stats.raster, ctx.id());
     stats.visibility_seconds = stats.raster.setup_seconds + stats.raster.raster_seconds;
     stats.hits = stats.raster.hits;
   }
@@ -362,6 +362,7 @@ void trace_counters(render::PassRecord& rec, const TraceStats& st) {
     rec.counters["triangles_set_up"] = static_cast<double>(st.raster.set_up);
     rec.counters["tile_entries"] = static_cast<double>(st.raster.tile_entries);
     rec.counters["raster_setup_seconds"] = st.raster.setup_seconds;
+    rec.counters["raster_setup_reused"] = st.raster.reused ? 1.0 : 0.0;
     return;
   }
   const EmbreeScene& es = cached_scene();

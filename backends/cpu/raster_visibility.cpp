@@ -55,20 +55,31 @@ struct Tri {
   float ef[3], eu[3], er[3];
   float sf, su, sr;
   float inv_det;
-  int x0, y0, x1, y1;  // samples [x0, x1) x [y0, y1) that its projection can cover; empty: culled
+  // Conservative bounds of its projection on the image plane, in the camera's (sx, sy) units,
+  // whatever the buffer's grid; live: it can meet a sample ray (in front, not degenerate, in view).
+  float u0, u1, v0, v1;
+  bool live;
+  int x0, y0, x1, y1;  // samples [x0, x1) x [y0, y1) of this buffer that it can cover; empty: culled
   int object, prim;
 };
 
-// A posed vertex seen from the camera: z its eye depth (p - e) . F, and where z > 0, (x, y) its
-// projection in buffer sample coordinates. Computed once per vertex, shared by its triangles.
+// A posed vertex seen from the camera: z its eye depth (p - e) . F, and where z > 0, (u, v) its
+// projection on the image plane (sx, sy units). Computed once per vertex, shared by its triangles.
 struct Projected {
-  float x, y, z;
+  float u, v, z;
 };
 
 // Working memory kept from frame to frame: a frame's set-up and tile lists are megabytes, which a
 // frame should not pay page faults for each time. A frame that finds it in use by another
 // (concurrent frames) allocates its own.
 struct Scratch {
+  // The set-up depends on the camera and the posed geometry only, not on the buffer's grid: a
+  // frame's receiver buffer reuses its display buffer's (frame: FrameContext::id of the frame that
+  // made it, 0 for none).
+  std::uint64_t frame = 0;
+  render::PinholeCamera camera;
+  std::vector<int> objects;
+  std::vector<std::size_t> first;
   std::vector<Tri> tris;
   std::vector<std::uint32_t> count, list;
   std::vector<std::uint64_t> start;
@@ -76,6 +87,7 @@ struct Scratch {
   std::vector<Projected> proj;
   std::size_t bytes() const {
     return tris.capacity() * sizeof(Tri) + proj.capacity() * sizeof(Projected) +
+           (objects.capacity() * sizeof(int)) + first.capacity() * sizeof(std::size_t) +
            (count.capacity() + list.capacity()) * sizeof(std::uint32_t) + start.capacity() * sizeof(std::uint64_t) +
            (sx.capacity() + sy.capacity()) * sizeof(float);
   }
@@ -118,18 +130,18 @@ vec3 edge_normal(const vec3& e, const vec3& pi, const vec3& pj) {
   return n * sg;
 }
 
-Projected project(const render::PinholeCamera& cam, const Inverse& inv, const vec3& p) {
+Projected project(const render::PinholeCamera& cam, const vec3& p) {
   const vec3 a = p - cam.position;
   const float z = glm::dot(a, cam.forward), r = 1.0f / z;
-  return {inv.x(glm::dot(a, cam.right) * r), inv.y(glm::dot(a, cam.up) * r), z};
+  return {glm::dot(a, cam.right) * r, glm::dot(a, cam.up) * r, z};
 }
 
-// Sets t up; false when its arithmetic overflows float (t is then culled). The cheap part first:
-// the conservative sample bounds of the triangle's projection, which cull most triangles that lie
-// off screen or behind the eye before the edge functions are formed.
-bool set_up(const render::PinholeCamera& cam, const Inverse& inv, int W, int H, const vec3& p0, const vec3& p1,
-            const vec3& p2, const Projected& q0, const Projected& q1, const Projected& q2, Tri& t) {
-  t.x0 = t.x1 = t.y0 = t.y1 = 0;
+// Sets t up for any grid of sample rays of `cam`; false when its arithmetic overflows float (t is
+// then not live). The cheap part first: the bounds of the triangle's projection on the image
+// plane, which cull the triangles off screen or behind the eye before the edge functions are formed.
+bool set_up(const render::PinholeCamera& cam, const vec3& p0, const vec3& p1, const vec3& p2, const Projected& q0,
+            const Projected& q1, const Projected& q2, Tri& t) {
+  t.live = false;
   const vec3& e = cam.position;
   const float z[3] = {q0.z, q1.z, q2.z};
   const float zmax = std::max(z[0], std::max(z[1], z[2]));
@@ -139,20 +151,20 @@ bool set_up(const render::PinholeCamera& cam, const Inverse& inv, int W, int H, 
   // farthest depth: the bounds leave out the sliver nearer the eye's plane than that, which a sample
   // ray meets only where the triangle passes within a millionth of its own depth of the eye.
   const float zc = std::max(zmax * 1e-6f, std::numeric_limits<float>::min());
-  float xmin = std::numeric_limits<float>::infinity(), xmax = -xmin, ymin = xmin, ymax = -xmin;
+  float umin = std::numeric_limits<float>::infinity(), umax = -umin, vmin = umin, vmax = -umin;
   auto add = [&](const vec3& p, float pz) {
     const float r = 1.0f / pz;
-    const float x = inv.x(glm::dot(p, cam.right) * r), y = inv.y(glm::dot(p, cam.up) * r);
-    xmin = std::min(xmin, x);
-    xmax = std::max(xmax, x);
-    ymin = std::min(ymin, y);
-    ymax = std::max(ymax, y);
+    const float u = glm::dot(p, cam.right) * r, v = glm::dot(p, cam.up) * r;
+    umin = std::min(umin, u);
+    umax = std::max(umax, u);
+    vmin = std::min(vmin, v);
+    vmax = std::max(vmax, v);
   };
   if (z[0] >= zc && z[1] >= zc && z[2] >= zc) {
-    xmin = std::min(q0.x, std::min(q1.x, q2.x));
-    xmax = std::max(q0.x, std::max(q1.x, q2.x));
-    ymin = std::min(q0.y, std::min(q1.y, q2.y));
-    ymax = std::max(q0.y, std::max(q1.y, q2.y));
+    umin = std::min(q0.u, std::min(q1.u, q2.u));
+    umax = std::max(q0.u, std::max(q1.u, q2.u));
+    vmin = std::min(q0.v, std::min(q1.v, q2.v));
+    vmax = std::max(q0.v, std::max(q1.v, q2.v));
   } else {
     const vec3 a[3] = {p0 - e, p1 - e, p2 - e};
     for (int k = 0; k < 3; ++k) {
@@ -164,34 +176,24 @@ bool set_up(const render::PinholeCamera& cam, const Inverse& inv, int W, int H, 
       }
     }
   }
-  // One sample of margin on either side for the rounding of these bounds (the coverage test itself
-  // is exact). Clamped in float first (also NaN, which keeps the whole buffer), then truncated:
-  // trunc(v) - 1 <= floor(v) and trunc(v) + 2 >= ceil(v) + 1 for v >= -1.
-  const float fw = static_cast<float>(W), fh = static_cast<float>(H);
-  const auto lo = [](float v, float hi) { return static_cast<int>(v >= -1.0f ? std::min(v, hi) : -1.0f) - 1; };
-  const auto up = [](float v, float hi) { return static_cast<int>(v <= hi ? std::max(v, -1.0f) : hi) + 2; };
-  t.x0 = std::max(0, lo(xmin, fw));
-  t.x1 = std::min(W, up(xmax, fw));
-  t.y0 = std::max(0, lo(ymin, fh));
-  t.y1 = std::min(H, up(ymax, fh));
-  if (t.x0 >= t.x1 || t.y0 >= t.y1) {
-    t.x1 = t.x0;
-    // Off screen; a triangle whose bounds overflowed still has its arithmetic checked below.
-    if (std::isfinite(xmin + xmax + ymin + ymax)) return true;
-  }
+  t.u0 = umin;
+  t.u1 = umax;
+  t.v0 = vmin;
+  t.v1 = vmax;
+  // Every sample ray has |sx| < tan * aspect and |sy| < tan; a thousandth of margin for the
+  // rounding of the bounds. NaN bounds keep the triangle (the whole buffer is tested).
+  const float ue = cam.tan_half_fov_y * cam.aspect * 1.001f, ve = cam.tan_half_fov_y * 1.001f;
+  const bool off_screen = umax < -ue || umin > ue || vmax < -ve || vmin > ve;
+  // Off screen; a triangle whose bounds overflowed still has its arithmetic checked below.
+  if (off_screen && std::isfinite(umin + umax + vmin + vmax)) return true;
   const vec3 ng = glm::cross(p1 - p0, p2 - p0);
   const float det = glm::dot(p0 - e, ng);
   const vec3 n[3] = {edge_normal(e, p1, p2), edge_normal(e, p2, p0), edge_normal(e, p0, p1)};
   if (!std::isfinite(det) || !std::isfinite(ng.x + ng.y + ng.z) ||
-      !std::isfinite(n[0].x + n[0].y + n[0].z + n[1].x + n[1].y + n[1].z + n[2].x + n[2].y + n[2].z)) {
-    t.x1 = t.x0;
+      !std::isfinite(n[0].x + n[0].y + n[0].z + n[1].x + n[1].y + n[1].z + n[2].x + n[2].y + n[2].z))
     return false;
-  }
   // det = 0: degenerate, or the eye lies in the triangle's plane; no ray meets it at a point.
-  if (det == 0.0f || t.x0 >= t.x1) {
-    t.x1 = t.x0;
-    return true;
-  }
+  if (det == 0.0f || off_screen) return true;
   // Multiplying by the sign of det is exact, so shared edges stay exact negations (watertight).
   const float sg = det > 0.0f ? 1.0f : -1.0f;
   for (int k = 0; k < 3; ++k) {
@@ -203,8 +205,26 @@ bool set_up(const render::PinholeCamera& cam, const Inverse& inv, int W, int H, 
   t.su = sg * glm::dot(ng, cam.up);
   t.sr = sg * glm::dot(ng, cam.right);
   t.inv_det = 1.0f / std::fabs(det);
-  if (!std::isfinite(t.inv_det)) t.x1 = t.x0;  // |det| below float's range: no sample can resolve it
+  t.live = std::isfinite(t.inv_det);  // |det| below float's range: no sample can resolve it
   return true;
+}
+
+// The samples [x0, x1) x [y0, y1) of a buffer (inv: its grid) that t's projection can cover. One
+// sample of margin on either side for the rounding of the bounds (the coverage test itself is
+// exact); clamped in float first (NaN keeps the whole buffer), then truncated: trunc(v) - 1 <=
+// floor(v) and trunc(v) + 2 >= ceil(v) + 1 for v >= -1.
+void grid_bounds(const Inverse& inv, int W, int H, Tri& t) {
+  t.x0 = t.x1 = t.y0 = t.y1 = 0;
+  if (!t.live) return;
+  const float fw = static_cast<float>(W), fh = static_cast<float>(H);
+  const auto lo = [](float v, float hi) { return static_cast<int>(v >= -1.0f ? std::min(v, hi) : -1.0f) - 1; };
+  const auto up = [](float v, float hi) { return static_cast<int>(v <= hi ? std::max(v, -1.0f) : hi) + 2; };
+  // x grows with u; y falls as v grows (row 0 at the top).
+  t.x0 = std::max(0, lo(inv.x(t.u0), fw));
+  t.x1 = std::min(W, up(inv.x(t.u1), fw));
+  t.y0 = std::max(0, lo(inv.y(t.v1), fh));
+  t.y1 = std::min(H, up(inv.y(t.v0), fh));
+  if (t.x0 >= t.x1 || t.y0 >= t.y1) t.x1 = t.x0;
 }
 
 // Tests the triangles of one tile against its samples and keeps the nearest. Compiled for AVX-512 and
@@ -238,20 +258,20 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void raster_tile(co
   }
 }
 
-}  // namespace
+bool same_camera(const render::PinholeCamera& a, const render::PinholeCamera& b) {
+  return a.position == b.position && a.forward == b.forward && a.right == b.right && a.up == b.up &&
+         a.tan_half_fov_y == b.tan_half_fov_y && a.aspect == b.aspect && a.width == b.width && a.height == b.height;
+}
 
-void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who,
-                          render::GBuffer& gb, RasterStats& stats) {
-  using clock = std::chrono::steady_clock;
-  const auto t0 = clock::now();
-  const int W = gb.width, H = gb.height;
-  const float fs = static_cast<float>(gb.scale);
+// Validates the posed objects and sets every triangle up into sc (see Scratch): throws as
+// rasterise_visibility says.
+void set_up_frame(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who, Scratch& sc) {
   const std::string prefix = std::string(who) + ": mesh '";
-
   // Validation first, in order, so that the error names the first bad vertex or index. Triangles
   // are numbered across the objects: object k's triangle t is first[k] + t.
-  std::vector<int> objects;
-  std::vector<std::size_t> first, vfirst;  // vfirst: object k's vertex v is vfirst[k] + v
+  sc.objects.clear();
+  sc.first.clear();
+  std::vector<std::size_t> vfirst;  // object k's vertex v is vfirst[k] + v
   std::size_t total = 0, vertices = 0;
   for (std::size_t oi = 0; oi < posed.objects.size(); ++oi) {
     const scene::PosedObject& o = posed.objects[oi];
@@ -267,8 +287,8 @@ void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedSc
         if (tris[t][k] >= o.positions.size())
           throw std::invalid_argument(prefix + o.source->name + "': triangle " + std::to_string(t) + " has vertex index " +
                                       std::to_string(tris[t][k]) + " >= " + std::to_string(o.positions.size()));
-    objects.push_back(static_cast<int>(oi));
-    first.push_back(total);
+    sc.objects.push_back(static_cast<int>(oi));
+    sc.first.push_back(total);
     vfirst.push_back(vertices);
     total += tris.size();
     vertices += o.positions.size();
@@ -276,9 +296,69 @@ void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedSc
   if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
     throw std::invalid_argument(std::string(who) + ": " + std::to_string(total) + " triangles; the rasteriser takes at most 2^31 - 1");
 
+  std::vector<Projected>& proj = sc.proj;
+  proj.resize(vertices);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, sc.objects.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      const auto& pos = posed.objects[static_cast<std::size_t>(sc.objects[k])].positions;
+      Projected* out = proj.data() + vfirst[k];
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pos.size(), 8192), [&](const tbb::blocked_range<std::size_t>& vr) {
+        for (std::size_t v = vr.begin(); v != vr.end(); ++v) out[v] = project(cam, pos[v]);
+      });
+    }
+  });
+
+  sc.tris.resize(total);
+  // The first triangle whose set-up overflowed float, for the error.
+  std::atomic<std::size_t> first_large{std::numeric_limits<std::size_t>::max()};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, total, kChunk), [&](const tbb::blocked_range<std::size_t>& r) {
+    std::size_t k = static_cast<std::size_t>(std::upper_bound(sc.first.begin(), sc.first.end(), r.begin()) - sc.first.begin()) - 1;
+    for (std::size_t g = r.begin(); g != r.end(); ++g) {
+      while (k + 1 < sc.first.size() && g >= sc.first[k + 1]) ++k;
+      const scene::PosedObject& o = posed.objects[static_cast<std::size_t>(sc.objects[k])];
+      const std::size_t t = g - sc.first[k];
+      const glm::uvec3 tri = o.source->triangles[t];
+      Tri& out = sc.tris[g];
+      out.object = sc.objects[k];
+      out.prim = static_cast<int>(t);
+      const Projected* q = proj.data() + vfirst[k];
+      if (!set_up(cam, o.positions[tri.x], o.positions[tri.y], o.positions[tri.z], q[tri.x], q[tri.y], q[tri.z], out)) {
+        std::size_t cur = first_large.load();
+        while (g < cur && !first_large.compare_exchange_weak(cur, g)) {
+        }
+      }
+    }
+  });
+  if (const std::size_t g = first_large.load(); g < total) {
+    const Tri& t = sc.tris[g];
+    throw std::invalid_argument(prefix + posed.objects[static_cast<std::size_t>(t.object)].source->name + "': triangle " +
+                                std::to_string(t.prim) +
+                                " is too large for float arithmetic (its vertices, relative to the camera, reach about "
+                                "1e19 or more)");
+  }
+}
+
+}  // namespace
+
+void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who,
+                          render::GBuffer& gb, RasterStats& stats, std::uint64_t frame) {
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  const int W = gb.width, H = gb.height;
+  const float fs = static_cast<float>(gb.scale);
+
   std::unique_lock<std::mutex> lock(scratch_mutex(), std::try_to_lock);
   Scratch own;
   Scratch& sc = lock.owns_lock() ? kept_scratch() : own;
+  stats.reused = frame != 0 && sc.frame == frame && same_camera(sc.camera, cam);
+  if (!stats.reused) {
+    sc.frame = 0;  // invalid until the set-up is complete
+    set_up_frame(cam, posed, who, sc);
+    sc.frame = frame;
+    sc.camera = cam;
+  }
+  const std::size_t total = sc.tris.size();
+  std::vector<Tri>& tris = sc.tris;
 
   // Sample ray coordinates, computed as PinholeCamera::direction does (so the rays are the ones the
   // ray tracer casts); sx padded to whole tiles.
@@ -296,73 +376,35 @@ void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedSc
   const Inverse inv{cw / (2.0f * fs * cam.tan_half_fov_y * cam.aspect), cw / (2.0f * fs) - 0.5f,
                     -ch / (2.0f * fs * cam.tan_half_fov_y), ch / (2.0f * fs) - 0.5f};
 
-  std::vector<Projected>& proj = sc.proj;
-  proj.resize(vertices);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, objects.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t k = r.begin(); k != r.end(); ++k) {
-      const auto& pos = posed.objects[static_cast<std::size_t>(objects[k])].positions;
-      Projected* out = proj.data() + vfirst[k];
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pos.size(), 8192), [&](const tbb::blocked_range<std::size_t>& vr) {
-        for (std::size_t v = vr.begin(); v != vr.end(); ++v) out[v] = project(cam, inv, pos[v]);
-      });
-    }
-  });
-
-  // Set-up and binning by counting, over at most kMaxChunks fixed ranges of triangles: each range
-  // counts its triangles into the tiles their bounds overlap (a count array per range, so no two
+  // Binning by counting, over at most kMaxChunks fixed ranges of triangles: each range counts its
+  // triangles into the tiles their bounds on this grid overlap (a count array per range, so no two
   // threads write one counter), the counts become list offsets per (tile, range), and a second
   // sweep scatters the triangle indices. Each tile's list is in triangle order.
   constexpr std::size_t kMaxChunks = 64;
   const std::size_t chunk = std::max(kChunk, (total + kMaxChunks - 1) / kMaxChunks);
   const std::size_t chunks = (total + chunk - 1) / chunk;
   const std::size_t tiles = static_cast<std::size_t>(tiles_x) * tiles_y;
-  std::vector<Tri>& tris = sc.tris;
-  tris.resize(total);
   std::vector<std::uint32_t>& count = sc.count;
   count.assign(chunks * tiles, 0u);
   auto each_tile = [&](const Tri& t, auto&& f) {
     for (int by = t.y0 / kTile; by <= (t.y1 - 1) / kTile; ++by)
       for (int bx = t.x0 / kTile; bx <= (t.x1 - 1) / kTile; ++bx) f(static_cast<std::size_t>(by) * tiles_x + bx);
   };
-  // The first triangle whose set-up overflowed float, for the error.
-  std::atomic<std::size_t> first_large{std::numeric_limits<std::size_t>::max()};
   std::atomic<long long> set_up_count{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const tbb::blocked_range<std::size_t>& r) {
     long long kept = 0;
     for (std::size_t c = r.begin(); c != r.end(); ++c) {
       std::uint32_t* cnt = count.data() + c * tiles;
-      const std::size_t g0 = c * chunk, g1 = std::min(total, g0 + chunk);
-      std::size_t k = static_cast<std::size_t>(std::upper_bound(first.begin(), first.end(), g0) - first.begin()) - 1;
-      for (std::size_t g = g0; g < g1; ++g) {
-        while (k + 1 < first.size() && g >= first[k + 1]) ++k;
-        const scene::PosedObject& o = posed.objects[static_cast<std::size_t>(objects[k])];
-        const std::size_t t = g - first[k];
-        const glm::uvec3 tri = o.source->triangles[t];
-        Tri& out = tris[g];
-        out.object = objects[k];
-        out.prim = static_cast<int>(t);
-        const Projected* q = proj.data() + vfirst[k];
-        if (!set_up(cam, inv, W, H, o.positions[tri.x], o.positions[tri.y], o.positions[tri.z], q[tri.x], q[tri.y],
-                    q[tri.z], out)) {
-          std::size_t cur = first_large.load();
-          while (g < cur && !first_large.compare_exchange_weak(cur, g)) {
-          }
-          continue;
-        }
-        if (out.x0 >= out.x1 || out.y0 >= out.y1) continue;
+      for (std::size_t g = c * chunk; g < std::min(total, (c + 1) * chunk); ++g) {
+        Tri& t = tris[g];
+        grid_bounds(inv, W, H, t);
+        if (t.x0 >= t.x1) continue;
         ++kept;
-        each_tile(out, [&](std::size_t tile) { ++cnt[tile]; });
+        each_tile(t, [&](std::size_t tile) { ++cnt[tile]; });
       }
     }
     set_up_count += kept;
   });
-  if (const std::size_t g = first_large.load(); g < total) {
-    const Tri& t = tris[g];
-    throw std::invalid_argument(prefix + posed.objects[static_cast<std::size_t>(t.object)].source->name + "': triangle " +
-                                std::to_string(t.prim) +
-                                " is too large for float arithmetic (its vertices, relative to the camera, reach about "
-                                "1e19 or more)");
-  }
   // Offsets: tile by tile, range by range; count[] becomes each (range, tile)'s fill position.
   std::vector<std::uint64_t>& start = sc.start;
   start.resize(tiles + 1);
@@ -389,7 +431,7 @@ void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedSc
       std::uint32_t* fill = count.data() + c * tiles;
       for (std::size_t i = c * chunk; i < std::min(total, (c + 1) * chunk); ++i) {
         const Tri& t = tris[i];
-        if (t.x0 >= t.x1 || t.y0 >= t.y1) continue;
+        if (t.x0 >= t.x1) continue;
         each_tile(t, [&](std::size_t tile) { list[fill[tile]++] = static_cast<std::uint32_t>(i); });
       }
     }

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 
 #include "softgi/render/camera.hpp"
 #include "softgi/render/gbuffer.hpp"
@@ -20,6 +21,7 @@ struct RasterStats {
   long long tile_entries = 0;  // (triangle, tile) pairs tested
   long long hits = 0;          // samples that see a triangle
   std::size_t held_bytes = 0;  // working memory kept for the next frame
+  bool reused = false;         // the set-up of an earlier call of the same frame was reused
   double setup_seconds = 0.0, raster_seconds = 0.0;
 };
 
@@ -27,7 +29,10 @@ struct RasterStats {
 // set; -1 / -1 where the ray meets nothing, the other planes untouched). Throws
 // std::invalid_argument, prefixed with `who` and naming the mesh, for a vertex index out of range,
 // a posed vertex that is not finite, or a triangle too large for float arithmetic.
+// `frame`: render::FrameContext::id of the calling frame (0: none). The triangles' set-up depends
+// on the camera and the posed geometry, not on the buffer's grid, so a second call of the same
+// frame with the same camera (the receiver buffer after the display buffer) reuses the first's.
 void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who,
-                          render::GBuffer& gb, RasterStats& stats);
+                          render::GBuffer& gb, RasterStats& stats, std::uint64_t frame = 0);
 
 }  // namespace softgi::backends::cpu_raster

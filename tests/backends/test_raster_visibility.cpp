@@ -323,3 +323,46 @@ TEST(RasterVisibility, BadInputIsAnErrorNamingIt) {
   bad.meshes[0].positions[4] = {3e37f, -3e37f, 0.0f};  // finite, but its edge products overflow
   expect_error(bad, "raster", "is too large for float arithmetic");
 }
+
+TEST(RasterVisibility, AFramesReceiverBufferReusesItsDisplayBuffersSetUp) {
+  // The set-up depends on the camera and the posed geometry only: within one frame the receiver
+  // buffer reuses the display buffer's and gives what a frame of its own gives, to the bit; the
+  // next frame (the character moved) sets up again.
+  backends::register_cpu_backend();
+  const scene::Scene sc = scene::make_builtin("character");
+  int w = 120, h = 0;
+  render::resolve_resolution(sc.camera, w, h);
+  render::ParamSet params({render::ParamDesc::integer("receiver_scale", 1, 1, 64, "receiver buffer scale")});
+  params.set("receiver_scale", "3");
+  auto pass = [](const char* name) { return render::find_shared_pass_impl(name, backends::cpu::kBackendName); };
+  softgi::testing::ScopedVisibility raster("raster");
+  auto frame = [&](double t, bool display, render::GBuffer& out) {
+    const scene::PosedScene posed = scene::evaluate(sc, t);
+    render::FrameResult result;
+    render::FrameContext ctx(sc, posed, params, w, h, result);
+    if (display) {
+      result.passes.push_back(render::PassRecord{"gbuffer"});
+      (*pass("gbuffer"))(ctx);
+      EXPECT_EQ(result.passes.back().counters.at("raster_setup_reused"), 0.0);
+    }
+    result.passes.push_back(render::PassRecord{"receiver_gbuffer"});
+    (*pass("receiver_gbuffer"))(ctx);
+    out = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
+    return result.passes.back().counters.at("raster_setup_reused");
+  };
+  render::GBuffer shared, alone, later;
+  EXPECT_EQ(frame(0.0, true, shared), 1.0);
+  EXPECT_EQ(frame(0.0, false, alone), 0.0);
+  EXPECT_EQ(frame(0.5, false, later), 0.0);
+  ASSERT_EQ(shared.object.size(), alone.object.size());
+  int hits = 0, moved = 0;
+  for (std::size_t i = 0; i < shared.object.size(); ++i) {
+    ASSERT_EQ(shared.object[i], alone.object[i]) << i;
+    ASSERT_EQ(shared.primitive[i], alone.primitive[i]) << i;
+    ASSERT_EQ(shared.barycentric[i], alone.barycentric[i]) << i;
+    hits += shared.hit(i) ? 1 : 0;
+    moved += shared.primitive[i] != later.primitive[i] ? 1 : 0;
+  }
+  EXPECT_GT(hits, 100);
+  EXPECT_GT(moved, 10) << "the later frame sees the character elsewhere";
+}

@@ -2,7 +2,9 @@
 #pragma once
 
 #include <any>
+#include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <stdexcept>
@@ -162,6 +164,10 @@ class FrameContext {
   // The planes the frame's G-buffer holds (GBufferPlanes): what the technique's passes read
   // (Technique::gbuffer_planes), all of them when the G-buffer is a requested output.
   unsigned gbuffer_planes() const { return gbuffer_planes_; }
+  // Unique among the frames of the process (never 0): lets a backend keep work for the rest of one
+  // frame (the CPU rasteriser's set-up, shared by the display and receiver G-buffers) without
+  // mistaking a later frame for it, whatever address that frame's objects have.
+  std::uint64_t id() const { return id_; }
   void set_gbuffer_planes(unsigned planes) { gbuffer_planes_ = planes; }
   // Adds a frame warning (FrameResult::warnings) once, however many passes report it.
   void warn(const std::string& message) {
@@ -178,6 +184,11 @@ class FrameContext {
   FramePool own_pool_;
   FramePool* pool_;
   unsigned gbuffer_planes_ = kGBufferAll;
+  const std::uint64_t id_ = next_id();
+  static std::uint64_t next_id() {
+    static std::atomic<std::uint64_t> n{0};
+    return ++n;
+  }
 };
 
 // Peak resident set size of this process (VmHWM), 0 where unavailable.
