@@ -78,6 +78,7 @@ struct Scratch {
   // made it, 0 for none).
   std::uint64_t frame = 0;
   render::PinholeCamera camera;
+  float ue = 0.0f, ve = 0.0f;  // the image-plane extent the set-up culled against
   std::vector<int> objects;
   std::vector<std::size_t> first;
   std::vector<Tri> tris;
@@ -139,8 +140,8 @@ Projected project(const render::PinholeCamera& cam, const vec3& p) {
 // Sets t up for any grid of sample rays of `cam`; false when its arithmetic overflows float (t is
 // then not live). The cheap part first: the bounds of the triangle's projection on the image
 // plane, which cull the triangles off screen or behind the eye before the edge functions are formed.
-bool set_up(const render::PinholeCamera& cam, const vec3& p0, const vec3& p1, const vec3& p2, const Projected& q0,
-            const Projected& q1, const Projected& q2, Tri& t) {
+bool set_up(const render::PinholeCamera& cam, float ue, float ve, const vec3& p0, const vec3& p1, const vec3& p2,
+            const Projected& q0, const Projected& q1, const Projected& q2, Tri& t) {
   t.live = false;
   const vec3& e = cam.position;
   const float z[3] = {q0.z, q1.z, q2.z};
@@ -180,9 +181,8 @@ bool set_up(const render::PinholeCamera& cam, const vec3& p0, const vec3& p1, co
   t.u1 = umax;
   t.v0 = vmin;
   t.v1 = vmax;
-  // Every sample ray has |sx| < tan * aspect and |sy| < tan; a thousandth of margin for the
-  // rounding of the bounds. NaN bounds keep the triangle (the whole buffer is tested).
-  const float ue = cam.tan_half_fov_y * cam.aspect * 1.001f, ve = cam.tan_half_fov_y * 1.001f;
+  // Every sample ray of the grids this set-up serves has |sx| <= ue and |sy| <= ve (Extent). NaN
+  // bounds keep the triangle (the whole buffer is tested).
   const bool off_screen = umax < -ue || umin > ue || vmax < -ve || vmin > ve;
   // Off screen; a triangle whose bounds overflowed still has its arithmetic checked below.
   if (off_screen && std::isfinite(umin + umax + vmin + vmax)) return true;
@@ -263,9 +263,10 @@ bool same_camera(const render::PinholeCamera& a, const render::PinholeCamera& b)
          a.tan_half_fov_y == b.tan_half_fov_y && a.aspect == b.aspect && a.width == b.width && a.height == b.height;
 }
 
-// Validates the posed objects and sets every triangle up into sc (see Scratch): throws as
-// rasterise_visibility says.
-void set_up_frame(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who, Scratch& sc) {
+// Validates the posed objects and sets every triangle up into sc (see Scratch) for sample rays with
+// |sx| <= ue, |sy| <= ve: throws as rasterise_visibility says.
+void set_up_frame(const render::PinholeCamera& cam, float ue, float ve, const scene::PosedScene& posed, const char* who,
+                  Scratch& sc) {
   const std::string prefix = std::string(who) + ": mesh '";
   // Validation first, in order, so that the error names the first bad vertex or index. Triangles
   // are numbered across the objects: object k's triangle t is first[k] + t.
@@ -322,7 +323,8 @@ void set_up_frame(const render::PinholeCamera& cam, const scene::PosedScene& pos
       out.object = sc.objects[k];
       out.prim = static_cast<int>(t);
       const Projected* q = proj.data() + vfirst[k];
-      if (!set_up(cam, o.positions[tri.x], o.positions[tri.y], o.positions[tri.z], q[tri.x], q[tri.y], q[tri.z], out)) {
+      if (!set_up(cam, ue, ve, o.positions[tri.x], o.positions[tri.y], o.positions[tri.z], q[tri.x], q[tri.y], q[tri.z],
+                  out)) {
         std::size_t cur = first_large.load();
         while (g < cur && !first_large.compare_exchange_weak(cur, g)) {
         }
@@ -350,15 +352,6 @@ void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedSc
   std::unique_lock<std::mutex> lock(scratch_mutex(), std::try_to_lock);
   Scratch own;
   Scratch& sc = lock.owns_lock() ? kept_scratch() : own;
-  stats.reused = frame != 0 && sc.frame == frame && same_camera(sc.camera, cam);
-  if (!stats.reused) {
-    sc.frame = 0;  // invalid until the set-up is complete
-    set_up_frame(cam, posed, who, sc);
-    sc.frame = frame;
-    sc.camera = cam;
-  }
-  const std::size_t total = sc.tris.size();
-  std::vector<Tri>& tris = sc.tris;
 
   // Sample ray coordinates, computed as PinholeCamera::direction does (so the rays are the ones the
   // ray tracer casts); sx padded to whole tiles.
@@ -375,6 +368,25 @@ void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedSc
   // x = (px / s - 0.5) with px = (sx / (tan aspect) + 1) w / 2; y likewise with sy = (1 - 2 py / h) tan.
   const Inverse inv{cw / (2.0f * fs * cam.tan_half_fov_y * cam.aspect), cw / (2.0f * fs) - 0.5f,
                     -ch / (2.0f * fs * cam.tan_half_fov_y), ch / (2.0f * fs) - 0.5f};
+
+  // The image-plane extent the set-up culls against: this grid's samples (a receiver grid's last
+  // samples can lie beyond the display image when its size is not a multiple of the scale), and at
+  // least the display image, so that the receiver buffer usually finds the display buffer's set-up
+  // wide enough; a thousandth of margin for the rounding of the bounds.
+  const float ue = std::max({std::fabs(sx[0]), std::fabs(sx[static_cast<std::size_t>(W) - 1]),
+                             cam.tan_half_fov_y * cam.aspect}) * 1.001f;
+  const float ve = std::max({std::fabs(sy[0]), std::fabs(sy[static_cast<std::size_t>(H) - 1]), cam.tan_half_fov_y}) * 1.001f;
+  stats.reused = frame != 0 && sc.frame == frame && same_camera(sc.camera, cam) && ue <= sc.ue && ve <= sc.ve;
+  if (!stats.reused) {
+    sc.frame = 0;  // invalid until the set-up is complete
+    set_up_frame(cam, ue, ve, posed, who, sc);
+    sc.frame = frame;
+    sc.camera = cam;
+    sc.ue = ue;
+    sc.ve = ve;
+  }
+  const std::size_t total = sc.tris.size();
+  std::vector<Tri>& tris = sc.tris;
 
   // Binning by counting, over at most kMaxChunks fixed ranges of triangles: each range counts its
   // triangles into the tiles their bounds on this grid overlap (a count array per range, so no two

@@ -366,3 +366,38 @@ TEST(RasterVisibility, AFramesReceiverBufferReusesItsDisplayBuffersSetUp) {
   EXPECT_GT(hits, 100);
   EXPECT_GT(moved, 10) << "the later frame sees the character elsewhere";
 }
+
+TEST(RasterVisibility, ReceiverSamplesBeyondTheDisplayImageSeeTheGeometryThere) {
+  // 100 x 60 at scale 7: the receiver buffer is 15 x 9 and its last column and row sample display
+  // points 101.5 and 59.5 + 3.5 beyond the image's edge. A fine grid reaching well past the view
+  // covers every such sample: none may be culled as off screen, whether or not the frame's display
+  // buffer was set up first.
+  backends::register_cpu_backend();
+  scene::Scene sc = one_mesh_scene(grid(64, 2.0f, 0.0f, 2, 0.2f, 9), 100, 60);
+  sc.camera.position = {0.0f, 0.0f, 3.0f};
+  sc.camera.target = {0.0f, 0.0f, 0.0f};
+  sc.camera.up = {0.0f, 1.0f, 0.0f};
+  sc.camera.fov_y_deg = 40.0f;
+  ASSERT_GT(((15 - 1) + 0.5f) * 7.0f, 100.0f) << "the last receiver column lies beyond the display image";
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  render::ParamSet params({render::ParamDesc::integer("receiver_scale", 1, 1, 64, "receiver buffer scale")});
+  params.set("receiver_scale", "7");
+  softgi::testing::ScopedVisibility raster("raster");
+  for (bool display_first : {false, true}) {
+    render::FrameResult result;
+    render::FrameContext ctx(sc, posed, params, 100, 60, result);
+    if (display_first) {
+      result.passes.push_back(render::PassRecord{"gbuffer"});
+      (*render::find_shared_pass_impl("gbuffer", backends::cpu::kBackendName))(ctx);
+    }
+    result.passes.push_back(render::PassRecord{"receiver_gbuffer"});
+    (*render::find_shared_pass_impl("receiver_gbuffer", backends::cpu::kBackendName))(ctx);
+    const render::GBuffer& r = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
+    ASSERT_EQ(r.width, 15);
+    ASSERT_EQ(r.height, 9);
+    for (int y = 0; y < r.height; ++y)
+      for (int x = 0; x < r.width; ++x)
+        EXPECT_TRUE(r.hit(static_cast<std::size_t>(y) * r.width + x))
+            << "receiver sample (" << x << ", " << y << ")" << (display_first ? " after the display buffer" : "");
+  }
+}
