@@ -246,7 +246,6 @@ void trace_visibility(render::FrameContext& ctx, const render::PinholeCamera& ca
   stats.update = es.update(ctx.posed);
   stats.update_seconds = std::chrono::duration<double>(clock::now() - t0).count();
   const int W = gb.width, H = gb.height;
-  const float fs = static_cast<float>(gb.scale);
   const int tiles_x = (W + kTile - 1) / kTile, tiles = tiles_x * ((H + kTile - 1) / kTile);
   std::atomic<long long> hits{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1), [&](const tbb::blocked_range<int>& range) {
@@ -261,9 +260,8 @@ void trace_visibility(render::FrameContext& ctx, const render::PinholeCamera& ca
       for (int y = ty; y < std::min(H, ty + kTile); ++y)
         for (int x = tx; x < std::min(W, tx + kTile); ++x) {
           pixel[m] = static_cast<std::size_t>(y) * W + x;
-          // (x + 0.5) * 1 is exact in float, so s = 1 traces exactly pixel_center_direction(x, y).
           rays[m++] = embree::make_ray_hit(
-              cam.position, cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs));
+              cam.position, cam.buffer_direction(x, y, gb.scale));
         }
       // A tile's rays as one coherent stream: Embree packetises them (measured about 15% faster
       // than one rtcIntersect1 per pixel on `spheres` at 512x512).
@@ -309,9 +307,8 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
     stats.visibility_seconds = stats.raster.setup_seconds + stats.raster.raster_seconds;
     stats.hits = stats.raster.hits;
   }
-  const float fs = static_cast<float>(scale);
   auto ray_dir = [&](int x, int y) {
-    return cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs);
+    return cam.buffer_direction(x, y, scale);
   };
   const auto t2 = clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, H, 4), [&](const tbb::blocked_range<int>& rows) {

@@ -31,7 +31,6 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
     throw std::invalid_argument("interpolate_vertex_values: G-buffer of " + std::to_string(gb.width) + "x" +
                                 std::to_string(gb.height) + " has incomplete object/primitive/barycentric/view_dir" +
                                 (times_albedo ? "/albedo" : "") + " planes and none is derived");
-  const float fs = static_cast<float>(gb.scale);
   // The checks a visible pixel needs, made where the loop reads it (one pass over the G-buffer): its
   // object, that object's mesh and per-vertex values (once per run of pixels of one object), its
   // triangle. Objects no pixel sees need no values.
@@ -66,9 +65,7 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
             out.rgb[i] = glm::vec3(0.0f);
           } else {
             // The G-buffer's ray for this pixel (its view_dir for background pixels).
-            out.rgb[i] = background(own_dir ? derive.camera->direction((static_cast<float>(x) + 0.5f) * fs,
-                                                                       (static_cast<float>(y) + 0.5f) * fs)
-                                            : gb.view_dir[i]);
+            out.rgb[i] = background(own_dir ? derive.camera->buffer_direction(x, y, gb.scale) : gb.view_dir[i]);
           }
           continue;
         }

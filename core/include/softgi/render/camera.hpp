@@ -32,6 +32,12 @@ struct PinholeCamera {
   glm::vec3 pixel_center_direction(int x, int y) const {
     return direction(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
   }
+  // The ray of pixel (x, y) of a buffer at 1/scale of the image's resolution (render::GBuffer): through
+  // image point ((x + 0.5) scale, (y + 0.5) scale). Scale 1 is pixel_center_direction exactly.
+  glm::vec3 buffer_direction(int x, int y, int scale) const {
+    const float s = static_cast<float>(scale);
+    return direction((static_cast<float>(x) + 0.5f) * s, (static_cast<float>(y) + 0.5f) * s);
+  }
   // Eye-space depth z_p = (p - e) . E (paper 000 section 4).
   float depth(const glm::vec3& p) const { return glm::dot(p - position, forward); }
 };
