@@ -5,8 +5,11 @@
 // ("ms:<pass>"), the host <-> device bytes per frame and the passes the graph left out. After the
 // run, one table of medians per scene and backend with each technique's time over the fastest one's.
 //   ./build/bench/bench_techniques [--backend=cpu,vulkan] [--scenes=spheres,crowd] [--size=512]
+//       [--variants=image_splat:binning=device,...]
 //       [--benchmark_filter=...] [--benchmark_repetitions=N] [--benchmark_out=F --benchmark_out_format=json]
-// Names: BM_Technique/<scene>/<backend>/<technique>.
+// Names: BM_Technique/<scene>/<backend>/<technique>. A variant (one parameter of one technique set
+// away from its default) runs beside the default as BM_Technique/<scene>/<backend>/<technique>[name=value],
+// so that the two are measured side by side in one run.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -43,9 +46,16 @@ std::map<Key, Times>& times() {
   return t;
 }
 
-void BM_Technique(benchmark::State& state, const std::string& scene_name, const std::string& backend, const std::string& technique,
+// A technique at its defaults (assignment empty) or with one parameter set: "name=value".
+struct Variant {
+  std::string technique, assignment;
+  std::string label() const { return assignment.empty() ? technique : technique + "[" + assignment + "]"; }
+};
+
+void BM_Technique(benchmark::State& state, const std::string& scene_name, const std::string& backend, const Variant& variant,
                   int side) {
-  Times& out = times()[Key{scene_name, backend, technique}];
+  const std::string& technique = variant.technique;
+  Times& out = times()[Key{scene_name, backend, variant.label()}];
   render::Backend* be = softgi::bench::backend_or_skip(state, backend);
   if (!be) {
     out.error = "backend unavailable";
@@ -61,7 +71,8 @@ void BM_Technique(benchmark::State& state, const std::string& scene_name, const 
   }
   // One technique object for all frames: it keeps its cross-frame state.
   const std::unique_ptr<render::Technique> tech = render::create_technique(technique);
-  const render::ParamSet params = render::default_params(*tech);
+  render::ParamSet params = render::default_params(*tech);
+  if (!variant.assignment.empty()) params.set_assignment(variant.assignment);
   render::RenderRequest req;
   req.width = req.height = side;
   req.time = 0.0;
@@ -186,11 +197,35 @@ int main(int argc, char** argv) {
     }
     side = static_cast<int>(n);
   }
+  softgi::bench::register_builtin();  // the techniques the variants name
+  std::vector<Variant> variants;
+  for (const auto& t : render::technique_names()) variants.push_back(Variant{t, ""});
+  if (take_flag(argc, argv, "variants", v)) {
+    for (const auto& item : split(v)) {
+      const std::size_t colon = item.find(':');
+      const std::string tech = item.substr(0, colon);
+      const auto& names = render::technique_names();
+      if (colon == std::string::npos || std::find(names.begin(), names.end(), tech) == names.end()) {
+        std::fprintf(stderr, "--variants: '%s' is not <technique>:<parameter>=<value> with a registered technique\n", item.c_str());
+        return 2;
+      }
+      Variant var{tech, item.substr(colon + 1)};
+      try {
+        render::ParamSet p = render::default_params(*render::create_technique(tech));
+        p.set_assignment(var.assignment);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "--variants: %s: %s\n", item.c_str(), e.what());
+        return 2;
+      }
+      variants.push_back(var);
+    }
+    std::stable_sort(variants.begin(), variants.end(), [](const Variant& a, const Variant& b) { return a.technique < b.technique; });
+  }
   const int rc = softgi::bench::frame_bench_main(argc, argv, [&](const std::vector<std::string>& backends) {
     for (const auto& scene : scenes)
       for (const auto& b : backends)
-        for (const auto& t : render::technique_names())
-          benchmark::RegisterBenchmark(("BM_Technique/" + scene + "/" + b + "/" + t).c_str(),
+        for (const auto& t : variants)
+          benchmark::RegisterBenchmark(("BM_Technique/" + scene + "/" + b + "/" + t.label()).c_str(),
                                        [=](benchmark::State& st) { BM_Technique(st, scene, b, t, side); })
               ->Iterations(3)
               ->UseManualTime()

@@ -74,6 +74,9 @@ std::vector<ParamDesc> param_descs() {
   d.push_back(ParamDesc::integer("normal_power", 32, 0, 256, "exponent of the normal weight (paper: 32)"));
   d.push_back(ParamDesc::real("miss_threshold", 0.05, 0.0, 1.0, "unnormalised eq. 11 weight below which a display pixel is a miss"));
   d.push_back(ParamDesc::integer("tile_size", 16, 4, 64, "receiver tile edge in coarse pixels for binning the proxies"));
+  d.push_back(ParamDesc::choice("binning", "host", {"host", "device"},
+                                "where the proxies are binned to receiver tiles (section 4.1): on the host, or by a compute "
+                                "pass on a device backend that leaves the lists on the device (the CPU backend bins on the host)"));
   d.push_back(common::params::analytic_lights());
   d.push_back(common::params::kernel());
   return d;
@@ -118,6 +121,7 @@ Settings read_settings(const render::ParamSet& p) {
   s.upsample.normal_power = p.get_int("normal_power");
   s.upsample.miss_threshold = p.get_float("miss_threshold");
   s.tile_size = p.get_int("tile_size");
+  s.device_binning = p.get_enum("binning") == "device";
   s.lights = p.get_bool("analytic_lights");
   s.isa = common::params::read_kernel(p);
   return s;
@@ -303,42 +307,80 @@ void pass_receivers(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const ReceiverBuffer>>(kReceivers, r);
 }
 
-void pass_bin(const Settings& s, FrameContext& ctx) {
+// The flat proxy lists and the radii' support factors that binning starts from.
+struct BinInputs {
+  std::shared_ptr<common::BlockerList> shadow = std::make_shared<common::BlockerList>();
+  std::shared_ptr<ProxyList> indirect;  // null when indirect light is off
+  double alpha_shadow = 0.0, alpha_indirect = 0.0;
+};
+
+BinInputs bin_inputs(const Settings& s, FrameContext& ctx) {
   check_proxies(ctx);
-  const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
   const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
-  common::BlockerList all;
-  ProxyList all_ind;
-  const bool ind = ctx.has(kIndirectTables);
-  flat_proxies(ctx.scene, ctx.posed, s.order, &all, ind ? &all_ind : nullptr);
-  auto bins = std::make_shared<ProxyBins>(bin_proxies(r, all, t.support_alpha_shadow, ind ? &all_ind : nullptr, t.support_alpha_indirect));
+  BinInputs in;
+  if (ctx.has(kIndirectTables)) in.indirect = std::make_shared<ProxyList>();
+  flat_proxies(ctx.scene, ctx.posed, s.order, in.shadow.get(), in.indirect.get());
+  in.alpha_shadow = t.support_alpha_shadow;
+  in.alpha_indirect = t.support_alpha_indirect;
+  return in;
+}
+
+void record_bins(FrameContext& ctx, const ReceiverBuffer& r, const BinInputs& in, const BinCounts& b) {
+  const bool ind = in.indirect != nullptr;
   std::size_t mxs = 0, mxi = 0;
-  double rs = 0.0, ri = 0.0;
+  double rs = 0.0, ri = 0.0, ts = 0.0, ti = 0.0;
   for (std::size_t k = 0; k < r.tiles.size(); ++k) {
     const double nrec = static_cast<double>(r.tiles[k].end - r.tiles[k].begin);
-    mxs = std::max(mxs, bins->shadow[k].size());
-    rs += nrec * static_cast<double>(bins->shadow[k].size());
+    mxs = std::max<std::size_t>(mxs, b.shadow_counts[k]);
+    rs += nrec * static_cast<double>(b.shadow_counts[k]);
+    ts += static_cast<double>(b.shadow_counts[k]);
     if (ind) {
-      mxi = std::max(mxi, bins->indirect[k].size());
-      ri += nrec * static_cast<double>(bins->indirect[k].size());
+      mxi = std::max<std::size_t>(mxi, b.indirect_counts[k]);
+      ri += nrec * static_cast<double>(b.indirect_counts[k]);
+      ti += static_cast<double>(b.indirect_counts[k]);
     }
   }
   const double nt = std::max<double>(1.0, static_cast<double>(r.tiles.size()));
   auto& rec = ctx.record();
-  rec.counters["proxies"] = static_cast<double>(all.size());
+  rec.counters["proxies"] = static_cast<double>(in.shadow->size());
   rec.counters["tiles"] = static_cast<double>(r.tiles.size());
-  rec.counters["pairs_tested"] = bins->pairs_tested;
-  rec.counters["shadow_tile_pairs"] = bins->shadow_tile_pairs;
-  rec.counters["shadow_proxies_per_tile_mean"] = bins->shadow_tile_pairs / nt;
+  rec.counters["pairs_tested"] = b.pairs_tested;
+  rec.counters["shadow_tile_pairs"] = ts;
+  rec.counters["shadow_proxies_per_tile_mean"] = ts / nt;
   rec.counters["shadow_proxies_per_tile_max"] = static_cast<double>(mxs);
   rec.counters["shadow_receiver_pairs"] = rs;
-  rec.counters["indirect_tile_pairs"] = bins->indirect_tile_pairs;
-  rec.counters["indirect_proxies_per_tile_mean"] = bins->indirect_tile_pairs / nt;
+  rec.counters["indirect_tile_pairs"] = ti;
+  rec.counters["indirect_proxies_per_tile_mean"] = ti / nt;
   rec.counters["indirect_proxies_per_tile_max"] = static_cast<double>(mxi);
   rec.counters["indirect_receiver_pairs"] = ri;
   // Receiver-proxy pairs without binning, for the saving binning (splatting) buys.
-  rec.counters["all_receiver_pairs"] = static_cast<double>(r.soa.size()) * static_cast<double>(all.size());
-  rec.bytes = bins->bytes();
+  rec.counters["all_receiver_pairs"] = static_cast<double>(r.soa.size()) * static_cast<double>(in.shadow->size());
+  if (b.gpu_seconds >= 0.0) {
+    rec.counters["kernel_gpu_seconds"] = b.gpu_seconds;
+    rec.counters["upload_bytes"] = static_cast<double>(b.upload_bytes);
+    rec.counters["download_bytes"] = static_cast<double>(b.download_bytes);
+  }
+  rec.bytes = b.bytes;
+}
+
+}  // namespace
+
+BinCounts bin_counts(const ProxyBins& bins) {
+  BinCounts b;
+  for (const auto& l : bins.shadow) b.shadow_counts.push_back(static_cast<std::uint32_t>(l.size()));
+  for (const auto& l : bins.indirect) b.indirect_counts.push_back(static_cast<std::uint32_t>(l.size()));
+  b.pairs_tested = bins.pairs_tested;
+  b.bytes = bins.bytes();
+  return b;
+}
+
+namespace {
+
+void pass_bin(const Settings& s, FrameContext& ctx) {
+  const BinInputs in = bin_inputs(s, ctx);
+  const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
+  auto bins = std::make_shared<ProxyBins>(bin_proxies(r, *in.shadow, in.alpha_shadow, in.indirect.get(), in.alpha_indirect));
+  record_bins(ctx, r, in, bin_counts(*bins));
   ctx.put<std::shared_ptr<const ProxyBins>>(kBins, bins);
 }
 
@@ -853,8 +895,8 @@ class ImageSplat final : public render::Technique {
     auto dev_accumulate = [s](const DeviceKernels& k) -> render::PassFn {
       if (!k.accumulate_log) return {};
       return [s, f = k.accumulate_log](FrameContext& c) {
-        f(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables), *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
-          *c.get<std::shared_ptr<const ProxyBins>>(kBins), kLogOcclusion);
+        f(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables), *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), kBins,
+          kLogOcclusion);
       };
     };
     auto dev_exponentiate = [s](const DeviceKernels& k) -> render::PassFn {
@@ -868,8 +910,15 @@ class ImageSplat final : public render::Technique {
       return [f = k.accumulate_indirect, ok = k.indirect_supported](FrameContext& c) {
         const auto& ev = *c.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
         if (!ok(ev.setup().op)) return pass_accumulate_indirect(c);
-        c.put<std::shared_ptr<const IndirectSums>>(kIndirectSums, f(c, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers),
-                                                                    *c.get<std::shared_ptr<const ProxyBins>>(kBins), ev));
+        c.put<std::shared_ptr<const IndirectSums>>(kIndirectSums, f(c, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), kBins, ev));
+      };
+    };
+    auto dev_bin = [s](const DeviceKernels& k) -> render::PassFn {
+      if (!k.bin_proxies || !s.device_binning) return {};
+      return [s, f = k.bin_proxies](FrameContext& c) {
+        const BinInputs in = bin_inputs(s, c);
+        const auto& r = *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
+        record_bins(c, r, in, f(c, r, in.shadow, in.alpha_shadow, in.indirect, in.alpha_indirect, kBins));
       };
     };
     auto dev_upsample = [s](const DeviceKernels& k) -> render::PassFn {
@@ -901,7 +950,7 @@ class ImageSplat final : public render::Technique {
            cpu([s](FrameContext& c) { pass_receivers(s, c); })});
     g.add({"bin_proxies", {kReceivers, kTables, kBlockerSpheres}, {kIndirectTables}, {kBins},
            "per tile, the proxies whose sphere of influence reaches it (coverage oracle, section 4.1)",
-           cpu([s](FrameContext& c) { pass_bin(s, c); })});
+           with_kernels([s](FrameContext& c) { pass_bin(s, c); }, dev_bin)});
     g.add({"accumulate_log", {kReceivers, kTables, kBins}, {}, {kLogOcclusion},
            "sum of proxy log occlusion vectors per receiver (eq. 4; SHEXP kernel and replacement rules)",
            with_kernels([s](FrameContext& c) { pass_accumulate_log(s, c); }, dev_accumulate)});

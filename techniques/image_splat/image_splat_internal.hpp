@@ -75,6 +75,7 @@ struct Settings {
   UpsampleOptions upsample;
   UpsampleFallback fallback = UpsampleFallback::Robust;
   int tile_size = 16;
+  bool device_binning = false;  // binning = device: a backend's compute pass bins (DeviceKernels::bin_proxies)
   bool lights = true;
   common::KernelIsa isa = common::KernelIsa::Scalar;
 };
@@ -128,6 +129,15 @@ struct ProxyBins {
   double shadow_tile_pairs = 0.0, indirect_tile_pairs = 0.0;
   std::size_t bytes() const;
 };
+// What a binning found, per tile, for the pass record (host or device binning alike).
+struct BinCounts {
+  std::vector<std::uint32_t> shadow_counts, indirect_counts;  // entries per tile (indirect: empty when off)
+  double pairs_tested = 0.0;                                  // tile-proxy tests
+  std::size_t bytes = 0;                                      // of the lists
+  double gpu_seconds = -1.0;                                  // device binning: GPU time of its dispatches
+  std::size_t upload_bytes = 0, download_bytes = 0;           // device binning: transfers
+};
+BinCounts bin_counts(const ProxyBins& bins);
 // influence_radius(r) = r / alpha (1 + kInfluenceMargin), or infinity for alpha <= 0 (no sphere of
 // influence). The margin covers the float rounding of the distance the kernels compute (a few ulps):
 // binning more than needed costs pairs that add exactly 0, binning less would drop contributions.
@@ -243,14 +253,21 @@ struct DeviceKernels {
   // accumulate_log writes the log occlusion (a shared_ptr<const Field>) as resource `out`;
   // exponentiate reads resource `in` (the log occlusion) and writes O_p as `out`. A device backend
   // may leave them on the device (FrameContext::put_deferred), read back only for a host pass.
-  std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const ReceiverBuffer&, const ProxyBins&,
+  // bin_proxies writes the per-tile lists of the flat proxy lists as resource `out` (a device copy,
+  // the host ProxyBins deferred) and returns the counts for the record; accumulate_log and
+  // accumulate_indirect read the lists of resource `bins` (the device copy where there is one).
+  std::function<BinCounts(render::FrameContext&, const ReceiverBuffer&, std::shared_ptr<const common::BlockerList> all_shadow,
+                          double alpha_shadow, std::shared_ptr<const ProxyList> all_indirect, double alpha_indirect,
+                          const std::string& out)>
+      bin_proxies;
+  std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const ReceiverBuffer&, const std::string& bins,
                      const std::string& out)>
       accumulate_log;
   std::function<bool(ExpMode)> exp_supports;
   std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const std::string& in, const std::string& out)>
       exponentiate;
   std::function<bool(IndirectOperator)> indirect_supported;
-  std::function<std::shared_ptr<IndirectSums>(render::FrameContext&, const ReceiverBuffer&, const ProxyBins&,
+  std::function<std::shared_ptr<IndirectSums>(render::FrameContext&, const ReceiverBuffer&, const std::string& bins,
                                               const IndirectEvaluator&)>
       accumulate_indirect;
   std::function<UpsampleKernels(render::FrameContext&)> upsample;

@@ -4,6 +4,7 @@
 // exponentiate.comp consume). Same resources in, same structures out as the CPU passes.
 #include "image_splat_vulkan.hpp"
 #include "image_splat_vulkan_shading.hpp"
+#include "image_splat_vulkan_binning.hpp"
 
 #include <algorithm>
 #include <array>
@@ -82,11 +83,18 @@ void ol_table(vk::Context& dev, GpuState& g, const std::shared_ptr<const sh::ShT
 // common::ProductPlan in the exponentiate shader's form.
 }  // namespace
 
-void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const ReceiverBuffer& r,
-                           const ProxyBins& bins, const std::string& out) {
-  vk::Context& dev = vk::context_of(ctx);
-  GpuState& g = gpu_state(dev);
-  std::lock_guard<std::mutex> lock(g.m);
+namespace {
+
+// The shadow lists accumulate_log.comp reads, wherever they were built: device buffers to bind and
+// the entries per tile.
+struct BoundLists {
+  const vk::Buffer *ranges = nullptr, *blockers = nullptr, *weights = nullptr;
+  std::vector<std::size_t> counts;  // per tile
+  std::uint32_t longest = 0;
+  std::size_t total = 0;
+};
+
+void check_accumulate_inputs(vk::Context& dev, const ShadowTables& t, const ReceiverBuffer& r, std::size_t lists, std::size_t total) {
   const int n = t.order, n2 = n * n;
   if (t.log.order != n || n > static_cast<int>(gpu::kAccumMaxOrder))
     throw std::logic_error("image_splat accumulate_log on vulkan: log table of order " + std::to_string(t.log.order) + " for order " +
@@ -94,25 +102,30 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   const std::size_t count = r.soa.size();
   if (count > std::numeric_limits<std::uint32_t>::max() / 8)
     throw std::invalid_argument("image_splat accumulate_log on vulkan: " + std::to_string(count) + " receivers exceed the 32-bit indexing");
-  if (bins.shadow.size() != r.tiles.size())
-    throw std::logic_error("image_splat accumulate_log on vulkan: " + std::to_string(bins.shadow.size()) + " blocker lists for " +
+  if (lists != r.tiles.size())
+    throw std::logic_error("image_splat accumulate_log on vulkan: " + std::to_string(lists) + " blocker lists for " +
                            std::to_string(r.tiles.size()) + " tiles");
-  std::size_t total = 0;
-  for (const auto& l : bins.shadow) total += l.size();
   const std::string pass = "accumulate_log";
   check_fits(dev, total * 4 * sizeof(float), std::to_string(total) + " tile-proxy pairs (binned spheres)", pass);
   check_fits(dev, total * weight_stride(n) * sizeof(float), "the band weights of " + std::to_string(total) + " binned spheres", pass);
   check_fits(dev, count * n2 * sizeof(float), "the log vectors of " + std::to_string(count) + " receivers", pass);
   check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", pass);
+}
 
-  // The tiles' blocker lists concatenated; each receiver reads the list of its tile.
-  const PackedBlockers packed = pack_blocker_lists(bins.shadow, n, 0, 1.0f, "image_splat", "order");
+// accumulate_log over `lists` (bound under g.m, which the caller holds), receivers and the
+// receiver-to-tile map uploaded when they change.
+void accumulate_log_bound(render::FrameContext& ctx, vk::Context& dev, GpuState& g, const Settings& s, const ShadowTables& t,
+                          const ReceiverBuffer& r, const BoundLists& lists, std::size_t uploaded, const std::string& out) {
+  const int n = t.order, n2 = n * n;
+  const std::size_t count = r.soa.size();
   std::vector<std::uint32_t> rlist(count, 0);
   for (std::size_t k = 0; k < r.tiles.size(); ++k)
     for (std::size_t i = r.tiles[k].begin; i < r.tiles[k].end; ++i) rlist[i] = static_cast<std::uint32_t>(k);
-
+  const std::size_t before = dev.transfer_bytes().upload;
+  upload_receivers(dev, g.inputs.receivers, r.soa, "image_splat receivers", &g.inputs.receivers_hash);
+  put_if_changed(dev, g.inputs.rlist, g.inputs.rlist_hash, rlist, "image_splat receiver lists");
+  uploaded += dev.transfer_bytes().upload - before;
   const vk::Buffer& table = log_table(dev, g, t);
-  const std::size_t uploaded = g.inputs.upload(dev, r.soa, rlist, packed, "image_splat");
   // The log occlusion stays on the device for exponentiate (device-local memory).
   dev.ensure_buffer(g.log_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Device,
                     "image_splat log occlusion");
@@ -123,12 +136,12 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   vk::SubmitResult res;
   std::uint32_t chunks = 0;
   if (count)
-    res = run_accumulate_log(dev, p, {g.inputs.receivers, g.inputs.rlist, g.inputs.ranges, g.inputs.blockers, g.inputs.weights, table, basis_constants(dev), g.log_out}, count, t.log,
-                             g.inputs.longest, "image_splat accumulate_log", pair_cut_factor(t, s.rule), &chunks);
+    res = run_accumulate_log(dev, p, {g.inputs.receivers, g.inputs.rlist, *lists.ranges, *lists.blockers, *lists.weights, table, basis_constants(dev), g.log_out}, count, t.log,
+                             lists.longest, "image_splat accumulate_log", pair_cut_factor(t, s.rule), &chunks);
 
   double pairs = 0.0;
   for (std::size_t k = 0; k < r.tiles.size(); ++k)
-    pairs += static_cast<double>(r.tiles[k].end - r.tiles[k].begin) * static_cast<double>(bins.shadow[k].size());
+    pairs += static_cast<double>(r.tiles[k].end - r.tiles[k].begin) * static_cast<double>(lists.counts[k]);
   const double secs = timer_seconds(res);
   auto& rec = ctx.record();
   rec.counters["receivers"] = static_cast<double>(count);
@@ -141,6 +154,48 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
   rec.bytes = count * n2 * sizeof(float);
   put_device_field<Field>(ctx, out, DeviceField{&g.log_out, count * n2, n}, g.m, dev);
+}
+
+}  // namespace
+
+void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const ReceiverBuffer& r,
+                           const ProxyBins& bins, const std::string& out) {
+  vk::Context& dev = vk::context_of(ctx);
+  GpuState& g = gpu_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);
+  BoundLists lists;
+  for (const auto& l : bins.shadow) {
+    lists.counts.push_back(l.size());
+    lists.total += l.size();
+  }
+  check_accumulate_inputs(dev, t, r, bins.shadow.size(), lists.total);
+  // The tiles' blocker lists concatenated; each receiver reads the list of its tile.
+  const PackedBlockers packed = pack_blocker_lists(bins.shadow, t.order, 0, 1.0f, "image_splat", "order");
+  const std::size_t before = dev.transfer_bytes().upload;
+  put_if_changed(dev, g.inputs.ranges, g.inputs.ranges_hash, packed.ranges, "image_splat list ranges");
+  put_if_changed(dev, g.inputs.blockers, g.inputs.blockers_hash, packed.sph, "image_splat blocker spheres");
+  put_if_changed(dev, g.inputs.weights, g.inputs.weights_hash, packed.w, "image_splat band weights");
+  for (const auto& l : bins.shadow) lists.longest = std::max(lists.longest, static_cast<std::uint32_t>(l.size()));
+  lists.ranges = &g.inputs.ranges;
+  lists.blockers = &g.inputs.blockers;
+  lists.weights = &g.inputs.weights;
+  accumulate_log_bound(ctx, dev, g, s, t, r, lists, dev.transfer_bytes().upload - before, out);
+}
+
+void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const ReceiverBuffer& r,
+                           const DeviceBins& bins, const std::string& out) {
+  vk::Context& dev = vk::context_of(ctx);
+  GpuState& g = gpu_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);
+  check_accumulate_inputs(dev, t, r, bins.shadow.counts.size(), bins.shadow.total);
+  BoundLists lists;
+  lists.counts.assign(bins.shadow.counts.begin(), bins.shadow.counts.end());
+  lists.total = bins.shadow.total;
+  lists.longest = bins.shadow.longest;
+  lists.ranges = bins.shadow.ranges;
+  lists.blockers = bins.shadow.spheres;
+  lists.weights = bins.shadow.payload;
+  accumulate_log_bound(ctx, dev, g, s, t, r, lists, 0, out);
 }
 
 bool vulkan_exp_supports(ExpMode m) { return m == ExpMode::HYB || m == ExpMode::OL || m == ExpMode::PSStar || m == ExpMode::PS; }
@@ -262,11 +317,25 @@ std::vector<float> vulkan_field_dc(render::FrameContext& ctx, const std::string&
 void register_vulkan_kernels() {
   DeviceKernels k;
   k.field_dc = vulkan_field_dc;
-  k.accumulate_log = vulkan_accumulate_log;
+  k.bin_proxies = vulkan_bin_proxies;
+  // The lists where bin_proxies left them: on the device (device binning) or on the host.
+  k.accumulate_log = [](render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const ReceiverBuffer& r,
+                        const std::string& bins, const std::string& out) {
+    if (const auto* d = ctx.device_copy<std::shared_ptr<const DeviceBins>>(bins)) {
+      if ((*d)->order != t.order)
+        throw std::logic_error("image_splat accumulate_log on vulkan: device lists of order " + std::to_string((*d)->order) +
+                               " for order " + std::to_string(t.order));
+      return vulkan_accumulate_log(ctx, s, t, r, **d, out);
+    }
+    vulkan_accumulate_log(ctx, s, t, r, *ctx.get<std::shared_ptr<const ProxyBins>>(bins), out);
+  };
   k.exp_supports = vulkan_exp_supports;
   k.exponentiate = vulkan_exponentiate;
   k.indirect_supported = vulkan_indirect_supported;
-  k.accumulate_indirect = vulkan_accumulate_indirect;
+  k.accumulate_indirect = [](render::FrameContext& ctx, const ReceiverBuffer& r, const std::string& bins, const IndirectEvaluator& ev) {
+    if (const auto* d = ctx.device_copy<std::shared_ptr<const DeviceBins>>(bins)) return vulkan_accumulate_indirect(ctx, r, **d, ev);
+    return vulkan_accumulate_indirect(ctx, r, *ctx.get<std::shared_ptr<const ProxyBins>>(bins), ev);
+  };
   k.upsample = common::vulkan_upsample_kernels;
   k.direct = vulkan_direct_kernels;
   register_device_kernels(vk::kBackendName, std::move(k));

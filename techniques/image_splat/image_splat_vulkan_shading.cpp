@@ -14,6 +14,7 @@
 
 #include "../common/accumulation_vulkan.hpp"
 #include "image_splat_indirect_shared.h"
+#include "image_splat_vulkan_binning.hpp"
 #include "softgi/backends/vulkan/context.hpp"
 #include "softgi/sh/sh.hpp"
 #include "softgi_shared.h"
@@ -109,8 +110,19 @@ std::uint32_t indirect_chunk(const vk::DeviceInfo& d, int order, bool exact) {
 
 }  // namespace
 
-std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& ctx, const ReceiverBuffer& r, const ProxyBins& bins,
-                                                         const IndirectEvaluator& ev) {
+namespace {
+
+// The proxy lists accumulate_indirect.comp reads, wherever they were built: device buffers to bind
+// and the entries per tile.
+struct BoundProxies {
+  const vk::Buffer *ranges = nullptr, *proxies = nullptr, *albedo = nullptr;
+  std::vector<std::size_t> counts;  // per tile
+  std::uint32_t longest = 0;
+  std::size_t total = 0;
+};
+
+// The operator, the tables' layout and the receiver count, checked before anything is uploaded.
+void check_indirect_inputs(const ReceiverBuffer& r, std::size_t lists, const IndirectEvaluator& ev) {
   const IndirectSetup& setup = ev.setup();
   if (!vulkan_indirect_supported(setup.op))
     throw std::logic_error("image_splat accumulate_indirect on vulkan: unknown indirect operator " +
@@ -120,51 +132,31 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   if (n < 1 || n > static_cast<int>(gpu::kAccumMaxOrder) || tv.rows < 2)
     throw std::logic_error("image_splat accumulate_indirect on vulkan: tables of order " + std::to_string(n) + " with " +
                            std::to_string(tv.rows) + " rows");
-  const bool exact = setup.op == IndirectOperator::Exact;
-  if (exact) check_exact_layout(tv);
+  if (setup.op == IndirectOperator::Exact) check_exact_layout(tv);
   const std::size_t count = r.soa.size();
   if (count > std::numeric_limits<std::uint32_t>::max() / 8)
     throw std::invalid_argument("image_splat accumulate_indirect on vulkan: " + std::to_string(count) + " receivers exceed the 32-bit indexing");
-  if (bins.indirect.size() != r.tiles.size())
-    throw std::logic_error("image_splat accumulate_indirect on vulkan: " + std::to_string(bins.indirect.size()) + " proxy lists for " +
+  if (lists != r.tiles.size())
+    throw std::logic_error("image_splat accumulate_indirect on vulkan: " + std::to_string(lists) + " proxy lists for " +
                            std::to_string(r.tiles.size()) + " tiles");
-  // The CPU evaluator's own input checks (proxy centres, radii, albedo; same messages): an empty
-  // receiver range checks the list and evaluates nothing.
-  for (const ProxyList& l : bins.indirect) ev.accumulate(r.soa, 0, 0, l, nullptr, nullptr);
+}
 
-  vk::Context& dev = vk::context_of(ctx);
-  GpuState& g = gpu_state(dev);
-  std::lock_guard<std::mutex> lock(g.m);
-  std::size_t total = 0;
-  for (const auto& l : bins.indirect) total += l.size();
+// accumulate_indirect over `lists` (bound under g.m, which the caller holds).
+std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ctx, vk::Context& dev, GpuState& g, const ReceiverBuffer& r,
+                                                        const IndirectEvaluator& ev, const BoundProxies& lists, std::size_t uploaded) {
+  const IndirectSetup& setup = ev.setup();
+  const IndirectEvaluator::TableView tv = ev.tables();
+  const int n = tv.order;
+  const bool exact = setup.op == IndirectOperator::Exact;
+  const std::size_t count = r.soa.size();
   const std::string pass = "image_splat accumulate_indirect";
   const std::string advice = "use fewer proxy spheres, a larger receiver_scale, or --backend cpu";
-  common::gpu_passes::check_fits(dev, total * 4 * sizeof(float), std::to_string(total) + " tile-proxy pairs (binned spheres)", pass, advice);
   common::gpu_passes::check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", pass, advice);
   common::gpu_passes::check_fits(dev, count * 4 * sizeof(float), "the indirect sums of " + std::to_string(count) + " receivers", pass, advice);
-
-  // The tiles' proxy lists concatenated; each receiver reads the list of its tile. Albedo / pi is
-  // folded on the host in the CPU's order (a * inv_pi, then times the pair's value).
-  const float inv_pi = static_cast<float>(1.0 / sh::kPi);
-  std::vector<float> sph(total * 4), alb(total * 4, 0.0f);
-  std::vector<std::uint32_t> ranges(2 * r.tiles.size(), 0), rlist(count, 0);
-  std::size_t at = 0;
-  for (std::size_t k = 0; k < r.tiles.size(); ++k) {
-    const ProxyList& b = bins.indirect[k];
-    ranges[2 * k] = static_cast<std::uint32_t>(at);
-    ranges[2 * k + 1] = static_cast<std::uint32_t>(b.size());
-    for (std::size_t j = 0; j < b.size(); ++j, ++at) {
-      sph[4 * at] = b.cx[j];
-      sph[4 * at + 1] = b.cy[j];
-      sph[4 * at + 2] = b.cz[j];
-      sph[4 * at + 3] = b.r[j];
-      alb[4 * at] = b.albedo[j].x * inv_pi;
-      alb[4 * at + 1] = b.albedo[j].y * inv_pi;
-      alb[4 * at + 2] = b.albedo[j].z * inv_pi;
-    }
+  std::vector<std::uint32_t> rlist(count, 0);
+  for (std::size_t k = 0; k < r.tiles.size(); ++k)
     for (std::size_t i = r.tiles[k].begin; i < r.tiles[k].end; ++i) rlist[i] = static_cast<std::uint32_t>(k);
-  }
-
+  const std::size_t before = dev.transfer_bytes().upload;
   upload_if_changed(dev, g.vis, g.vis_host, tv.vis, "image_splat indirect visibility ZH table");
   upload_if_changed(dev, g.dfac, g.dfac_host, tv.dfac, "image_splat indirect D table");
   upload_if_changed(dev, g.mtab, g.mtab_host, tv.mtab, "image_splat indirect M blocks (eq. 16)");
@@ -175,9 +167,6 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   upload_if_changed(dev, g.consts, g.consts_host, consts, "image_splat indirect L~ and band factors");
   upload_receivers(dev, g.receivers, r.soa, "image_splat indirect receivers");
   put(dev, g.rlist, rlist, "image_splat indirect receiver tiles");
-  put(dev, g.ranges, ranges, "image_splat indirect tile list ranges");
-  put(dev, g.proxies, sph, "image_splat indirect binned proxies");
-  put(dev, g.albedo, alb, "image_splat indirect proxy albedo");
   dev.ensure_buffer(g.out, std::max<std::size_t>(1, count) * 4 * sizeof(float), kStorage, vk::MemoryKind::Host, "image_splat indirect sums");
   const std::uint32_t zero = 0;
   dev.ensure_buffer(g.pairs, sizeof zero, kStorage, vk::MemoryKind::Host, "image_splat indirect pair count");
@@ -195,16 +184,15 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
     std::uint32_t chunk_first, chunk_count, chunk_add;
   };
   const float eta = setup.eta > 0.0 ? static_cast<float>(setup.eta) : 0.0f;
-  std::uint32_t longest = 0;
-  for (const auto& l : bins.indirect) longest = std::max(longest, static_cast<std::uint32_t>(l.size()));
+  const std::uint32_t longest = lists.longest;
   const std::uint32_t chunk = indirect_chunk(dev.device_info(), n, exact);
   const std::uint32_t n_chunks = longest <= chunk ? 1u : (longest + chunk - 1u) / chunk;
   const std::vector<vk::Bind> binds = {
       vk::Bind::texels_at(gpu::kIndBindReceivers, g.receivers, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindReceiverList, g.rlist, VK_FORMAT_R32_UINT),
-      vk::Bind::texels_at(gpu::kIndBindListRange, g.ranges, VK_FORMAT_R32G32_UINT),
-      vk::Bind::texels_at(gpu::kIndBindProxies, g.proxies, VK_FORMAT_R32G32B32A32_SFLOAT),
-      vk::Bind::texels_at(gpu::kIndBindAlbedo, g.albedo, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindListRange, *lists.ranges, VK_FORMAT_R32G32_UINT),
+      vk::Bind::texels_at(gpu::kIndBindProxies, *lists.proxies, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindAlbedo, *lists.albedo, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindVis, g.vis, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindDfac, g.dfac, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindConsts, g.consts, VK_FORMAT_R32_SFLOAT),
@@ -244,7 +232,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   }
   double pairs = 0.0;
   for (std::size_t k = 0; k < r.tiles.size(); ++k)
-    pairs += static_cast<double>(r.tiles[k].end - r.tiles[k].begin) * static_cast<double>(bins.indirect[k].size());
+    pairs += static_cast<double>(r.tiles[k].end - r.tiles[k].begin) * static_cast<double>(lists.counts[k]);
   sums->pairs = pairs;
   const double secs = timer_seconds(res);
   auto& rec = ctx.record();
@@ -254,9 +242,79 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   rec.counters["proxy_chunks"] = n_chunks;
   rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
   rec.counters["kernel_gpu_seconds"] = secs;
-  rec.counters["upload_bytes"] = static_cast<double>((sph.size() + alb.size() + 6 * count) * sizeof(float) + (rlist.size() + ranges.size()) * 4);
+  rec.counters["upload_bytes"] = static_cast<double>(uploaded + dev.transfer_bytes().upload - before);
   rec.bytes = (sums->rgb.size() + sums->omega.size()) * sizeof(float);
   return sums;
+}
+
+}  // namespace
+
+std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& ctx, const ReceiverBuffer& r, const ProxyBins& bins,
+                                                         const IndirectEvaluator& ev) {
+  check_indirect_inputs(r, bins.indirect.size(), ev);
+  // The CPU evaluator's own input checks (proxy centres, radii, albedo; same messages): an empty
+  // receiver range checks the list and evaluates nothing.
+  for (const ProxyList& l : bins.indirect) ev.accumulate(r.soa, 0, 0, l, nullptr, nullptr);
+  vk::Context& dev = vk::context_of(ctx);
+  GpuState& g = gpu_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);
+  BoundProxies lists;
+  for (const auto& l : bins.indirect) {
+    lists.counts.push_back(l.size());
+    lists.total += l.size();
+    lists.longest = std::max(lists.longest, static_cast<std::uint32_t>(l.size()));
+  }
+  common::gpu_passes::check_fits(dev, lists.total * 4 * sizeof(float), std::to_string(lists.total) + " tile-proxy pairs (binned spheres)",
+                                 "image_splat accumulate_indirect", "use fewer proxy spheres, a larger receiver_scale, or --backend cpu");
+  // The tiles' proxy lists concatenated; each receiver reads the list of its tile. Albedo / pi is
+  // folded on the host in the CPU's order (a * inv_pi, then times the pair's value).
+  const float inv_pi = static_cast<float>(1.0 / sh::kPi);
+  std::vector<float> sph(lists.total * 4), alb(lists.total * 4, 0.0f);
+  std::vector<std::uint32_t> ranges(2 * r.tiles.size(), 0);
+  std::size_t at = 0;
+  for (std::size_t k = 0; k < r.tiles.size(); ++k) {
+    const ProxyList& b = bins.indirect[k];
+    ranges[2 * k] = static_cast<std::uint32_t>(at);
+    ranges[2 * k + 1] = static_cast<std::uint32_t>(b.size());
+    for (std::size_t j = 0; j < b.size(); ++j, ++at) {
+      sph[4 * at] = b.cx[j];
+      sph[4 * at + 1] = b.cy[j];
+      sph[4 * at + 2] = b.cz[j];
+      sph[4 * at + 3] = b.r[j];
+      alb[4 * at] = b.albedo[j].x * inv_pi;
+      alb[4 * at + 1] = b.albedo[j].y * inv_pi;
+      alb[4 * at + 2] = b.albedo[j].z * inv_pi;
+    }
+  }
+  const std::size_t before = dev.transfer_bytes().upload;
+  put(dev, g.ranges, ranges, "image_splat indirect tile list ranges");
+  put(dev, g.proxies, sph, "image_splat indirect binned proxies");
+  put(dev, g.albedo, alb, "image_splat indirect proxy albedo");
+  lists.ranges = &g.ranges;
+  lists.proxies = &g.proxies;
+  lists.albedo = &g.albedo;
+  return accumulate_indirect_bound(ctx, dev, g, r, ev, lists, dev.transfer_bytes().upload - before);
+}
+
+std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& ctx, const ReceiverBuffer& r, const DeviceBins& bins,
+                                                         const IndirectEvaluator& ev) {
+  if (!bins.has_indirect || !bins.indirect_proxies)
+    throw std::logic_error("image_splat accumulate_indirect on vulkan: the device bins hold no indirect lists");
+  check_indirect_inputs(r, bins.indirect.counts.size(), ev);
+  // The evaluator's input checks on every proxy the lists were binned from (a superset of the
+  // binned ones: the same messages).
+  ev.accumulate(r.soa, 0, 0, *bins.indirect_proxies, nullptr, nullptr);
+  vk::Context& dev = vk::context_of(ctx);
+  GpuState& g = gpu_state(dev);
+  std::lock_guard<std::mutex> lock(g.m);
+  BoundProxies lists;
+  lists.counts.assign(bins.indirect.counts.begin(), bins.indirect.counts.end());
+  lists.total = bins.indirect.total;
+  lists.longest = bins.indirect.longest;
+  lists.ranges = bins.indirect.ranges;
+  lists.proxies = bins.indirect.spheres;
+  lists.albedo = bins.indirect.payload;
+  return accumulate_indirect_bound(ctx, dev, g, r, ev, lists, 0);
 }
 
 }  // namespace softgi::techniques::image_splat
