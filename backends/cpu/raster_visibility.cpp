@@ -16,7 +16,7 @@
 // bounds overlap, and each tile, on one thread, tests its triangles against all its samples.
 //
 // Watertight: two triangles that share an edge compute its E from the same two vertices in opposite
-// (or equal) order (edge_normal), so their values are exact negations (or equal) of each other at
+// (or equal) order (SOFTGI_EDGE_NORMAL), so their values are exact negations (or equal) of each other at
 // every sample, and a sample on the edge (E = 0 exactly) is covered by both; no sample falls
 // through a crack. Equal depths keep the triangle that comes first (object, then triangle index),
 // so the result does not depend on the number of threads.
@@ -110,38 +110,144 @@ struct Inverse {
   float y(float v) const { return v * ay + by; }
 };
 
-// a_i x a_j (a = p - e) for the edge from p_i to p_j, as a_lo x (p_hi - p_lo) with (lo, hi) the two
-// ends in lexicographic order: the edge vector is taken between the vertices themselves, so the
-// result carries rounding of the order of the float spacing at the eye distance, not of its square
-// (a_i x a_j directly cancels catastrophically for a small triangle far away); and an edge shared
-// by two triangles is computed from the same operands in both, so their values are exact negations
-// of each other (or equal), which keeps the test watertight.
-// The order is picked without branches (it goes either way as often): the selects move bits, so lo
-// and hi are exactly the vertices.
-vec3 edge_normal(const vec3& e, const vec3& pi, const vec3& pj) {
-  const bool swap = (pj.x < pi.x) | ((pj.x == pi.x) & ((pj.y < pi.y) | ((pj.y == pi.y) & (pj.z < pi.z))));
-  const std::uint32_t m = 0u - static_cast<std::uint32_t>(swap);
-  auto pick = [m](float a, float b) {  // b where swap, else a
-    return std::bit_cast<float>((std::bit_cast<std::uint32_t>(a) & ~m) | (std::bit_cast<std::uint32_t>(b) & m));
-  };
-  const vec3 lo(pick(pi.x, pj.x), pick(pi.y, pj.y), pick(pi.z, pj.z));
-  const vec3 hi(pick(pj.x, pi.x), pick(pj.y, pi.y), pick(pj.z, pi.z));
-  const vec3 n = glm::cross(lo - e, hi - lo);
-  const float sg = swap ? -1.0f : 1.0f;
-  return n * sg;
-}
-
 Projected project(const render::PinholeCamera& cam, const vec3& p) {
   const vec3 a = p - cam.position;
   const float z = glm::dot(a, cam.forward), r = 1.0f / z;
   return {glm::dot(a, cam.right) * r, glm::dot(a, cam.up) * r, z};
 }
 
-// Sets t up for any grid of sample rays of `cam`; false when its arithmetic overflows float (t is
-// then not live). The cheap part first: the bounds of the triangle's projection on the image
-// plane, which cull the triangles off screen or behind the eye before the edge functions are formed.
+// The part of a triangle's set-up that does not branch: the geometric normal ng, det = a0 . ng, the
+// edge normals and from them the sign-normalised linear forms, with the sums whose finiteness the
+// set-up checks. Computed for a block of triangles at a time (edge_block, vectorised across them);
+// edge_forms_reference computes them one triangle at a time with glm, the same float operations in
+// the same order, so the same bits.
+struct EdgeForms {
+  float ef[3], eu[3], er[3];
+  float sf, su, sr;
+  float det, inv_det, ng_sum, n_sum;
+};
+
+// Triangles per edge_block call.
+constexpr int kBlock = 32;
+// Block inputs: p[k * 3 + c][i], coordinate c of vertex k of triangle i.
+struct EdgeBlockIn {
+  alignas(64) float p[9][kBlock];
+};
+// Block outputs, one array per field.
+struct EdgeBlockOut {
+  alignas(64) float ef[3][kBlock], eu[3][kBlock], er[3][kBlock];
+  alignas(64) float sf[kBlock], su[kBlock], sr[kBlock], det[kBlock], inv_det[kBlock], ng_sum[kBlock], n_sum[kBlock];
+};
+
+// a_i x a_j (a = p - e) for the edge from p_i to p_j, as a_lo x (p_hi - p_lo) with (lo, hi) the two
+// ends in lexicographic order: the edge vector is taken between the vertices themselves, so the
+// result carries rounding of the order of the float spacing at the eye distance, not of its square
+// (a_i x a_j directly cancels catastrophically for a small triangle far away); and an edge shared
+// by two triangles is computed from the same operands in both, so their values are exact negations
+// of each other (or equal), which keeps the test watertight.
+// The order is picked by selects (vectorised; no branch that goes either way as often), which move
+// bits, so lo and hi are exactly the vertices; the sign of the swap multiplies the result (exact).
+// glm's cross (x.y y.z - y.y x.z, x.z y.x - y.z x.x, x.x y.y - y.x x.y) written out.
+inline void edge_normal(float ex, float ey, float ez, float pix, float piy, float piz, float pjx, float pjy, float pjz, float& nx,
+                        float& ny, float& nz) {
+  const bool swap = (pjx < pix) | ((pjx == pix) & ((pjy < piy) | ((pjy == piy) & (pjz < piz))));
+  const float lox = swap ? pjx : pix, loy = swap ? pjy : piy, loz = swap ? pjz : piz;
+  const float hix = swap ? pix : pjx, hiy = swap ? piy : pjy, hiz = swap ? piz : pjz;
+  const float ax = lox - ex, ay = loy - ey, az = loz - ez;
+  const float bx = hix - lox, by = hiy - loy, bz = hiz - loz;
+  const float sg = swap ? -1.0f : 1.0f;
+  nx = (ay * bz - by * az) * sg;
+  ny = (az * bx - bz * ax) * sg;
+  nz = (ax * by - bx * ay) * sg;
+}
+
+// The edge forms of a block of n triangles, one lane per triangle; glm's dot ((x + y) + z) written
+// out. Compiled for AVX-512 and AVX2 as well (no contraction into FMA, backends/CMakeLists.txt: the
+// same bits in every version, and those of edge_forms_reference).
+__attribute__((target_clones("avx512f", "avx2", "default"))) void edge_block(const render::PinholeCamera& cam,
+                                                                    const EdgeBlockIn& __restrict in, int n,
+                                                                    EdgeBlockOut& __restrict out) {
+  const float ex = cam.position.x, ey = cam.position.y, ez = cam.position.z;
+  const float fx = cam.forward.x, fy = cam.forward.y, fz = cam.forward.z;
+  const float upx = cam.up.x, upy = cam.up.y, upz = cam.up.z;
+  const float rx = cam.right.x, ry = cam.right.y, rz = cam.right.z;
+  for (int i = 0; i < n; ++i) {
+    const float p0x = in.p[0][i], p0y = in.p[1][i], p0z = in.p[2][i], p1x = in.p[3][i], p1y = in.p[4][i], p1z = in.p[5][i];
+    const float p2x = in.p[6][i], p2y = in.p[7][i], p2z = in.p[8][i];
+    const float ux = p1x - p0x, uy = p1y - p0y, uz = p1z - p0z, vx = p2x - p0x, vy = p2y - p0y, vz = p2z - p0z;
+    const float ngx = uy * vz - vy * uz, ngy = uz * vx - vz * ux, ngz = ux * vy - vx * uy;
+    const float det = ((p0x - ex) * ngx + (p0y - ey) * ngy) + (p0z - ez) * ngz;
+    float nx[3], ny[3], nz[3];
+    edge_normal(ex, ey, ez, p1x, p1y, p1z, p2x, p2y, p2z, nx[0], ny[0], nz[0]);
+    edge_normal(ex, ey, ez, p2x, p2y, p2z, p0x, p0y, p0z, nx[1], ny[1], nz[1]);
+    edge_normal(ex, ey, ez, p0x, p0y, p0z, p1x, p1y, p1z, nx[2], ny[2], nz[2]);
+    const float sg = det > 0.0f ? 1.0f : -1.0f;
+    for (int k = 0; k < 3; ++k) {
+      out.ef[k][i] = sg * ((nx[k] * fx + ny[k] * fy) + nz[k] * fz);
+      out.eu[k][i] = sg * ((nx[k] * upx + ny[k] * upy) + nz[k] * upz);
+      out.er[k][i] = sg * ((nx[k] * rx + ny[k] * ry) + nz[k] * rz);
+    }
+    out.sf[i] = sg * ((ngx * fx + ngy * fy) + ngz * fz);
+    out.su[i] = sg * ((ngx * upx + ngy * upy) + ngz * upz);
+    out.sr[i] = sg * ((ngx * rx + ngy * ry) + ngz * rz);
+    out.det[i] = det;
+    out.inv_det[i] = 1.0f / std::fabs(det);
+    out.ng_sum[i] = (ngx + ngy) + ngz;
+    out.n_sum[i] = ((((((((nx[0] + ny[0]) + nz[0]) + nx[1]) + ny[1]) + nz[1]) + nx[2]) + ny[2]) + nz[2]);
+  }
+}
+
+// The edge forms by glm's cross and dot, one triangle at a time: the reference the block kernel is
+// tested against (edge_form_differences).
+vec3 edge_normal_reference(const vec3& e, const vec3& pi, const vec3& pj) {
+  const bool swap = (pj.x < pi.x) || (pj.x == pi.x && (pj.y < pi.y || (pj.y == pi.y && pj.z < pi.z)));
+  const vec3 lo = swap ? pj : pi, hi = swap ? pi : pj;
+  return glm::cross(lo - e, hi - lo) * (swap ? -1.0f : 1.0f);
+}
+
+EdgeForms edge_forms_reference(const render::PinholeCamera& cam, const vec3& p0, const vec3& p1, const vec3& p2) {
+  const vec3& e = cam.position;
+  EdgeForms f;
+  const vec3 ng = glm::cross(p1 - p0, p2 - p0);
+  f.det = glm::dot(p0 - e, ng);
+  const vec3 n[3] = {edge_normal_reference(e, p1, p2), edge_normal_reference(e, p2, p0), edge_normal_reference(e, p0, p1)};
+  f.ng_sum = ng.x + ng.y + ng.z;
+  f.n_sum = n[0].x + n[0].y + n[0].z + n[1].x + n[1].y + n[1].z + n[2].x + n[2].y + n[2].z;
+  const float sg = f.det > 0.0f ? 1.0f : -1.0f;
+  for (int k = 0; k < 3; ++k) {
+    f.ef[k] = sg * glm::dot(n[k], cam.forward);
+    f.eu[k] = sg * glm::dot(n[k], cam.up);
+    f.er[k] = sg * glm::dot(n[k], cam.right);
+  }
+  f.sf = sg * glm::dot(ng, cam.forward);
+  f.su = sg * glm::dot(ng, cam.up);
+  f.sr = sg * glm::dot(ng, cam.right);
+  f.inv_det = 1.0f / std::fabs(f.det);
+  return f;
+}
+
+EdgeForms block_forms(const EdgeBlockOut& b, int i) {
+  EdgeForms f;
+  for (int k = 0; k < 3; ++k) {
+    f.ef[k] = b.ef[k][i];
+    f.eu[k] = b.eu[k][i];
+    f.er[k] = b.er[k][i];
+  }
+  f.sf = b.sf[i];
+  f.su = b.su[i];
+  f.sr = b.sr[i];
+  f.det = b.det[i];
+  f.inv_det = b.inv_det[i];
+  f.ng_sum = b.ng_sum[i];
+  f.n_sum = b.n_sum[i];
+  return f;
+}
+
+// Sets t up for any grid of sample rays of `cam` from its edge forms; false when its arithmetic
+// overflows float (t is then not live). The bounds of the triangle's projection on the image plane
+// cull the triangles off screen or behind the eye.
 bool set_up(const render::PinholeCamera& cam, float ue, float ve, const vec3& p0, const vec3& p1, const vec3& p2,
-            const Projected& q0, const Projected& q1, const Projected& q2, Tri& t) {
+            const Projected& q0, const Projected& q1, const Projected& q2, const EdgeForms& f, Tri& t) {
   t.live = false;
   const vec3& e = cam.position;
   const float z[3] = {q0.z, q1.z, q2.z};
@@ -186,25 +292,20 @@ bool set_up(const render::PinholeCamera& cam, float ue, float ve, const vec3& p0
   const bool off_screen = umax < -ue || umin > ue || vmax < -ve || vmin > ve;
   // Off screen; a triangle whose bounds overflowed still has its arithmetic checked below.
   if (off_screen && std::isfinite(umin + umax + vmin + vmax)) return true;
-  const vec3 ng = glm::cross(p1 - p0, p2 - p0);
-  const float det = glm::dot(p0 - e, ng);
-  const vec3 n[3] = {edge_normal(e, p1, p2), edge_normal(e, p2, p0), edge_normal(e, p0, p1)};
-  if (!std::isfinite(det) || !std::isfinite(ng.x + ng.y + ng.z) ||
-      !std::isfinite(n[0].x + n[0].y + n[0].z + n[1].x + n[1].y + n[1].z + n[2].x + n[2].y + n[2].z))
-    return false;
+  if (!std::isfinite(f.det) || !std::isfinite(f.ng_sum) || !std::isfinite(f.n_sum)) return false;
   // det = 0: degenerate, or the eye lies in the triangle's plane; no ray meets it at a point.
-  if (det == 0.0f || off_screen) return true;
-  // Multiplying by the sign of det is exact, so shared edges stay exact negations (watertight).
-  const float sg = det > 0.0f ? 1.0f : -1.0f;
+  if (f.det == 0.0f || off_screen) return true;
+  // The forms were multiplied by the sign of det, which is exact, so shared edges stay exact
+  // negations (watertight).
   for (int k = 0; k < 3; ++k) {
-    t.ef[k] = sg * glm::dot(n[k], cam.forward);
-    t.eu[k] = sg * glm::dot(n[k], cam.up);
-    t.er[k] = sg * glm::dot(n[k], cam.right);
+    t.ef[k] = f.ef[k];
+    t.eu[k] = f.eu[k];
+    t.er[k] = f.er[k];
   }
-  t.sf = sg * glm::dot(ng, cam.forward);
-  t.su = sg * glm::dot(ng, cam.up);
-  t.sr = sg * glm::dot(ng, cam.right);
-  t.inv_det = 1.0f / std::fabs(det);
+  t.sf = f.sf;
+  t.su = f.su;
+  t.sr = f.sr;
+  t.inv_det = f.inv_det;
   t.live = std::isfinite(t.inv_det);  // |det| below float's range: no sample can resolve it
   return true;
 }
@@ -228,8 +329,8 @@ void grid_bounds(const Inverse& inv, int W, int H, Tri& t) {
 }
 
 // Tests the triangles of one tile against its samples and keeps the nearest. Compiled for AVX-512 and
-// AVX2 as well, chosen at load time; every version computes the same values (ISO C++ mode: no
-// contraction into FMA).
+// AVX2 as well, chosen at load time; every version computes the same values (this file is compiled
+// with -ffp-contract=off: backends/CMakeLists.txt).
 __attribute__((target_clones("avx512f", "avx2", "default"))) void raster_tile(const Tri* __restrict tris, const std::uint32_t* list,
                                                                      std::size_t count, const float* __restrict sx,
                                                                      const float* __restrict sy, int ty, int rows,
@@ -314,19 +415,39 @@ void set_up_frame(const render::PinholeCamera& cam, float ue, float ve, const sc
   std::atomic<std::size_t> first_large{std::numeric_limits<std::size_t>::max()};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, total, kChunk), [&](const tbb::blocked_range<std::size_t>& r) {
     std::size_t k = static_cast<std::size_t>(std::upper_bound(sc.first.begin(), sc.first.end(), r.begin()) - sc.first.begin()) - 1;
-    for (std::size_t g = r.begin(); g != r.end(); ++g) {
-      while (k + 1 < sc.first.size() && g >= sc.first[k + 1]) ++k;
-      const scene::PosedObject& o = posed.objects[static_cast<std::size_t>(sc.objects[k])];
-      const std::size_t t = g - sc.first[k];
-      const glm::uvec3 tri = o.source->triangles[t];
-      Tri& out = sc.tris[g];
-      out.object = sc.objects[k];
-      out.prim = static_cast<int>(t);
-      const Projected* q = proj.data() + vfirst[k];
-      if (!set_up(cam, ue, ve, o.positions[tri.x], o.positions[tri.y], o.positions[tri.z], q[tri.x], q[tri.y], q[tri.z],
-                  out)) {
-        std::size_t cur = first_large.load();
-        while (g < cur && !first_large.compare_exchange_weak(cur, g)) {
+    EdgeBlockIn in;
+    EdgeBlockOut forms;
+    std::array<glm::uvec3, kBlock> corners;
+    std::array<std::size_t, kBlock> object;
+    for (std::size_t g0 = r.begin(); g0 < r.end(); g0 += kBlock) {
+      const int n = static_cast<int>(std::min<std::size_t>(kBlock, r.end() - g0));
+      for (int i = 0; i < n; ++i) {
+        const std::size_t g = g0 + static_cast<std::size_t>(i);
+        while (k + 1 < sc.first.size() && g >= sc.first[k + 1]) ++k;
+        const scene::PosedObject& o = posed.objects[static_cast<std::size_t>(sc.objects[k])];
+        object[i] = k;
+        corners[i] = o.source->triangles[g - sc.first[k]];
+        for (int v = 0; v < 3; ++v) {
+          const vec3& p = o.positions[corners[i][v]];
+          in.p[3 * v][i] = p.x;
+          in.p[3 * v + 1][i] = p.y;
+          in.p[3 * v + 2][i] = p.z;
+        }
+      }
+      edge_block(cam, in, n, forms);
+      for (int i = 0; i < n; ++i) {
+        const std::size_t g = g0 + static_cast<std::size_t>(i), ok = object[i];
+        const scene::PosedObject& o = posed.objects[static_cast<std::size_t>(sc.objects[ok])];
+        const glm::uvec3 tri = corners[i];
+        Tri& out = sc.tris[g];
+        out.object = sc.objects[ok];
+        out.prim = static_cast<int>(g - sc.first[ok]);
+        const Projected* q = proj.data() + vfirst[ok];
+        if (!set_up(cam, ue, ve, o.positions[tri.x], o.positions[tri.y], o.positions[tri.z], q[tri.x], q[tri.y], q[tri.z],
+                    block_forms(forms, i), out)) {
+          std::size_t cur = first_large.load();
+          while (g < cur && !first_large.compare_exchange_weak(cur, g)) {
+          }
         }
       }
     }
@@ -341,6 +462,32 @@ void set_up_frame(const render::PinholeCamera& cam, float ue, float ve, const sc
 }
 
 }  // namespace
+
+std::size_t edge_form_differences(const render::PinholeCamera& cam, const scene::PosedScene& posed) {
+  std::size_t differ = 0;
+  EdgeBlockIn in;
+  EdgeBlockOut forms;
+  std::vector<std::array<vec3, 3>> tris;
+  for (const scene::PosedObject& o : posed.objects) {
+    if (!o.source) continue;
+    for (const glm::uvec3& t : o.source->triangles)
+      if (t.x < o.positions.size() && t.y < o.positions.size() && t.z < o.positions.size())
+        tris.push_back({o.positions[t.x], o.positions[t.y], o.positions[t.z]});
+  }
+  const auto bits = [](const EdgeForms& f) { return std::bit_cast<std::array<std::uint32_t, sizeof(EdgeForms) / 4>>(f); };
+  for (std::size_t g0 = 0; g0 < tris.size(); g0 += kBlock) {
+    const int n = static_cast<int>(std::min<std::size_t>(kBlock, tris.size() - g0));
+    for (int i = 0; i < n; ++i)
+      for (int v = 0; v < 3; ++v)
+        for (int c = 0; c < 3; ++c) in.p[3 * v + c][i] = tris[g0 + static_cast<std::size_t>(i)][v][c];
+    edge_block(cam, in, n, forms);
+    for (int i = 0; i < n; ++i) {
+      const auto& t = tris[g0 + static_cast<std::size_t>(i)];
+      differ += bits(block_forms(forms, i)) != bits(edge_forms_reference(cam, t[0], t[1], t[2]));
+    }
+  }
+  return differ;
+}
 
 void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who,
                           render::GBuffer& gb, RasterStats& stats, std::uint64_t frame) {

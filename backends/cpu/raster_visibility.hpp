@@ -35,4 +35,9 @@ struct RasterStats {
 void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedScene& posed, const char* who,
                           render::GBuffer& gb, RasterStats& stats, std::uint64_t frame = 0);
 
+// The triangles' edge forms (the branch-free part of their set-up) computed by the vectorised block
+// kernel rasterise_visibility uses and one triangle at a time with glm's cross and dot: how many
+// triangles of `posed` differ in any bit (0: the vector code is the same arithmetic). For the tests.
+std::size_t edge_form_differences(const render::PinholeCamera& cam, const scene::PosedScene& posed);
+
 }  // namespace softgi::backends::cpu_raster

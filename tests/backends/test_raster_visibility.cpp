@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "../../backends/cpu/raster_visibility.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -399,5 +400,55 @@ TEST(RasterVisibility, ReceiverSamplesBeyondTheDisplayImageSeeTheGeometryThere) 
       for (int x = 0; x < r.width; ++x)
         EXPECT_TRUE(r.hit(static_cast<std::size_t>(y) * r.width + x))
             << "receiver sample (" << x << ", " << y << ")" << (display_first ? " after the display buffer" : "");
+  }
+}
+
+// The set-up's edge forms (edge normals with their lexicographic selects, geometric normal, det and
+// the twelve dot products) come from a kernel vectorised across triangles; it must give the bits of
+// the same arithmetic done one triangle at a time with glm (the set-up before it was vectorised):
+// every triangle of every asset-free built-in scene from its camera and from random eyes, and random
+// triangles spanning float's range (tiny, huge, denormal, shared coordinates that exercise the
+// lexicographic ties, eyes inside the triangle's plane).
+TEST(RasterVisibility, TheVectorisedSetUpIsTheScalarArithmetic) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::size_t triangles = 0;
+  for (const auto& info : scene::builtin_scenes()) {
+    if (info.needs_assets) continue;
+    scene::Scene sc = scene::make_builtin(info.name);
+    const scene::PosedScene posed = scene::evaluate(sc, 0.5);
+    for (int view = 0; view < 3; ++view) {
+      SCOPED_TRACE(info.name + " view " + std::to_string(view));
+      if (view > 0) sc.camera.position = sc.camera.target + glm::vec3(4.0f * u(rng), 4.0f * u(rng), 4.0f * u(rng));
+      const render::PinholeCamera cam = render::make_pinhole_camera(sc, 64, 48, "test");
+      EXPECT_EQ(backends::cpu_raster::edge_form_differences(cam, posed), 0u);
+      for (const auto& o : posed.objects) triangles += o.source ? o.source->triangles.size() : 0;
+    }
+  }
+  EXPECT_GT(triangles, 10000u);
+  // Random triangles: coordinates from a few shared values (ties in every coordinate) and from a
+  // log-uniform spread over float's range.
+  std::uniform_int_distribution<int> pick(0, 5), expo(-40, 30);
+  const float shared[6] = {0.0f, -0.0f, 1.0f, -1.0f, 1e-42f, 3.5f};
+  scene::Mesh m;
+  m.name = "random";
+  for (int t = 0; t < 3000; ++t) {
+    for (int v = 0; v < 3; ++v) {
+      glm::vec3 p;
+      for (int c = 0; c < 3; ++c)
+        p[c] = t % 3 == 0 ? shared[pick(rng)] : u(rng) * std::ldexp(1.0f, t % 3 == 1 ? expo(rng) : 0);
+      m.positions.push_back(p);
+      m.normals.push_back({0.0f, 0.0f, 1.0f});
+    }
+    const unsigned b = static_cast<unsigned>(3 * t);
+    m.triangles.push_back({b, b + 1, b + 2});
+  }
+  scene::Scene sc = one_mesh_scene(m, 32, 32);
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  for (const glm::vec3 eye : {glm::vec3(0.0f, 0.0f, 5.0f), glm::vec3(0.0f), glm::vec3(1.0f, 1.0f, 1.0f), glm::vec3(1e-30f, 2e20f, -3.0f)}) {
+    sc.camera.position = eye;
+    sc.camera.target = eye + glm::vec3(0.3f, -0.2f, -1.0f);
+    const render::PinholeCamera cam = render::make_pinhole_camera(sc, 32, 32, "test");
+    EXPECT_EQ(backends::cpu_raster::edge_form_differences(cam, posed), 0u) << "eye " << eye.x << ", " << eye.y << ", " << eye.z;
   }
 }
