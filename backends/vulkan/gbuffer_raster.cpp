@@ -417,16 +417,15 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
   stats.draws = static_cast<long long>(draws.size());
 
   render::GBuffer gb = render::GBuffer::background(bw, bh, scale, &fc.pool(), planes);
-  const float fs = static_cast<float>(scale);
-  auto ray = [&](int x, int y) {
-    // (x + 0.5) * 1 is exact in float: at s = 1 this is pixel_center_direction(x, y), as on the CPU.
-    return cam.direction((static_cast<float>(x) + 0.5f) * fs, (static_cast<float>(y) + 0.5f) * fs);
-  };
+  // The CPU G-buffer's ray of each pixel (PinholeCamera::buffer_direction).
+  auto ray = [&](int x, int y) { return cam.buffer_direction(x, y, scale); };
 
-  // Nothing in front of the camera: every pixel is background (no GPU work).
+  // Nothing in front of the camera: every pixel is background (no GPU work); the background's view
+  // directions where the frame holds that plane.
   if (draws.empty() || !(max_depth > 0.0f)) {
-    for (int y = 0; y < bh; ++y)
-      for (int x = 0; x < bw; ++x) gb.view_dir[static_cast<std::size_t>(y) * bw + x] = ray(x, y);
+    if (gb.planes & render::kGBufferViewDir)
+      for (int y = 0; y < bh; ++y)
+        for (int x = 0; x < bw; ++x) gb.view_dir[static_cast<std::size_t>(y) * bw + x] = ray(x, y);
     return gb;
   }
   const float near_plane = kNearRelative * max_depth;
@@ -460,7 +459,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
   frame.forward = glm::vec4(cam.forward, 0.0f);
   frame.right = glm::vec4(cam.right, 0.0f);
   frame.up = glm::vec4(cam.up, 0.0f);
-  frame.image = glm::vec4(static_cast<float>(cam.width), static_cast<float>(cam.height), fs, cam.tan_half_fov_y);
+  frame.image = glm::vec4(static_cast<float>(cam.width), static_cast<float>(cam.height), static_cast<float>(scale), cam.tan_half_fov_y);
   frame.image2 = glm::vec4(cam.aspect, 0.0f, 0.0f, 0.0f);
   std::memcpy(state->frame.mapped(), &frame, sizeof frame);
   ctx.note_transfer(sizeof frame, 0);

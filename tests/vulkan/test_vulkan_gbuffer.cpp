@@ -11,6 +11,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
@@ -20,7 +21,10 @@
 #include "softgi/render/frame.hpp"
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/render/params.hpp"
+#include "softgi/render/technique.hpp"
 #include "softgi/scene/builtin.hpp"
+#include "softgi/techniques/image_splat.hpp"
+#include "softgi/techniques/shexp.hpp"
 #include "../backends/test_scene_util.hpp"
 #include "vulkan_test_util.hpp"
 
@@ -228,5 +232,38 @@ TEST_F(VulkanGBuffer, BadGeometryIsAnErrorNamingTheMesh) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("mesh '" + mesh + "'"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("999999"), std::string::npos) << e.what();
+  }
+}
+
+// A camera with every surface behind it: the Vulkan G-buffer draws nothing and fills the background
+// itself, for a frame that holds only the visibility planes (SHEXP, which derives the background
+// rays) as well as for one that holds every plane (image_splat). Both frames are the CPU backend's
+// background, and nothing is written to a plane the frame does not hold (this crashed).
+TEST_F(VulkanGBuffer, ACameraFacingAwayFromEverySurfaceSeesTheBackground) {
+  scene::Scene sc = scene::make_builtin("spheres");
+  sc.camera.target = sc.camera.position + glm::vec3(1e-3f, 1.0f, 0.0f);  // straight up: the floor is below the eye
+  sc.camera.up = {0.0f, 0.0f, 1.0f};
+  render::RenderRequest req;
+  req.width = 32;
+  req.height = 24;
+  std::vector<std::unique_ptr<render::Technique>> techs;
+  techs.push_back(techniques::shexp::create());
+  techs.push_back(techniques::image_splat::create());
+  for (const auto& tech : techs) {
+    SCOPED_TRACE(tech->name());
+    const render::ParamSet params = render::default_params(*tech);
+    const render::FrameResult a = vulkan_->render(*tech, sc, params, req);
+    const render::FrameResult b = cpu_->render(*tech, sc, params, req);
+    ASSERT_EQ(a.final_image.rgb.size(), b.final_image.rgb.size());
+    float peak = 0.0f, diff = 0.0f;
+    for (std::size_t i = 0; i < a.final_image.rgb.size(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        ASSERT_TRUE(std::isfinite(a.final_image.rgb[i][c]));
+        peak = std::max(peak, std::abs(b.final_image.rgb[i][c]));
+        diff = std::max(diff, std::abs(a.final_image.rgb[i][c] - b.final_image.rgb[i][c]));
+      }
+    EXPECT_GT(peak, 0.0f) << "the sky is lit";
+    // The same host function of the same rays on both backends.
+    EXPECT_EQ(diff, 0.0f);
   }
 }
