@@ -81,18 +81,6 @@ void ol_table(vk::Context& dev, GpuState& g, const std::shared_ptr<const sh::ShT
 }
 
 // common::ProductPlan in the exponentiate shader's form.
-}  // namespace
-
-namespace {
-
-// The shadow lists accumulate_log.comp reads, wherever they were built: device buffers to bind and
-// the entries per tile.
-struct BoundLists {
-  const vk::Buffer *ranges = nullptr, *blockers = nullptr, *weights = nullptr;
-  std::vector<std::size_t> counts;  // per tile
-  std::uint32_t longest = 0;
-  std::size_t total = 0;
-};
 
 void check_accumulate_inputs(vk::Context& dev, const ShadowTables& t, const ReceiverBuffer& r, std::size_t lists, std::size_t total) {
   const int n = t.order, n2 = n * n;
@@ -115,7 +103,7 @@ void check_accumulate_inputs(vk::Context& dev, const ShadowTables& t, const Rece
 // accumulate_log over `lists` (bound under g.m, which the caller holds), receivers and the
 // receiver-to-tile map uploaded when they change.
 void accumulate_log_bound(render::FrameContext& ctx, vk::Context& dev, GpuState& g, const Settings& s, const ShadowTables& t,
-                          const ReceiverBuffer& r, const BoundLists& lists, std::size_t uploaded, const std::string& out) {
+                          const ReceiverBuffer& r, const DeviceBinList& lists, std::size_t uploaded, const std::string& out) {
   const int n = t.order, n2 = n * n;
   const std::size_t count = r.soa.size();
   std::vector<std::uint32_t> rlist(count, 0);
@@ -136,7 +124,7 @@ void accumulate_log_bound(render::FrameContext& ctx, vk::Context& dev, GpuState&
   vk::SubmitResult res;
   std::uint32_t chunks = 0;
   if (count)
-    res = run_accumulate_log(dev, p, {g.inputs.receivers, g.inputs.rlist, *lists.ranges, *lists.blockers, *lists.weights, table, basis_constants(dev), g.log_out}, count, t.log,
+    res = run_accumulate_log(dev, p, {g.inputs.receivers, g.inputs.rlist, *lists.ranges, *lists.spheres, *lists.payload, table, basis_constants(dev), g.log_out}, count, t.log,
                              lists.longest, "image_splat accumulate_log", pair_cut_factor(t, s.rule), &chunks);
 
   double pairs = 0.0;
@@ -163,10 +151,11 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
-  BoundLists lists;
+  DeviceBinList lists;
   for (const auto& l : bins.shadow) {
-    lists.counts.push_back(l.size());
+    lists.counts.push_back(static_cast<std::uint32_t>(l.size()));
     lists.total += l.size();
+    lists.longest = std::max(lists.longest, static_cast<std::uint32_t>(l.size()));
   }
   check_accumulate_inputs(dev, t, r, bins.shadow.size(), lists.total);
   // The tiles' blocker lists concatenated; each receiver reads the list of its tile.
@@ -175,10 +164,9 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   put_if_changed(dev, g.inputs.ranges, g.inputs.ranges_hash, packed.ranges, "image_splat list ranges");
   put_if_changed(dev, g.inputs.blockers, g.inputs.blockers_hash, packed.sph, "image_splat blocker spheres");
   put_if_changed(dev, g.inputs.weights, g.inputs.weights_hash, packed.w, "image_splat band weights");
-  for (const auto& l : bins.shadow) lists.longest = std::max(lists.longest, static_cast<std::uint32_t>(l.size()));
   lists.ranges = &g.inputs.ranges;
-  lists.blockers = &g.inputs.blockers;
-  lists.weights = &g.inputs.weights;
+  lists.spheres = &g.inputs.blockers;
+  lists.payload = &g.inputs.weights;
   accumulate_log_bound(ctx, dev, g, s, t, r, lists, dev.transfer_bytes().upload - before, out);
 }
 
@@ -188,14 +176,7 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
   check_accumulate_inputs(dev, t, r, bins.shadow.counts.size(), bins.shadow.total);
-  BoundLists lists;
-  lists.counts.assign(bins.shadow.counts.begin(), bins.shadow.counts.end());
-  lists.total = bins.shadow.total;
-  lists.longest = bins.shadow.longest;
-  lists.ranges = bins.shadow.ranges;
-  lists.blockers = bins.shadow.spheres;
-  lists.weights = bins.shadow.payload;
-  accumulate_log_bound(ctx, dev, g, s, t, r, lists, 0, out);
+  accumulate_log_bound(ctx, dev, g, s, t, r, bins.shadow, 0, out);
 }
 
 bool vulkan_exp_supports(ExpMode m) { return m == ExpMode::HYB || m == ExpMode::OL || m == ExpMode::PSStar || m == ExpMode::PS; }

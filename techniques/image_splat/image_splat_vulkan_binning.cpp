@@ -189,17 +189,19 @@ BinCounts vulkan_bin_proxies(render::FrameContext& ctx, const ReceiverBuffer& r,
 
   BinCounts res;
   res.gpu_seconds = 0.0;
-  if (nt > 0) {
-    const vk::SubmitResult counted = dev.submit([&](vk::Recorder& rec) {
+  // One submission of every dispatch of `mode`, each list kind's count[] zeroed first.
+  auto run_mode = [&](std::uint32_t mode, const char* label) {
+    const vk::SubmitResult done = dev.submit([&](vk::Recorder& rec) {
       for (std::size_t q = 0; q < in.size(); ++q) rec.fill(kinds[q]->count, 0u);
       rec.barrier();
-      rec.begin_timer("bin_count");
-      for (std::size_t q = 0; q < in.size(); ++q) record_kind(rec, pipe, binds_of(st.tiles, *kinds[q]), gpu::kBinCount, nt, in[q], chunk);
+      rec.begin_timer(label);
+      for (std::size_t q = 0; q < in.size(); ++q) record_kind(rec, pipe, binds_of(st.tiles, *kinds[q]), mode, nt, in[q], chunk);
       rec.end_timer();
       rec.barrier();
-    }, pass + " count");
-    res.gpu_seconds += std::max(0.0, timer_seconds(counted));
-  }
+    }, pass + " " + label);
+    res.gpu_seconds += std::max(0.0, timer_seconds(done));
+  };
+  if (nt > 0) run_mode(gpu::kBinCount, "bin_count");
 
   // The lists laid out from the counts: each tile's list starts where the previous one ends.
   auto bins = std::make_shared<DeviceBins>();
@@ -241,15 +243,7 @@ BinCounts vulkan_bin_proxies(render::FrameContext& ctx, const ReceiverBuffer& r,
     res.bytes += at * (16 * (1 + in[q].payload) + 4) + ranges.size() * 4;
   }
   if (nt > 0) {
-    const vk::SubmitResult scattered = dev.submit([&](vk::Recorder& rec) {
-      for (std::size_t q = 0; q < in.size(); ++q) rec.fill(kinds[q]->count, 0u);
-      rec.barrier();
-      rec.begin_timer("bin_scatter");
-      for (std::size_t q = 0; q < in.size(); ++q) record_kind(rec, pipe, binds_of(st.tiles, *kinds[q]), gpu::kBinScatter, nt, in[q], chunk);
-      rec.end_timer();
-      rec.barrier();
-    }, pass + " scatter");
-    res.gpu_seconds += std::max(0.0, timer_seconds(scattered));
+    run_mode(gpu::kBinScatter, "bin_scatter");
     // Each tile's scatter wrote as many entries as its count found: a driver that ended a loop early
     // (or any other disagreement of the two modes) would leave lists with stale entries.
     for (std::size_t q = 0; q < in.size(); ++q) {

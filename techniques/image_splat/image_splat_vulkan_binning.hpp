@@ -19,8 +19,9 @@ namespace softgi::techniques::image_splat {
 // One kind of per-tile list on the device: ranges (uvec2 per tile: first entry, count), spheres
 // (vec4 per entry: centre, radius), payload (`payload` vec4s per entry: the band weights in rows of
 // weight_stride(order) floats for shadows, albedo / pi for indirect light) and index (the entry's
-// proxy in the flat list). The buffers belong to the device's binning state and hold this frame's
-// lists until the next frame bins again.
+// proxy in the flat list). vulkan_bin_proxies' buffers belong to the device's binning state and hold
+// this frame's lists until the next frame bins again; accumulate_log and accumulate_indirect also
+// describe the lists they packed from host bins this way (index null).
 struct DeviceBinList {
   const backends::vulkan::Buffer* ranges = nullptr;
   const backends::vulkan::Buffer* spheres = nullptr;

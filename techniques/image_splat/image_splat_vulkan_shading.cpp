@@ -112,15 +112,6 @@ std::uint32_t indirect_chunk(const vk::DeviceInfo& d, int order, bool exact) {
 
 namespace {
 
-// The proxy lists accumulate_indirect.comp reads, wherever they were built: device buffers to bind
-// and the entries per tile.
-struct BoundProxies {
-  const vk::Buffer *ranges = nullptr, *proxies = nullptr, *albedo = nullptr;
-  std::vector<std::size_t> counts;  // per tile
-  std::uint32_t longest = 0;
-  std::size_t total = 0;
-};
-
 // The operator, the tables' layout and the receiver count, checked before anything is uploaded.
 void check_indirect_inputs(const ReceiverBuffer& r, std::size_t lists, const IndirectEvaluator& ev) {
   const IndirectSetup& setup = ev.setup();
@@ -143,7 +134,7 @@ void check_indirect_inputs(const ReceiverBuffer& r, std::size_t lists, const Ind
 
 // accumulate_indirect over `lists` (bound under g.m, which the caller holds).
 std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ctx, vk::Context& dev, GpuState& g, const ReceiverBuffer& r,
-                                                        const IndirectEvaluator& ev, const BoundProxies& lists, std::size_t uploaded) {
+                                                        const IndirectEvaluator& ev, const DeviceBinList& lists, std::size_t uploaded) {
   const IndirectSetup& setup = ev.setup();
   const IndirectEvaluator::TableView tv = ev.tables();
   const int n = tv.order;
@@ -191,8 +182,8 @@ std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ct
       vk::Bind::texels_at(gpu::kIndBindReceivers, g.receivers, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindReceiverList, g.rlist, VK_FORMAT_R32_UINT),
       vk::Bind::texels_at(gpu::kIndBindListRange, *lists.ranges, VK_FORMAT_R32G32_UINT),
-      vk::Bind::texels_at(gpu::kIndBindProxies, *lists.proxies, VK_FORMAT_R32G32B32A32_SFLOAT),
-      vk::Bind::texels_at(gpu::kIndBindAlbedo, *lists.albedo, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindProxies, *lists.spheres, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindAlbedo, *lists.payload, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindVis, g.vis, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindDfac, g.dfac, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindConsts, g.consts, VK_FORMAT_R32_SFLOAT),
@@ -258,9 +249,9 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
-  BoundProxies lists;
+  DeviceBinList lists;
   for (const auto& l : bins.indirect) {
-    lists.counts.push_back(l.size());
+    lists.counts.push_back(static_cast<std::uint32_t>(l.size()));
     lists.total += l.size();
     lists.longest = std::max(lists.longest, static_cast<std::uint32_t>(l.size()));
   }
@@ -291,8 +282,8 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   put(dev, g.proxies, sph, "image_splat indirect binned proxies");
   put(dev, g.albedo, alb, "image_splat indirect proxy albedo");
   lists.ranges = &g.ranges;
-  lists.proxies = &g.proxies;
-  lists.albedo = &g.albedo;
+  lists.spheres = &g.proxies;
+  lists.payload = &g.albedo;
   return accumulate_indirect_bound(ctx, dev, g, r, ev, lists, dev.transfer_bytes().upload - before);
 }
 
@@ -307,14 +298,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
-  BoundProxies lists;
-  lists.counts.assign(bins.indirect.counts.begin(), bins.indirect.counts.end());
-  lists.total = bins.indirect.total;
-  lists.longest = bins.indirect.longest;
-  lists.ranges = bins.indirect.ranges;
-  lists.proxies = bins.indirect.spheres;
-  lists.albedo = bins.indirect.payload;
-  return accumulate_indirect_bound(ctx, dev, g, r, ev, lists, 0);
+  return accumulate_indirect_bound(ctx, dev, g, r, ev, bins.indirect, 0);
 }
 
 }  // namespace softgi::techniques::image_splat
