@@ -151,12 +151,7 @@ void vulkan_accumulate_log(render::FrameContext& ctx, const Settings& s, const S
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
-  DeviceBinList lists;
-  for (const auto& l : bins.shadow) {
-    lists.counts.push_back(static_cast<std::uint32_t>(l.size()));
-    lists.total += l.size();
-    lists.longest = std::max(lists.longest, static_cast<std::uint32_t>(l.size()));
-  }
+  DeviceBinList lists = host_lists(bins.shadow);
   check_accumulate_inputs(dev, t, r, bins.shadow.size(), lists.total);
   // The tiles' blocker lists concatenated; each receiver reads the list of its tile.
   const PackedBlockers packed = pack_blocker_lists(bins.shadow, t.order, 0, 1.0f, "image_splat", "order");

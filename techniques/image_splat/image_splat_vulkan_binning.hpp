@@ -4,6 +4,7 @@
 // bins nor packs nor uploads them. Includes the Vulkan headers: include only from *_vulkan*.cpp.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -31,6 +32,19 @@ struct DeviceBinList {
   std::uint32_t longest = 0;
   std::size_t total = 0;
 };
+// The entries per tile, their total and the longest list of host-binned lists (BlockerLists or
+// ProxyLists), as a DeviceBinList whose buffers the caller fills in once it has packed them.
+template <class List>
+DeviceBinList host_lists(const std::vector<List>& lists) {
+  DeviceBinList d;
+  for (const List& l : lists) {
+    d.counts.push_back(static_cast<std::uint32_t>(l.size()));
+    d.total += l.size();
+    d.longest = std::max(d.longest, static_cast<std::uint32_t>(l.size()));
+  }
+  return d;
+}
+
 // The device copy of image_splat's bins resource: shadow lists always, indirect lists when
 // indirect light is on (then `has_indirect`).
 struct DeviceBins {

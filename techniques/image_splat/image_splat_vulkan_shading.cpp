@@ -249,12 +249,7 @@ std::shared_ptr<IndirectSums> vulkan_accumulate_indirect(render::FrameContext& c
   vk::Context& dev = vk::context_of(ctx);
   GpuState& g = gpu_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
-  DeviceBinList lists;
-  for (const auto& l : bins.indirect) {
-    lists.counts.push_back(static_cast<std::uint32_t>(l.size()));
-    lists.total += l.size();
-    lists.longest = std::max(lists.longest, static_cast<std::uint32_t>(l.size()));
-  }
+  DeviceBinList lists = host_lists(bins.indirect);
   common::gpu_passes::check_fits(dev, lists.total * 4 * sizeof(float), std::to_string(lists.total) + " tile-proxy pairs (binned spheres)",
                                  "image_splat accumulate_indirect", "use fewer proxy spheres, a larger receiver_scale, or --backend cpu");
   // The tiles' proxy lists concatenated; each receiver reads the list of its tile. Albedo / pi is
