@@ -21,17 +21,8 @@
 //   view_dir         host: -PinholeCamera::direction of the pixel (hits), the direction itself for
 //                    background; a function of the pixel alone, so the same float operations as the CPU.
 //
-// Projection. Pixel (x, y) of a buffer of scale s (ceil(W/s) x ceil(H/s) pixels) must see the display
-// camera's ray through display point ((x + 0.5) s, (y + 0.5) s). In camera coordinates u = R.(p - e),
-// v = U.(p - e), z = E.(p - e), that ray has u/z = (2 (x + 0.5) s / W - 1) t a and
-// v/z = (1 - 2 (y + 0.5) s / H) t (t = tan(fov_y / 2), a = W / H: PinholeCamera::direction). The
-// rasteriser's pixel centre x + 0.5 is NDC x_n = 2 (x + 0.5) / W' - 1 (W' = ceil(W/s), Vulkan's y
-// axis points down), so with k_x = W' s / W and k_y = H' s / H (both 1 at s = 1):
-//   x_c = u / (k_x t a) - (k_x - 1) / k_x z,   y_c = -v / (k_y t) - (k_y - 1) / k_y z,   w_c = z.
-// Depth: reverse-Z with an infinite far plane, z_c = n (depth n / z in (0, 1], compare GREATER,
-// cleared to 0): float depth keeps the same relative resolution (2^-24) at every distance, so the
-// near plane n can be tiny (kNearRelative of the farthest vertex) and clips nothing the ray caster
-// (tnear = 0) would see in practice.
+// Projection: vulkan::clip_from_world (softgi/backends/vulkan/projection.hpp), reverse Z with an
+// infinite far plane; the near plane is kNearRelative of the farthest vertex.
 #include "gbuffer_raster.hpp"
 
 #include <algorithm>
@@ -52,6 +43,7 @@
 #include "gbuffer_shared.h"
 #include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/backends/vulkan/projection.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/frame.hpp"
@@ -310,31 +302,6 @@ Targets& targets_for(vk::Context& ctx, RasterState& st, std::uint32_t w, std::ui
   return *st.targets.back();
 }
 
-// clip_from_world for a buffer of bw x bh pixels sampling display points ((x + 0.5) s, (y + 0.5) s)
-// of camera `cam` (derivation at the top of this file). glm matrices are column-major: m[col][row].
-glm::mat4 clip_from_world(const render::PinholeCamera& cam, int bw, int bh, int scale, float near_plane) {
-  const double kx = static_cast<double>(bw) * scale / cam.width, ky = static_cast<double>(bh) * scale / cam.height;
-  const double t = cam.tan_half_fov_y, a = cam.aspect;
-  glm::dmat4 view(1.0);  // rows: right, up, forward; translation -R.e, -U.e, -E.e
-  const glm::dvec3 R(cam.right), U(cam.up), E(cam.forward), e(cam.position);
-  for (int c = 0; c < 3; ++c) {
-    view[c][0] = R[c];
-    view[c][1] = U[c];
-    view[c][2] = E[c];
-    view[c][3] = 0.0;
-  }
-  view[3] = glm::dvec4(-glm::dot(R, e), -glm::dot(U, e), -glm::dot(E, e), 1.0);
-  glm::dmat4 proj(0.0);
-  proj[0][0] = 1.0 / (kx * t * a);
-  proj[2][0] = -(kx - 1.0) / kx;
-  proj[1][1] = -1.0 / (ky * t);
-  proj[2][1] = -(ky - 1.0) / ky;
-  proj[3][2] = near_plane;  // z_c = n: reverse Z, infinite far plane
-  proj[2][3] = 1.0;         // w_c = z
-  return glm::mat4(proj * view);
-}
-
-
 struct Draw {
   GbDraw push;
   std::uint32_t triangles = 0;
@@ -454,7 +421,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
   ctx.upload(state->indices, indices.data(), idx_bytes);
   ctx.upload(state->objects, objects.data(), obj_bytes);
   GbFrame frame{};
-  frame.clip_from_world = clip_from_world(cam, bw, bh, scale, near_plane);
+  frame.clip_from_world = vk::clip_from_world(cam, bw, bh, scale, near_plane);
   frame.eye = glm::vec4(cam.position, 0.0f);
   frame.forward = glm::vec4(cam.forward, 0.0f);
   frame.right = glm::vec4(cam.right, 0.0f);

@@ -29,6 +29,7 @@ layout(set = 0, binding = kAccBindListRange) uniform usamplerBuffer ranges;
 layout(set = 0, binding = kAccBindBlockers) uniform samplerBuffer blockers;
 layout(set = 0, binding = kAccBindWeights) uniform samplerBuffer weights4;
 layout(set = 0, binding = kAccBindTable) uniform samplerBuffer table2;
+#include "accum_log_pair.glsl"
 layout(set = 0, binding = kAccBindOut, r32f) uniform imageBuffer outv;
 layout(push_constant) uniform Push {
   uint count;       // receivers in all (the planes of rec are this long)
@@ -55,75 +56,11 @@ void main() {
   [[unroll]] for (uint c = 0; c < N * N; ++c) acc[c] = pc.chunk_add != 0u ? imageLoad(outv, int(i * N * N + c)).x : 0.0;
   const uint b_end = range.x + min(range.y, pc.chunk_first + pc.chunk_count);
   for (uint b = range.x + pc.chunk_first; b < b_end; ++b) {
-    const vec4 sphere = texelFetch(blockers, int(b));
-    const float r = sphere.w;
-    const vec3 d = sphere.xyz - P;
-    if (pc.cut > 0.0 && !(length(d) < pc.cut * r)) continue;  // image_splat_core.cpp accumulate_log_range
-    const float h = dot(d, Nrm);  // centre height above the tangent plane T_p
-    const float d2 = dot(d, d);
-    const float a2 = max(d2 - h * h, 0.0);  // squared in-plane distance from p to q1
-    // Replacement rules (section 6.2; techniques/common/accumulation.hpp): a sphere tangent to T_p at q1, radius rho.
-    float rho = r, hh = h;
-    if (RULE != kRuleOff && h < r) {
-      const float r2 = r * r;
-      const bool inside = d2 < r2;
-      const float rin = max(h, 0.0);
-      const float rout = max(0.5 * (h + r), 0.0);
-      const float dmin = 1e-6 * r;
-      const float q = max(r2 - h * h, 0.0);
-      const float rq = inversesqrt(max(q, 1e-12 * r * r));
-      const float dd = q * rq;
-      const float dist = a2 * inversesqrt(max(a2, 1e-30));
-      const float ratio = (dist - dd) * rq;
-      if (RULE == kRuleContinuous) {
-        const float t = inside ? 0.0 : clamp(ratio, 0.0, 1.0);
-        rho = t * (rout - rin) + rin;
-      } else if (RULE == kRuleClamped) {
-        const float t = clamp(ratio, 0.0, 1.0);
-        rho = inside ? rin : t * rout;
-      } else if (RULE == kRuleInsideOnly) {
-        rho = inside ? rin : r;  // outside: the sphere whole (below, hh stays h)
-      } else {
-        const float a = dmin < dd ? max(ratio, 1.0) : 1.0;
-        rho = inside ? rin : a * rout;
-      }
-      hh = (RULE == kRuleInsideOnly && !inside) ? h : rho;
-    }
-    const vec3 v = d + (hh - h) * Nrm;
-    const float inv = inversesqrt(max(dot(v, v), 1e-30));
-    const float st = (1e-6 * r < rho) ? min(rho * inv, 1.0) : 0.0;
-    const float theta = st > 0.0 ? accum_asin01(st) : 0.0;
-    const float u = theta * pc.scale;
-    const int k = clamp(int(u), 0, int(pc.rows) - 2);
-    const float fr = u - float(k);
-    const uint row = uint(k) * N;
-    float w[4u * ((kAccumMaxOrder + 3u) / 4u)];
-    [[unroll]] for (uint q = 0; q < W4; ++q) {
-      const vec4 x = texelFetch(weights4, int(b * W4 + q));
-      w[4u * q] = x.x;
-      w[4u * q + 1u] = x.y;
-      w[4u * q + 2u] = x.z;
-      w[4u * q + 3u] = x.w;
-    }
+    vec3 sh_dir;
     float fl[kAccumMaxOrder];
-    [[unroll]] for (uint l = 0; l < N; ++l) {
-      const vec2 t = texelFetch(table2, int(row + l)).xy;  // (value, slope) of band l
-      fl[l] = (fr * t.y + t.x) * w[l];  // W of eq. 38
-    }
-    // Basis by recurrence, accumulated as in kernel_block.
-    {
-      const vec3 sh_dir = v * inv;
-#define SH_BASIS_PUT(l, m, q)                       \
-  if ((m) == 0u) {                                  \
-    acc[(l) * (l) + (l)] += fl[l] * (q);            \
-  } else {                                          \
-    const float g = fl[l] * (q);                    \
-    acc[(l) * (l) + (l) + (m)] += g * sh_C[m];      \
-    acc[(l) * (l) + (l) - (m)] += g * sh_S[m];      \
-  }
-      SH_BASIS_UNROLLED(N)
-#undef SH_BASIS_PUT
-    }
+    if (!accum_log_pair(texelFetch(blockers, int(b)), b, P, Nrm, pc.cut, pc.scale, pc.rows, sh_dir, fl)) continue;
+    // Basis by recurrence, accumulated as in kernel_block (SH_BASIS_PUT: accum_log_pair.glsl).
+    { SH_BASIS_UNROLLED(N) }
   }
   [[unroll]] for (uint c = 0; c < N * N; ++c) imageStore(outv, int(i * N * N + c), vec4(acc[c]));
 }

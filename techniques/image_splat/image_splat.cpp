@@ -77,6 +77,11 @@ std::vector<ParamDesc> param_descs() {
   d.push_back(ParamDesc::choice("binning", "host", {"host", "device"},
                                 "where the proxies are binned to receiver tiles (section 4.1): on the host, or by a compute "
                                 "pass on a device backend that leaves the lists on the device (the CPU backend bins on the host)"));
+  d.push_back(ParamDesc::choice("splatting", "binned", {"binned", "raster"},
+                                "how shadow proxies reach their receivers (section 4.1): each tile's receivers sum the proxies "
+                                "binned to the tile, or each proxy's sphere of influence is rasterised into the receiver buffer "
+                                "and summed by additive blending (Figure 3; a rasterising device backend, the CPU backend sums "
+                                "the binned lists either way)"));
   d.push_back(common::params::analytic_lights());
   d.push_back(common::params::kernel());
   return d;
@@ -122,6 +127,7 @@ Settings read_settings(const render::ParamSet& p) {
   s.upsample.miss_threshold = p.get_float("miss_threshold");
   s.tile_size = p.get_int("tile_size");
   s.device_binning = p.get_enum("binning") == "device";
+  s.raster_splats = p.get_enum("splatting") == "raster";
   s.lights = p.get_bool("analytic_lights");
   s.isa = common::params::read_kernel(p);
   return s;
@@ -893,6 +899,14 @@ class ImageSplat final : public render::Technique {
       return common::with_kernels<DeviceKernels>(cpu(std::move(host)), kernels, make);
     };
     auto dev_accumulate = [s](const DeviceKernels& k) -> render::PassFn {
+      if (s.raster_splats && k.splat_log)
+        return [s, f = k.splat_log](FrameContext& c) {
+          check_proxies(c);
+          common::BlockerList all;
+          flat_proxies(c.scene, c.posed, s.order, &all, nullptr);
+          const auto& t = *c.get<std::shared_ptr<const ShadowTables>>(kTables);
+          f(c, s, t, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), all, t.support_alpha_shadow, kLogOcclusion);
+        };
       if (!k.accumulate_log) return {};
       return [s, f = k.accumulate_log](FrameContext& c) {
         f(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables), *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), kBins,

@@ -76,6 +76,7 @@ struct Settings {
   UpsampleFallback fallback = UpsampleFallback::Robust;
   int tile_size = 16;
   bool device_binning = false;  // binning = device: a backend's compute pass bins (DeviceKernels::bin_proxies)
+  bool raster_splats = false;   // splatting = raster: a backend rasterises the shadow splats (DeviceKernels::splat_log)
   bool lights = true;
   common::KernelIsa isa = common::KernelIsa::Scalar;
 };
@@ -263,6 +264,12 @@ struct DeviceKernels {
   std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const ReceiverBuffer&, const std::string& bins,
                      const std::string& out)>
       accumulate_log;
+  // accumulate_log as paper 000 draws it (section 4.1, Figure 3): the spheres of influence of the
+  // flat shadow list rasterised into the receiver buffer, summed by blending; writes resource `out`
+  // as accumulate_log does (splatting = raster).
+  std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const ReceiverBuffer&, const common::BlockerList& all,
+                     double alpha_shadow, const std::string& out)>
+      splat_log;
   std::function<bool(ExpMode)> exp_supports;
   std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const std::string& in, const std::string& out)>
       exponentiate;

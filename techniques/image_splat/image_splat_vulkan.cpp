@@ -5,6 +5,7 @@
 #include "image_splat_vulkan.hpp"
 #include "image_splat_vulkan_shading.hpp"
 #include "image_splat_vulkan_binning.hpp"
+#include "image_splat_vulkan_splat.hpp"
 
 #include <algorithm>
 #include <array>
@@ -305,6 +306,7 @@ void register_vulkan_kernels() {
     }
     vulkan_accumulate_log(ctx, s, t, r, *ctx.get<std::shared_ptr<const ProxyBins>>(bins), out);
   };
+  k.splat_log = vulkan_splat_log;
   k.exp_supports = vulkan_exp_supports;
   k.exponentiate = vulkan_exponentiate;
   k.indirect_supported = vulkan_indirect_supported;

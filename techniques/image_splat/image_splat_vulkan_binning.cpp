@@ -45,34 +45,8 @@ std::shared_ptr<BinState> bin_state(vk::Context& dev) {
   return dev.cached<BinState>("image_splat.binning", [] { return std::make_shared<BinState>(); });
 }
 
-// One list kind's host inputs: the spheres of influence tested, and the vec4s copied per entry.
-struct KindInput {
-  std::vector<float> test, a, b;
-  std::uint32_t payload = 1;  // vec4s of b per proxy
-  std::size_t proxies = 0;
-};
-
-KindInput shadow_input(const common::BlockerList& all, double alpha) {
-  KindInput in;
-  const std::size_t n = all.size(), order = static_cast<std::size_t>(all.order), ws = weight_stride(all.order);
-  in.proxies = n;
-  in.payload = static_cast<std::uint32_t>(ws / 4);
-  in.test.resize(4 * n);
-  in.a.resize(4 * n);
-  // pack_blocker_lists' layout: the band weights, the row's padding holding 1 (its w_fill for image_splat).
-  in.b.assign(n * ws, 1.0f);
-  for (std::size_t p = 0; p < n; ++p) {
-    const float c[4] = {all.cx[p], all.cy[p], all.cz[p], all.r[p]};
-    std::copy(c, c + 4, in.a.begin() + 4 * p);
-    std::copy(c, c + 3, in.test.begin() + 4 * p);
-    in.test[4 * p + 3] = influence_radius(all.r[p], alpha);
-    std::copy(all.w.begin() + p * order, all.w.begin() + (p + 1) * order, in.b.begin() + p * ws);
-  }
-  return in;
-}
-
-KindInput indirect_input(const ProxyList& all, double alpha) {
-  KindInput in;
+DeviceProxies indirect_input(const ProxyList& all, double alpha) {
+  DeviceProxies in;
   const std::size_t n = all.size();
   in.proxies = n;
   in.payload = 1;
@@ -106,7 +80,7 @@ std::uint32_t proxy_chunk(const vk::DeviceInfo& d) {
 // Every (tile chunk, proxy chunk) dispatch of one mode; proxy chunks after the first carry count[]
 // on (a barrier between them).
 void record_kind(vk::Recorder& rec, const vk::ComputePipeline& p, const std::vector<vk::Bind>& binds, std::uint32_t mode,
-                 std::size_t tiles, const KindInput& in, std::uint32_t chunk) {
+                 std::size_t tiles, const DeviceProxies& in, std::uint32_t chunk) {
   const std::size_t max_tiles = static_cast<std::size_t>(rec.context().device_info().limits.maxComputeWorkGroupCount[0]) * gpu::kBinGroup;
   const std::size_t n = in.proxies;
   for (std::size_t first = 0; first < std::max<std::size_t>(n, 1); first += chunk) {
@@ -140,6 +114,25 @@ void ensure(vk::Context& dev, vk::Buffer& b, std::size_t bytes, vk::MemoryKind k
 
 }  // namespace
 
+DeviceProxies device_shadow_proxies(const common::BlockerList& all, double alpha) {
+  DeviceProxies in;
+  const std::size_t n = all.size(), order = static_cast<std::size_t>(all.order), ws = weight_stride(all.order);
+  in.proxies = n;
+  in.payload = static_cast<std::uint32_t>(ws / 4);
+  in.test.resize(4 * n);
+  in.a.resize(4 * n);
+  // pack_blocker_lists' layout: the band weights, the row's padding holding 1 (its w_fill for image_splat).
+  in.b.assign(n * ws, 1.0f);
+  for (std::size_t p = 0; p < n; ++p) {
+    const float c[4] = {all.cx[p], all.cy[p], all.cz[p], all.r[p]};
+    std::copy(c, c + 4, in.a.begin() + 4 * p);
+    std::copy(c, c + 3, in.test.begin() + 4 * p);
+    in.test[4 * p + 3] = influence_radius(all.r[p], alpha);
+    std::copy(all.w.begin() + p * order, all.w.begin() + (p + 1) * order, in.b.begin() + p * ws);
+  }
+  return in;
+}
+
 BinCounts vulkan_bin_proxies(render::FrameContext& ctx, const ReceiverBuffer& r, std::shared_ptr<const common::BlockerList> all_shadow,
                                  double alpha_shadow, std::shared_ptr<const ProxyList> all_indirect, double alpha_indirect,
                                  const std::string& out) {
@@ -155,8 +148,8 @@ BinCounts vulkan_bin_proxies(render::FrameContext& ctx, const ReceiverBuffer& r,
     throw std::invalid_argument(pass + " on vulkan: " + std::to_string(nt) + " tiles and " + std::to_string(all_shadow->size()) +
                                 " proxies exceed the 32-bit indexing");
   const bool ind = all_indirect != nullptr;
-  std::vector<KindInput> in;
-  in.push_back(shadow_input(*all_shadow, alpha_shadow));
+  std::vector<DeviceProxies> in;
+  in.push_back(device_shadow_proxies(*all_shadow, alpha_shadow));
   if (ind) in.push_back(indirect_input(*all_indirect, alpha_indirect));
   BinState::Kind* kinds[2] = {&st.shadow, &st.indirect};
   const char* names[2] = {"shadow", "indirect"};

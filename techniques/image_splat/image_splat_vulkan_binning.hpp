@@ -17,6 +17,17 @@
 
 namespace softgi::techniques::image_splat {
 
+// A flat proxy list as the device passes read it, per proxy: its sphere of influence (centre,
+// influence_radius) in `test`, its sphere (centre, radius) in `a`, and `payload` vec4s in `b` (the
+// band weights in rows of weight_stride(order) floats, the padding 1, for shadows; albedo / pi for
+// indirect light).
+struct DeviceProxies {
+  std::vector<float> test, a, b;
+  std::uint32_t payload = 1;  // vec4s of b per proxy
+  std::size_t proxies = 0;
+};
+DeviceProxies device_shadow_proxies(const common::BlockerList& all, double alpha);
+
 // One kind of per-tile list on the device: ranges (uvec2 per tile: first entry, count), spheres
 // (vec4 per entry: centre, radius), payload (`payload` vec4s per entry: the band weights in rows of
 // weight_stride(order) floats for shadows, albedo / pi for indirect light) and index (the entry's

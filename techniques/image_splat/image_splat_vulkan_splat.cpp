@@ -1,0 +1,434 @@
+// image_splat's rasterised shadow splats (paper 000 section 4.1, Figure 3) on the Vulkan backend.
+#include "image_splat_vulkan_splat.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "../common/accumulation_vulkan.hpp"
+#include "image_splat_splat_shared.h"
+#include "image_splat_vulkan_binning.hpp"
+#include "softgi/backends/vulkan/backend.hpp"
+#include "softgi/backends/vulkan/context.hpp"
+#include "softgi/backends/vulkan/projection.hpp"
+#include "softgi/render/camera.hpp"
+#include "softgi_shared.h"
+
+namespace spv {
+#include "softgi/shaders/image_splat/splat_gather_comp.h"
+#include "softgi/shaders/image_splat/splat_log_frag.h"
+#include "softgi/shaders/image_splat/splat_log_vert.h"
+}  // namespace spv
+
+namespace softgi::techniques::image_splat {
+
+namespace vk = backends::vulkan;
+using namespace common::gpu_passes;
+
+namespace {
+
+constexpr VkFormat kSplatFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+
+// std430 mirror of splat_log's push constants.
+struct SplatPush {
+  glm::mat4 clip_from_world;
+  glm::vec4 eye_pixel;
+  glm::vec4 forward;
+  glm::uvec4 sizes;
+  glm::vec4 table;
+};
+static_assert(sizeof(SplatPush) == 128, "splat_log push constants: 128 bytes, the least every device offers");
+
+// The coarsely tessellated sphere of section 4.1: an icosahedron subdivided once (80 triangles),
+// wound counter-clockwise about its outward normals, scaled so that every face lies outside the
+// unit sphere (its inradius 1), as a triangle list.
+std::vector<glm::vec4> unit_hull() {
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<glm::dvec3> v = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+                               {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  for (auto& p : v) p = glm::normalize(p);
+  const int faces[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                            {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                            {3, 8, 9},  {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  std::vector<std::array<glm::dvec3, 3>> tris;
+  for (const auto& f : faces) {
+    const glm::dvec3 a = v[f[0]], b = v[f[1]], c = v[f[2]];
+    const glm::dvec3 ab = glm::normalize(a + b), bc = glm::normalize(b + c), ca = glm::normalize(c + a);
+    tris.push_back({a, ab, ca});
+    tris.push_back({ab, b, bc});
+    tris.push_back({ca, bc, c});
+    tris.push_back({ab, bc, ca});
+  }
+  double inradius = 1.0;
+  for (auto& t : tris) {
+    glm::dvec3 n = glm::cross(t[1] - t[0], t[2] - t[0]);
+    if (glm::dot(n, t[0]) < 0.0) {  // outward counter-clockwise
+      std::swap(t[1], t[2]);
+      n = -n;
+    }
+    inradius = std::min(inradius, glm::dot(glm::normalize(n), t[0]));
+  }
+  std::vector<glm::vec4> out;
+  // Rounded up by float's rounding of the corners: a relative 1e-6 more than the inradius needs.
+  const double scale = (1.0 + 1e-6) / inradius;
+  for (const auto& t : tris)
+    for (const auto& p : t) out.push_back(glm::vec4(glm::vec3(p * scale), 0.0f));
+  return out;
+}
+
+// Per attachment count, the render pass and the attachments of one buffer size.
+struct Targets {
+  std::uint32_t width = 0, height = 0;
+  std::vector<vk::Image> images;
+  vk::Owned<VkFramebuffer> framebuffer;
+};
+
+struct SplatState {
+  std::mutex m;
+  std::unique_ptr<vk::PipelineLayout> layout;
+  vk::Owned<VkShaderModule> vs;
+  std::map<std::uint32_t, vk::Owned<VkShaderModule>> fs;  // by order
+  std::map<std::uint32_t, vk::Owned<VkRenderPass>> passes;  // by attachment count
+  std::map<std::array<std::uint32_t, 4>, vk::Owned<VkPipeline>> pipelines;  // by (N, rule, attachments, first)
+  std::map<std::uint32_t, Targets> targets;  // by attachment count
+  PipelineCache compute;
+  vk::Buffer hull, test, spheres, weights, receivers, pixel_receiver, receiver_pixel, raw, log_out, table;
+  std::uint64_t hull_hash = 0, test_hash = 0, spheres_hash = 0, weights_hash = 0, receivers_hash = 0, pr_hash = 0, rp_hash = 0;
+  std::vector<float> table_host;
+  std::uint32_t hull_vertices = 0;
+};
+
+VkRenderPass render_pass(vk::Context& ctx, SplatState& st, std::uint32_t outs) {
+  auto it = st.passes.find(outs);
+  if (it != st.passes.end()) return it->second.get();
+  std::vector<VkAttachmentDescription> atts(outs);
+  std::vector<VkAttachmentReference> refs(outs);
+  for (std::uint32_t a = 0; a < outs; ++a) {
+    atts[a].format = kSplatFormat;
+    atts[a].samples = VK_SAMPLE_COUNT_1_BIT;
+    atts[a].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // the sums start at 0
+    atts[a].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    atts[a].stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+    atts[a].stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+    atts[a].initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    atts[a].finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;  // copied out after each draw
+    refs[a] = {a, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+  }
+  VkSubpassDescription sub{};
+  sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+  sub.colorAttachmentCount = outs;
+  sub.pColorAttachments = refs.data();
+  // Before: the previous draw's copy out of the attachments. After: the copy reads what was blended.
+  std::array<VkSubpassDependency, 2> deps{};
+  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
+  deps[0].dstSubpass = 0;
+  deps[0].srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  deps[0].dstStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+  deps[0].srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  deps[0].dstAccessMask = VK_ACCESS_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+  deps[1].srcSubpass = 0;
+  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
+  deps[1].srcStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+  deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  deps[1].srcAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+  deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  VkRenderPassCreateInfo rp{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
+  rp.attachmentCount = outs;
+  rp.pAttachments = atts.data();
+  rp.subpassCount = 1;
+  rp.pSubpasses = &sub;
+  rp.dependencyCount = static_cast<std::uint32_t>(deps.size());
+  rp.pDependencies = deps.data();
+  VkDevice dev = ctx.device();
+  VkRenderPass pass = VK_NULL_HANDLE;
+  vk::check(vkCreateRenderPass(dev, &rp, nullptr, &pass), "vkCreateRenderPass (image_splat splat_log)");
+  st.passes.emplace(outs, vk::Owned<VkRenderPass>(pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); }));
+  return pass;
+}
+
+VkPipeline splat_pipeline(vk::Context& ctx, SplatState& st, std::uint32_t n, std::uint32_t rule, std::uint32_t outs, std::uint32_t first) {
+  const std::array<std::uint32_t, 4> key = {n, rule, outs, first};  // outs: a function of n (splat_log.frag)
+  auto it = st.pipelines.find(key);
+  if (it != st.pipelines.end()) return it->second.get();
+  const auto vs_words = words(spv::image_splat_splat_log_vert);
+  const auto fs_words = order_variant(spv::image_splat_splat_log_frag_for(static_cast<int>(n)), static_cast<int>(n), "image_splat splat_log.frag");
+  const vk::ShaderReflection rv = vk::reflect_spirv(vs_words), rf = vk::reflect_spirv(fs_words);
+  // One layout for every order's fragment shader: the same bindings and push constants.
+  if (!st.layout) {
+    st.layout = std::make_unique<vk::PipelineLayout>(ctx, std::vector<vk::ShaderReflection>{rv, rf}, "image_splat splat_log");
+    st.vs = ctx.create_shader_module(vs_words, "image_splat splat_log.vert");
+  }
+  auto fs = st.fs.find(n);
+  if (fs == st.fs.end())
+    fs = st.fs.emplace(n, ctx.create_shader_module(fs_words, "image_splat splat_log.frag (order " + std::to_string(n) + ")")).first;
+  const std::array<VkSpecializationMapEntry, 3> entries = {{{0, 0, 4}, {1, 4, 4}, {3, 12, 4}}};
+  VkSpecializationInfo spec{};
+  spec.mapEntryCount = static_cast<std::uint32_t>(entries.size());
+  spec.pMapEntries = entries.data();
+  spec.dataSize = sizeof(key);
+  spec.pData = key.data();
+  std::array<VkPipelineShaderStageCreateInfo, 2> stages{};
+  stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
+  stages[0].module = st.vs.get();
+  stages[0].pName = rv.entry_point.c_str();
+  stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
+  stages[1].module = fs->second.get();
+  stages[1].pName = rf.entry_point.c_str();
+  stages[1].pSpecializationInfo = &spec;
+  VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};  // hull from a texel buffer
+  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  vp.viewportCount = 1;
+  vp.scissorCount = 1;
+  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  rs.polygonMode = VK_POLYGON_MODE_FILL;
+  rs.cullMode = VK_CULL_MODE_FRONT_BIT;  // the hull's far side: one fragment per pixel, eye inside or not
+  rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;  // vulkan::clip_from_world keeps outward counter-clockwise front-facing
+  rs.lineWidth = 1.0f;
+  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;  // the pixel centre, where the receiver was sampled
+  std::vector<VkPipelineColorBlendAttachmentState> blend(outs);
+  for (auto& b : blend) {
+    b.blendEnable = VK_TRUE;  // dst + src: the sum over proxies (section 4: "splat the proxies ... to sum")
+    b.srcColorBlendFactor = b.dstColorBlendFactor = VK_BLEND_FACTOR_ONE;
+    b.srcAlphaBlendFactor = b.dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE;
+    b.colorBlendOp = b.alphaBlendOp = VK_BLEND_OP_ADD;
+    b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+  }
+  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  cb.attachmentCount = outs;
+  cb.pAttachments = blend.data();
+  const std::array<VkDynamicState, 2> dyn = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  VkPipelineDynamicStateCreateInfo dy{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+  dy.dynamicStateCount = static_cast<std::uint32_t>(dyn.size());
+  dy.pDynamicStates = dyn.data();
+  VkGraphicsPipelineCreateInfo gi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  gi.stageCount = static_cast<std::uint32_t>(stages.size());
+  gi.pStages = stages.data();
+  gi.pVertexInputState = &vi;
+  gi.pInputAssemblyState = &ia;
+  gi.pViewportState = &vp;
+  gi.pRasterizationState = &rs;
+  gi.pMultisampleState = &ms;
+  gi.pColorBlendState = &cb;
+  gi.pDynamicState = &dy;
+  gi.layout = st.layout->handle();
+  gi.renderPass = render_pass(ctx, st, outs);
+  VkDevice dev = ctx.device();
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  vk::check(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &gi, nullptr, &pipeline), "vkCreateGraphicsPipelines (image_splat splat_log)");
+  st.pipelines.emplace(key, vk::Owned<VkPipeline>(pipeline, [dev](VkPipeline x) { vkDestroyPipeline(dev, x, nullptr); }));
+  return pipeline;
+}
+
+Targets& targets(vk::Context& ctx, SplatState& st, std::uint32_t outs, std::uint32_t w, std::uint32_t h) {
+  Targets& t = st.targets[outs];
+  if (t.width == w && t.height == h && t.framebuffer) return t;
+  t.framebuffer.reset();
+  t.images.clear();
+  std::vector<VkImageView> views;
+  for (std::uint32_t a = 0; a < outs; ++a) {
+    t.images.push_back(ctx.create_image(w, h, kSplatFormat, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                                        VK_IMAGE_ASPECT_COLOR_BIT, "image_splat splat sums " + std::to_string(a)));
+    views.push_back(t.images.back().view());
+  }
+  VkFramebufferCreateInfo fi{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+  fi.renderPass = render_pass(ctx, st, outs);
+  fi.attachmentCount = outs;
+  fi.pAttachments = views.data();
+  fi.width = w;
+  fi.height = h;
+  fi.layers = 1;
+  VkDevice dev = ctx.device();
+  VkFramebuffer fb = VK_NULL_HANDLE;
+  vk::check(vkCreateFramebuffer(dev, &fi, nullptr, &fb), "vkCreateFramebuffer (image_splat splat_log)");
+  t.framebuffer = vk::Owned<VkFramebuffer>(fb, [dev](VkFramebuffer x) { vkDestroyFramebuffer(dev, x, nullptr); });
+  t.width = w;
+  t.height = h;
+  return t;
+}
+
+void check_device(vk::Context& dev, std::uint32_t w, std::uint32_t h, std::size_t texels, int order, std::uint32_t outs) {
+  const std::string who = "image_splat accumulate_log on vulkan (splatting=raster): ";
+  const std::string name = "device '" + dev.device_info().name + "'";
+  VkFormatProperties fp{};
+  vkGetPhysicalDeviceFormatProperties(dev.physical_device(), kSplatFormat, &fp);
+  const VkFormatFeatureFlags need =
+      VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BLEND_BIT | VK_FORMAT_FEATURE_TRANSFER_SRC_BIT;
+  if ((fp.optimalTilingFeatures & need) != need)
+    throw std::invalid_argument(who + name + " cannot blend into RGBA32F colour attachments; use splatting=binned");
+  const auto& lim = dev.device_info().limits;
+  if (w > lim.maxFramebufferWidth || h > lim.maxFramebufferHeight)
+    throw std::invalid_argument(who + "a receiver buffer of " + std::to_string(w) + "x" + std::to_string(h) + " exceeds " + name +
+                                "'s largest framebuffer (" + std::to_string(lim.maxFramebufferWidth) + "x" +
+                                std::to_string(lim.maxFramebufferHeight) + "); use a larger receiver_scale or splatting=binned");
+  if (outs > lim.maxColorAttachments)
+    throw std::invalid_argument(who + "order " + std::to_string(order) + " blends into " + std::to_string(outs) + " colour attachments, " +
+                                name + " has " + std::to_string(lim.maxColorAttachments) + "; use a lower order or splatting=binned");
+  if (texels > lim.maxTexelBufferElements)
+    throw std::invalid_argument(who + std::to_string(texels) + " texels of blended sums exceed " + name + "'s texel buffers (" +
+                                std::to_string(lim.maxTexelBufferElements) + "); use a larger receiver_scale or splatting=binned");
+}
+
+}  // namespace
+
+void vulkan_splat_log(render::FrameContext& ctx, const Settings& s, const ShadowTables& t, const ReceiverBuffer& r,
+                      const common::BlockerList& all, double alpha, const std::string& out) {
+  vk::Context& dev = vk::context_of(ctx);
+  auto st = dev.cached<SplatState>("image_splat.splat", [] { return std::make_shared<SplatState>(); });
+  std::lock_guard<std::mutex> lock(st->m);
+  const int n = t.order, n2 = n * n;
+  if (t.log.order != n || n > static_cast<int>(gpu::kAccumMaxOrder) || all.order != n)
+    throw std::logic_error("image_splat accumulate_log on vulkan: log table of order " + std::to_string(t.log.order) + ", proxies of order " +
+                           std::to_string(all.order) + " for order " + std::to_string(n));
+  const std::size_t count = r.soa.size(), proxies = all.size();
+  const auto w = static_cast<std::uint32_t>(r.width), h = static_cast<std::uint32_t>(r.height);
+  const std::size_t pixels = static_cast<std::size_t>(w) * h;
+  const std::uint32_t quads = static_cast<std::uint32_t>((n2 + 3) / 4);
+  const std::uint32_t outs = std::min(quads, gpu::kSplatMaxAttachments);  // splat_log.frag's for this order
+  const std::uint32_t draws = (quads + outs - 1) / outs;
+  const std::string pass = "accumulate_log";
+  auto fits = [&](std::size_t bytes, const std::string& what) {
+    check_fits(dev, bytes, what, "image_splat " + pass, "use fewer proxy spheres, a larger receiver_scale, or splatting=binned");
+  };
+  fits(static_cast<std::size_t>(quads) * pixels * 4 * sizeof(float), "the blended sums of " + std::to_string(pixels) + " receiver-buffer pixels");
+  fits(proxies * (8 + weight_stride(n)) * sizeof(float), "the spheres and band weights of " + std::to_string(proxies) + " proxies");
+  fits(count * (n2 + 7) * sizeof(float), "the log vectors of " + std::to_string(count) + " receivers");
+  if (count > std::numeric_limits<std::int32_t>::max() / 8 || proxies > std::numeric_limits<std::int32_t>::max() / 8)
+    throw std::invalid_argument("image_splat accumulate_log on vulkan: " + std::to_string(count) + " receivers, " + std::to_string(proxies) +
+                                " proxies exceed the 32-bit indexing");
+  dev.ensure_buffer(st->log_out, std::max<std::size_t>(1, count * n2) * sizeof(float), kStorage, vk::MemoryKind::Device,
+                    "image_splat log occlusion (splats)");
+  auto& rec = ctx.record();
+  rec.counters["receivers"] = static_cast<double>(count);
+  rec.counters["proxies"] = static_cast<double>(proxies);
+  rec.counters["hard_cut"] = t.hard_cut;
+  rec.counters["pair_cut"] = pair_cut_factor(t, s.rule) > 0.0f;
+  rec.bytes = count * n2 * sizeof(float);
+  if (count == 0) {
+    put_device_field<Field>(ctx, out, DeviceField{&st->log_out, 0, n}, st->m, dev);
+    return;
+  }
+  check_device(dev, w, h, static_cast<std::size_t>(quads) * pixels, n, outs);
+
+  // The receiver buffer's camera, its near plane under the nearest receiver: every pixel ray meets
+  // a hull containing its receiver at or beyond the receiver.
+  const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, "image_splat accumulate_log");
+  float nearest = std::numeric_limits<float>::infinity(), farthest = 0.0f;
+  for (std::size_t i = 0; i < count; ++i) {
+    const float z = cam.depth(glm::vec3(r.soa.px[i], r.soa.py[i], r.soa.pz[i]));
+    nearest = std::min(nearest, z);
+    farthest = std::max(farthest, z);
+  }
+  float near_plane = 0.5f * nearest;
+  if (!(near_plane > 0.0f) || !std::isfinite(near_plane)) near_plane = 1e-6f * std::max(farthest, 1.0f);
+  SplatPush push;
+  push.clip_from_world = vk::clip_from_world(cam, r.width, r.height, r.scale, near_plane);
+  const float pixel_width = 2.0f * cam.tan_half_fov_y * static_cast<float>(r.scale) / static_cast<float>(cam.height);
+  push.eye_pixel = glm::vec4(cam.position, pixel_width);
+  push.forward = glm::vec4(cam.forward, 0.0f);
+  push.sizes = glm::uvec4(w, static_cast<std::uint32_t>(count), static_cast<std::uint32_t>(t.log.rows), 0u);
+  push.table = glm::vec4(t.log.scale, pair_cut_factor(t, s.rule), 0.0f, 0.0f);
+
+  // Inputs, uploaded when they change.
+  const DeviceProxies in = device_shadow_proxies(all, alpha);
+  std::vector<std::int32_t> receiver_pixel(r.pixel.begin(), r.pixel.end());
+  const std::size_t before = dev.transfer_bytes().upload;
+  if (!st->hull_vertices) {
+    const std::vector<glm::vec4> hull = unit_hull();
+    st->hull_vertices = static_cast<std::uint32_t>(hull.size());
+    put_if_changed(dev, st->hull, st->hull_hash, hull, "image_splat splat hull");
+  }
+  put_if_changed(dev, st->test, st->test_hash, in.test, "image_splat spheres of influence");
+  put_if_changed(dev, st->spheres, st->spheres_hash, in.a, "image_splat proxy spheres");
+  put_if_changed(dev, st->weights, st->weights_hash, in.b, "image_splat band weights");
+  upload_receivers(dev, st->receivers, r.soa, "image_splat receivers (splats)", &st->receivers_hash);
+  put_if_changed(dev, st->pixel_receiver, st->pr_hash, r.receiver, "image_splat pixel receivers");
+  put_if_changed(dev, st->receiver_pixel, st->rp_hash, receiver_pixel, "image_splat receiver pixels");
+  upload_if_changed(dev, st->table, st->table_host, t.log.data, "image_splat log ZH table (splats)");
+  const std::size_t uploaded = dev.transfer_bytes().upload - before;
+  dev.ensure_buffer(st->raw, static_cast<std::size_t>(quads) * pixels * 4 * sizeof(float), kStorage,
+                    vk::MemoryKind::Device, "image_splat splat sums");
+
+  Targets& tg = targets(dev, *st, outs, w, h);
+  const std::vector<vk::Bind> binds = {
+      vk::Bind::texels_at(gpu::kSplatBindTest, st->test, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSplatBindHull, st->hull, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSplatBindSpheres, st->spheres, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSplatBindWeights, st->weights, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSplatBindTable, st->table, VK_FORMAT_R32G32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kSplatBindBasis, basis_constants(dev)),
+      vk::Bind::texels_at(gpu::kSplatBindReceivers, st->receivers, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kSplatBindPixelReceiver, st->pixel_receiver, VK_FORMAT_R32_SINT)};
+  std::vector<VkPipeline> pipes;
+  for (std::uint32_t d = 0; d < draws; ++d)
+    pipes.push_back(splat_pipeline(dev, *st, static_cast<std::uint32_t>(n), static_cast<std::uint32_t>(s.rule), outs, 4 * outs * d));
+  vk::ComputePipeline& gather = pipeline(dev, st->compute, "image_splat.splat_gather", words(spv::image_splat_splat_gather_comp), {});
+  struct GatherPush {
+    std::uint32_t first, end, n2, pixels;
+  };
+  const vk::SubmitResult res = dev.submit([&](vk::Recorder& rc) {
+    VkCommandBuffer cmd = rc.cmd();
+    const VkDescriptorSet set = rc.descriptor_set(*st->layout, 0, binds);
+    rc.begin_timer("splat_log");
+    for (std::uint32_t d = 0; d < draws; ++d) {
+      std::vector<VkClearValue> clear(outs);
+      for (auto& c : clear) c.color = {{0.0f, 0.0f, 0.0f, 0.0f}};
+      VkRenderPassBeginInfo bi{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+      bi.renderPass = render_pass(dev, *st, outs);
+      bi.framebuffer = tg.framebuffer.get();
+      bi.renderArea.extent = {w, h};
+      bi.clearValueCount = outs;
+      bi.pClearValues = clear.data();
+      vkCmdBeginRenderPass(cmd, &bi, VK_SUBPASS_CONTENTS_INLINE);
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipes[d]);
+      vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, st->layout->handle(), 0, 1, &set, 0, nullptr);
+      const VkViewport viewport{0.0f, 0.0f, static_cast<float>(w), static_cast<float>(h), 0.0f, 1.0f};
+      const VkRect2D scissor{{0, 0}, {w, h}};
+      vkCmdSetViewport(cmd, 0, 1, &viewport);
+      vkCmdSetScissor(cmd, 0, 1, &scissor);
+      vkCmdPushConstants(cmd, st->layout->handle(), st->layout->push_constant_stages(), 0, sizeof(SplatPush), &push);
+      if (proxies) vkCmdDraw(cmd, st->hull_vertices, static_cast<std::uint32_t>(proxies), 0, 0);
+      vkCmdEndRenderPass(cmd);
+      for (std::uint32_t a = 0; a < outs && d * outs + a < quads; ++a) {
+        VkBufferImageCopy copy{};
+        copy.bufferOffset = static_cast<VkDeviceSize>(d * outs + a) * pixels * 4 * sizeof(float);
+        copy.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        copy.imageExtent = {w, h, 1};
+        vkCmdCopyImageToBuffer(cmd, tg.images[a].handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, st->raw.handle(), 1, &copy);
+      }
+    }
+    rc.barrier();
+    dispatch_chunks<GatherPush>(rc, gather,
+                                {vk::Bind::texels_at(gpu::kSplatGatherBindRaw, st->raw, VK_FORMAT_R32G32B32A32_SFLOAT),
+                                 vk::Bind::texels_at(gpu::kSplatGatherBindPixel, st->receiver_pixel, VK_FORMAT_R32_SINT),
+                                 vk::Bind::buffer_at(gpu::kSplatGatherBindOut, st->log_out)},
+                                count, gpu::kSplatGatherGroup, [&](std::uint32_t a, std::uint32_t b) {
+                                  return GatherPush{a, b, static_cast<std::uint32_t>(n2), static_cast<std::uint32_t>(pixels)};
+                                });
+    rc.end_timer();
+    rc.barrier();
+  }, "image_splat splat_log");
+  const double secs = timer_seconds(res);
+  rec.counters["hull_triangles"] = static_cast<double>(st->hull_vertices / 3);
+  rec.counters["splat_draws"] = static_cast<double>(draws);
+  rec.counters["attachments"] = static_cast<double>(outs);
+  rec.counters["kernel_gpu_seconds"] = secs;
+  rec.counters["upload_bytes"] = static_cast<double>(uploaded);
+  put_device_field<Field>(ctx, out, DeviceField{&st->log_out, count * n2, n}, st->m, dev);
+}
+
+}  // namespace softgi::techniques::image_splat
