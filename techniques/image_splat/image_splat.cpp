@@ -78,10 +78,10 @@ std::vector<ParamDesc> param_descs() {
                                 "where the proxies are binned to receiver tiles (section 4.1): on the host, or by a compute "
                                 "pass on a device backend that leaves the lists on the device (the CPU backend bins on the host)"));
   d.push_back(ParamDesc::choice("splatting", "binned", {"binned", "raster"},
-                                "how shadow proxies reach their receivers (section 4.1): each tile's receivers sum the proxies "
-                                "binned to the tile, or each proxy's sphere of influence is rasterised into the receiver buffer "
-                                "and summed by additive blending (Figure 3; a rasterising device backend, the CPU backend sums "
-                                "the binned lists either way)"));
+                                "how proxies reach their receivers (section 4.1): each tile's receivers sum the proxies binned "
+                                "to the tile, or each proxy's sphere of influence is rasterised into the receiver buffer and "
+                                "summed by additive blending, for shadows and indirect light (Figure 3; a rasterising device "
+                                "backend, the CPU backend sums the binned lists either way)"));
   d.push_back(common::params::analytic_lights());
   d.push_back(common::params::kernel());
   return d;
@@ -270,6 +270,9 @@ void pass_indirect_tables(State& st, const Settings& s, FrameContext& ctx) {
   setup.smooth_clamp = s.smooth_clamp;
   setup.table_resolution = s.table_resolution;
   setup.rule = s.rule;
+  // The printed rule's adjusted sphere can outgrow the proxy: the pairs its sphere of influence
+  // selects are cut per pair, as pair_cut_factor does for the shadows.
+  if (s.rule == common::ReplacementRule::Printed) setup.reach = reach_factor(t.support_alpha_indirect);
   std::ostringstream key;
   key << common::environment_signature(ctx.scene.environment) << '|' << s.indirect_order << '|' << static_cast<int>(s.op) << '|' << t.eta_indirect << '|'
       << s.smooth_clamp << '|' << s.table_resolution << '|' << static_cast<int>(s.rule) << '|' << s.window_h << '|' << s.order;
@@ -919,11 +922,19 @@ class ImageSplat final : public render::Technique {
         f(c, s, *c.get<std::shared_ptr<const ShadowTables>>(kTables), kLogOcclusion, kOcclusion);
       };
     };
-    auto dev_accumulate_indirect = [](const DeviceKernels& k) -> render::PassFn {
+    auto dev_accumulate_indirect = [s](const DeviceKernels& k) -> render::PassFn {
       if (!k.accumulate_indirect || !k.indirect_supported) return {};
-      return [f = k.accumulate_indirect, ok = k.indirect_supported](FrameContext& c) {
+      const auto splat = s.raster_splats ? k.splat_indirect : nullptr;
+      return [s, f = k.accumulate_indirect, splat, ok = k.indirect_supported](FrameContext& c) {
         const auto& ev = *c.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
         if (!ok(ev.setup().op)) return pass_accumulate_indirect(c);
+        if (splat) {
+          ProxyList all;
+          flat_proxies(c.scene, c.posed, s.order, nullptr, &all);
+          const double alpha = c.get<std::shared_ptr<const ShadowTables>>(kTables)->support_alpha_indirect;
+          c.put<std::shared_ptr<const IndirectSums>>(kIndirectSums, splat(c, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), all, alpha, ev));
+          return;
+        }
         c.put<std::shared_ptr<const IndirectSums>>(kIndirectSums, f(c, *c.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), kBins, ev));
       };
     };

@@ -168,8 +168,12 @@ float pair_cut_factor(const ShadowTables& t, common::ReplacementRule rule) {
   // grows without bound and can give a far receiver a sphere larger than the proxy (shexp_internal.hpp).
   if (!(t.eta_shadow > 0.0) || !(t.hard_cut || rule == common::ReplacementRule::Printed)) return 0.0f;
   if (t.hard_cut) return static_cast<float>(t.eta_shadow);
+  return reach_factor(t.support_alpha_shadow);
+}
+
+float reach_factor(double support_alpha) {
   // influence_radius(r, alpha) / r; no support bound: nothing to cut.
-  return t.support_alpha_shadow > 0.0 ? static_cast<float>(1.0 / t.support_alpha_shadow * (1.0 + kInfluenceMargin)) : 0.0f;
+  return support_alpha > 0.0 ? static_cast<float>(1.0 / support_alpha * (1.0 + kInfluenceMargin)) : 0.0f;
 }
 
 void accumulate_log_range(const ShadowTables& t, common::ReplacementRule rule, common::KernelIsa isa, const ReceiverSoA& rec,

@@ -76,7 +76,7 @@ struct Settings {
   UpsampleFallback fallback = UpsampleFallback::Robust;
   int tile_size = 16;
   bool device_binning = false;  // binning = device: a backend's compute pass bins (DeviceKernels::bin_proxies)
-  bool raster_splats = false;   // splatting = raster: a backend rasterises the shadow splats (DeviceKernels::splat_log)
+  bool raster_splats = false;   // splatting = raster: a backend rasterises the splats (DeviceKernels::splat_log, splat_indirect)
   bool lights = true;
   common::KernelIsa isa = common::KernelIsa::Scalar;
 };
@@ -159,6 +159,8 @@ ProxyBins bin_proxies(const ReceiverBuffer& rec, const common::BlockerList& all_
 // clamped table alone confines each proxy (then the SHEXP kernel runs unchanged). Shared with the
 // Vulkan pass, whose shader applies the same cut.
 float pair_cut_factor(const ShadowTables& t, common::ReplacementRule rule);
+// influence_radius(r, alpha) / r: the per-pair cut of a sphere of influence (0 for alpha <= 0).
+float reach_factor(double support_alpha);
 void accumulate_log_range(const ShadowTables& t, common::ReplacementRule rule, common::KernelIsa isa,
                           const common::ReceiverSoA& rec, std::size_t begin, std::size_t end,
                           const common::BlockerList& list, float* out);
@@ -266,7 +268,7 @@ struct DeviceKernels {
       accumulate_log;
   // accumulate_log as paper 000 draws it (section 4.1, Figure 3): the spheres of influence of the
   // flat shadow list rasterised into the receiver buffer, summed by blending; writes resource `out`
-  // as accumulate_log does (splatting = raster).
+  // as accumulate_log does (splatting = raster; splat_indirect below is its indirect counterpart).
   std::function<void(render::FrameContext&, const Settings&, const ShadowTables&, const ReceiverBuffer&, const common::BlockerList& all,
                      double alpha_shadow, const std::string& out)>
       splat_log;
@@ -277,6 +279,10 @@ struct DeviceKernels {
   std::function<std::shared_ptr<IndirectSums>(render::FrameContext&, const ReceiverBuffer&, const std::string& bins,
                                               const IndirectEvaluator&)>
       accumulate_indirect;
+  // accumulate_indirect by rasterised splats of the flat re-radiating proxy list (splatting = raster).
+  std::function<std::shared_ptr<IndirectSums>(render::FrameContext&, const ReceiverBuffer&, const ProxyList& all, double alpha_indirect,
+                                              const IndirectEvaluator&)>
+      splat_indirect;
   std::function<UpsampleKernels(render::FrameContext&)> upsample;
   // The DC coefficient of every row of a field a GPU pass left on the device (resource `name`, n^2
   // floats per receiver): what normalize_indirect's xi_p needs of O_p, read back without the rest.

@@ -307,6 +307,7 @@ void register_vulkan_kernels() {
     vulkan_accumulate_log(ctx, s, t, r, *ctx.get<std::shared_ptr<const ProxyBins>>(bins), out);
   };
   k.splat_log = vulkan_splat_log;
+  k.splat_indirect = vulkan_splat_indirect;
   k.exp_supports = vulkan_exp_supports;
   k.exponentiate = vulkan_exponentiate;
   k.indirect_supported = vulkan_indirect_supported;

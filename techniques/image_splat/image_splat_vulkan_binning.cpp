@@ -45,26 +45,6 @@ std::shared_ptr<BinState> bin_state(vk::Context& dev) {
   return dev.cached<BinState>("image_splat.binning", [] { return std::make_shared<BinState>(); });
 }
 
-DeviceProxies indirect_input(const ProxyList& all, double alpha) {
-  DeviceProxies in;
-  const std::size_t n = all.size();
-  in.proxies = n;
-  in.payload = 1;
-  in.test.resize(4 * n);
-  in.a.resize(4 * n);
-  in.b.assign(4 * n, 0.0f);
-  // Albedo / pi folded as vulkan_accumulate_indirect folds it for host-binned lists.
-  const float inv_pi = static_cast<float>(1.0 / sh::kPi);
-  for (std::size_t p = 0; p < n; ++p) {
-    const float c[4] = {all.cx[p], all.cy[p], all.cz[p], all.r[p]};
-    std::copy(c, c + 4, in.a.begin() + 4 * p);
-    std::copy(c, c + 3, in.test.begin() + 4 * p);
-    in.test[4 * p + 3] = influence_radius(all.r[p], alpha);
-    for (int k = 0; k < 3; ++k) in.b[4 * p + k] = all.albedo[p][k] * inv_pi;
-  }
-  return in;
-}
-
 struct Push {
   std::uint32_t mode, tile_first, tile_end, first, end, payload;
 };
@@ -114,6 +94,26 @@ void ensure(vk::Context& dev, vk::Buffer& b, std::size_t bytes, vk::MemoryKind k
 
 }  // namespace
 
+DeviceProxies device_indirect_proxies(const ProxyList& all, double alpha) {
+  DeviceProxies in;
+  const std::size_t n = all.size();
+  in.proxies = n;
+  in.payload = 1;
+  in.test.resize(4 * n);
+  in.a.resize(4 * n);
+  in.b.assign(4 * n, 0.0f);
+  // Albedo / pi folded as vulkan_accumulate_indirect folds it for host-binned lists.
+  const float inv_pi = static_cast<float>(1.0 / sh::kPi);
+  for (std::size_t p = 0; p < n; ++p) {
+    const float c[4] = {all.cx[p], all.cy[p], all.cz[p], all.r[p]};
+    std::copy(c, c + 4, in.a.begin() + 4 * p);
+    std::copy(c, c + 3, in.test.begin() + 4 * p);
+    in.test[4 * p + 3] = influence_radius(all.r[p], alpha);
+    for (int k = 0; k < 3; ++k) in.b[4 * p + k] = all.albedo[p][k] * inv_pi;
+  }
+  return in;
+}
+
 DeviceProxies device_shadow_proxies(const common::BlockerList& all, double alpha) {
   DeviceProxies in;
   const std::size_t n = all.size(), order = static_cast<std::size_t>(all.order), ws = weight_stride(all.order);
@@ -150,7 +150,7 @@ BinCounts vulkan_bin_proxies(render::FrameContext& ctx, const ReceiverBuffer& r,
   const bool ind = all_indirect != nullptr;
   std::vector<DeviceProxies> in;
   in.push_back(device_shadow_proxies(*all_shadow, alpha_shadow));
-  if (ind) in.push_back(indirect_input(*all_indirect, alpha_indirect));
+  if (ind) in.push_back(device_indirect_proxies(*all_indirect, alpha_indirect));
   BinState::Kind* kinds[2] = {&st.shadow, &st.indirect};
   const char* names[2] = {"shadow", "indirect"};
 

@@ -27,6 +27,7 @@ struct DeviceProxies {
   std::size_t proxies = 0;
 };
 DeviceProxies device_shadow_proxies(const common::BlockerList& all, double alpha);
+DeviceProxies device_indirect_proxies(const ProxyList& all, double alpha);
 
 // One kind of per-tile list on the device: ranges (uvec2 per tile: first entry, count), spheres
 // (vec4 per entry: centre, radius), payload (`payload` vec4s per entry: the band weights in rows of

@@ -36,8 +36,7 @@ namespace {
 struct GpuState {
   std::mutex m;
   PipelineCache pipelines;
-  std::vector<float> vis_host, dfac_host, consts_host, mtab_host, qrot_host;
-  vk::Buffer vis, dfac, consts, mtab, qrot;
+  IndirectTableBuffers tables;
   vk::Buffer receivers, rlist, ranges, proxies, albedo, out, pairs;
 };
 
@@ -112,8 +111,8 @@ std::uint32_t indirect_chunk(const vk::DeviceInfo& d, int order, bool exact) {
 
 namespace {
 
-// The operator, the tables' layout and the receiver count, checked before anything is uploaded.
-void check_indirect_inputs(const ReceiverBuffer& r, std::size_t lists, const IndirectEvaluator& ev) {
+// The operator and the tables' layout.
+void check_indirect_setup(const IndirectEvaluator& ev) {
   const IndirectSetup& setup = ev.setup();
   if (!vulkan_indirect_supported(setup.op))
     throw std::logic_error("image_splat accumulate_indirect on vulkan: unknown indirect operator " +
@@ -124,6 +123,11 @@ void check_indirect_inputs(const ReceiverBuffer& r, std::size_t lists, const Ind
     throw std::logic_error("image_splat accumulate_indirect on vulkan: tables of order " + std::to_string(n) + " with " +
                            std::to_string(tv.rows) + " rows");
   if (setup.op == IndirectOperator::Exact) check_exact_layout(tv);
+}
+
+// The operator, the tables' layout and the receiver count, checked before anything is uploaded.
+void check_indirect_inputs(const ReceiverBuffer& r, std::size_t lists, const IndirectEvaluator& ev) {
+  check_indirect_setup(ev);
   const std::size_t count = r.soa.size();
   if (count > std::numeric_limits<std::uint32_t>::max() / 8)
     throw std::invalid_argument("image_splat accumulate_indirect on vulkan: " + std::to_string(count) + " receivers exceed the 32-bit indexing");
@@ -131,6 +135,27 @@ void check_indirect_inputs(const ReceiverBuffer& r, std::size_t lists, const Ind
     throw std::logic_error("image_splat accumulate_indirect on vulkan: " + std::to_string(lists) + " proxy lists for " +
                            std::to_string(r.tiles.size()) + " tiles");
 }
+
+}  // namespace
+
+std::uint32_t upload_indirect_tables(vk::Context& dev, IndirectTableBuffers& b, const IndirectEvaluator& ev) {
+  check_indirect_setup(ev);
+  const IndirectEvaluator::TableView tv = ev.tables();
+  upload_if_changed(dev, b.vis, b.vis_host, tv.vis, "image_splat indirect visibility ZH table");
+  upload_if_changed(dev, b.dfac, b.dfac_host, tv.dfac, "image_splat indirect D table");
+  upload_if_changed(dev, b.mtab, b.mtab_host, tv.mtab, "image_splat indirect M blocks (eq. 16)");
+  upload_if_changed(dev, b.qrot, b.qrot_host, tv.qrot, "image_splat indirect Q = Rx(-90 deg) band blocks");
+  std::vector<float> consts(tv.ltilde.begin(), tv.ltilde.end());
+  consts.insert(consts.end(), tv.vh.begin(), tv.vh.end());
+  consts.insert(consts.end(), tv.hc.begin(), tv.hc.end());
+  upload_if_changed(dev, b.consts, b.consts_host, consts, "image_splat indirect L~ and band factors");
+  const IndirectSetup& setup = ev.setup();
+  return setup.op == IndirectOperator::Exact          ? gpu::kIndOpExact
+         : setup.op == IndirectOperator::PointSampled ? gpu::kIndOpPoint
+                                                      : gpu::kIndOpAveraged;
+}
+
+namespace {
 
 // accumulate_indirect over `lists` (bound under g.m, which the caller holds).
 std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ctx, vk::Context& dev, GpuState& g, const ReceiverBuffer& r,
@@ -148,14 +173,7 @@ std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ct
   for (std::size_t k = 0; k < r.tiles.size(); ++k)
     for (std::size_t i = r.tiles[k].begin; i < r.tiles[k].end; ++i) rlist[i] = static_cast<std::uint32_t>(k);
   const std::size_t before = dev.transfer_bytes().upload;
-  upload_if_changed(dev, g.vis, g.vis_host, tv.vis, "image_splat indirect visibility ZH table");
-  upload_if_changed(dev, g.dfac, g.dfac_host, tv.dfac, "image_splat indirect D table");
-  upload_if_changed(dev, g.mtab, g.mtab_host, tv.mtab, "image_splat indirect M blocks (eq. 16)");
-  upload_if_changed(dev, g.qrot, g.qrot_host, tv.qrot, "image_splat indirect Q = Rx(-90 deg) band blocks");
-  std::vector<float> consts(tv.ltilde.begin(), tv.ltilde.end());
-  consts.insert(consts.end(), tv.vh.begin(), tv.vh.end());
-  consts.insert(consts.end(), tv.hc.begin(), tv.hc.end());
-  upload_if_changed(dev, g.consts, g.consts_host, consts, "image_splat indirect L~ and band factors");
+  const std::uint32_t op = upload_indirect_tables(dev, g.tables, ev);
   upload_receivers(dev, g.receivers, r.soa, "image_splat indirect receivers");
   put(dev, g.rlist, rlist, "image_splat indirect receiver tiles");
   dev.ensure_buffer(g.out, std::max<std::size_t>(1, count) * 4 * sizeof(float), kStorage, vk::MemoryKind::Host, "image_splat indirect sums");
@@ -163,7 +181,6 @@ std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ct
   dev.ensure_buffer(g.pairs, sizeof zero, kStorage, vk::MemoryKind::Host, "image_splat indirect pair count");
   dev.upload(g.pairs, &zero, sizeof zero);
 
-  const std::uint32_t op = exact ? gpu::kIndOpExact : setup.op == IndirectOperator::PointSampled ? gpu::kIndOpPoint : gpu::kIndOpAveraged;
   vk::ComputePipeline& p = pipeline(dev, g.pipelines,
                                     "image_splat.accumulate_indirect.n" + std::to_string(n) + ".rule" + std::to_string(static_cast<int>(setup.rule)) +
                                         ".op" + std::to_string(op),
@@ -173,6 +190,7 @@ std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ct
     std::uint32_t count, first, end, rows;
     float scale, eta;
     std::uint32_t chunk_first, chunk_count, chunk_add;
+    float reach;
   };
   const float eta = setup.eta > 0.0 ? static_cast<float>(setup.eta) : 0.0f;
   const std::uint32_t longest = lists.longest;
@@ -184,14 +202,14 @@ std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ct
       vk::Bind::texels_at(gpu::kIndBindListRange, *lists.ranges, VK_FORMAT_R32G32_UINT),
       vk::Bind::texels_at(gpu::kIndBindProxies, *lists.spheres, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindAlbedo, *lists.payload, VK_FORMAT_R32G32B32A32_SFLOAT),
-      vk::Bind::texels_at(gpu::kIndBindVis, g.vis, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kIndBindDfac, g.dfac, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kIndBindConsts, g.consts, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindVis, g.tables.vis, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindDfac, g.tables.dfac, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindConsts, g.tables.consts, VK_FORMAT_R32_SFLOAT),
       vk::Bind::buffer_at(gpu::kIndBindBasis, basis_constants(dev)),
       vk::Bind::buffer_at(gpu::kIndBindOut, g.out),
       vk::Bind::buffer_at(gpu::kIndBindPairs, g.pairs),
-      vk::Bind::texels_at(gpu::kIndBindMtab, g.mtab, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kIndBindQrot, g.qrot, VK_FORMAT_R32_SFLOAT)};
+      vk::Bind::texels_at(gpu::kIndBindMtab, g.tables.mtab, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kIndBindQrot, g.tables.qrot, VK_FORMAT_R32_SFLOAT)};
   vk::SubmitResult res;
   if (count)
     res = dev.submit([&](vk::Recorder& rec) {
@@ -200,7 +218,8 @@ std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ct
         const std::uint32_t in_chunk = n_chunks == 1 ? std::numeric_limits<std::uint32_t>::max() : chunk;
         dispatch_chunks<Push>(rec, p, binds, count, gpu::kIndGroup, [&](std::uint32_t first, std::uint32_t end) {
           return Push{static_cast<std::uint32_t>(count), first, end, static_cast<std::uint32_t>(tv.rows), tv.scale, eta, c * chunk, in_chunk,
-                      c > 0 ? 1u : 0u};
+                      c > 0 ? 1u : 0u,
+                      static_cast<float>(setup.reach)};
         });
         if (c + 1 < n_chunks) rec.barrier();  // the next chunk reads these sums back
       }

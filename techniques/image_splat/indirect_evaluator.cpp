@@ -288,6 +288,7 @@ long long IndirectEvaluator::accumulate(const common::ReceiverSoA& rec, std::siz
   if (!rgb || !omega) fail("null output buffer");
   const float eta = static_cast<float>(im.setup.eta);
   const bool cut = im.setup.eta > 0.0;
+  const float reach = static_cast<float>(im.setup.reach);
   const float inv_pi = static_cast<float>(1.0 / kPi);
   long long pairs = 0;
   for (std::size_t i = begin; i < end; ++i) {
@@ -295,9 +296,10 @@ long long IndirectEvaluator::accumulate(const common::ReceiverSoA& rec, std::siz
     const glm::vec3 N{rec.nx[i], rec.ny[i], rec.nz[i]};
     float acc[3] = {0, 0, 0}, om = 0.0f;
     for (std::size_t j = 0; j < np; ++j) {
+      const glm::vec3 c{list.cx[j], list.cy[j], list.cz[j]};
+      if (reach > 0.0f && !(glm::length(c - p) < reach * list.r[j])) continue;
       // Self-shadowing replacement rules (paper 004 section 6.2), as in the shadow pass.
-      const common::AdjustedSphere s =
-          common::apply_replacement_rule(im.setup.rule, p, N, glm::vec3{list.cx[j], list.cy[j], list.cz[j]}, list.r[j]);
+      const common::AdjustedSphere s = common::apply_replacement_rule(im.setup.rule, p, N, c, list.r[j]);
       if (!(s.radius > 0.0f)) continue;
       const glm::vec3 dv = s.center - p;
       const float dist = std::sqrt(dv.x * dv.x + dv.y * dv.y + dv.z * dv.z);

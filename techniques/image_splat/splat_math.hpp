@@ -112,6 +112,10 @@ struct IndirectSetup {
   bool smooth_clamp = true;     // false: hard cut at eta (for comparison)
   int table_resolution = 256;   // rows in theta of V, D and M
   common::ReplacementRule rule = common::ReplacementRule::Continuous;
+  // > 0: a pair counts only where |c - p| < reach r for the proxy as given (before the rule), the
+  // receivers binning and splatting give it (influence_radius); 0: every pair. For the printed rule,
+  // whose adjusted sphere can outgrow the proxy and reach receivers beyond its sphere of influence.
+  double reach = 0.0;
 };
 class IndirectEvaluator {
  public:

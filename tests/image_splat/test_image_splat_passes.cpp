@@ -171,12 +171,17 @@ TEST(ImageSplatBinning, TileBinningEqualsTheFullProxyList) {
       setup.op = IndirectOperator::Exact;
       setup.eta = 6.0;
       setup.smooth_clamp = smooth;
-      setup.rule = rule == techniques::common::ReplacementRule::Printed ? techniques::common::ReplacementRule::Continuous : rule;
+      setup.rule = rule;
+      const double ai = smooth ? alpha_ind : 1.0 / 6.0;
+      // The printed rule's adjusted sphere can outgrow the proxy: its pairs are cut at the proxy's
+      // sphere of influence (as image_splat's indirect_tables pass sets it), without which the sums
+      // would depend on the tiles.
+      if (rule == techniques::common::ReplacementRule::Printed) setup.reach = reach_factor(ai);
       std::vector<glm::vec3> ltilde(9, glm::vec3(0.0f));
       ltilde[0] = glm::vec3(3.0f, 2.5f, 2.0f);
       ltilde[2] = glm::vec3(1.5f);
       const IndirectEvaluator ev(setup, ltilde);
-      const ProxyBins bi = bin_proxies(r, all, t.support_alpha_shadow, &all_ind, smooth ? alpha_ind : 1.0 / 6.0);
+      const ProxyBins bi = bin_proxies(r, all, t.support_alpha_shadow, &all_ind, ai);
       std::vector<float> rgb_b(r.soa.size() * 3, 0.0f), om_b(r.soa.size(), 0.0f), rgb_f(rgb_b), om_f(om_b);
       long long in_b = 0, in_f = 0;
       for (std::size_t k = 0; k < r.tiles.size(); ++k) {

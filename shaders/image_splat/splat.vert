@@ -1,10 +1,11 @@
 #version 450
-// image_splat's shadow splats (paper 000 section 4.1, Figure 3): one instance per proxy draws a
-// coarsely tessellated sphere bounding the proxy's sphere of influence into the receiver buffer,
-// as the viewpoint sees it. The pipeline culls front faces, so that each pixel whose ray meets the
-// hull gets exactly one fragment per proxy (its far side), also where the eye is inside the hull;
-// the fragment tests the pixel's receiver against the sphere (splat_log.frag). A sphere of
-// influence of infinite radius (no coverage oracle) is one triangle over the whole buffer.
+// image_splat's splats (paper 000 section 4.1, Figure 3), shadows (splat_log.frag) and indirect light
+// (splat_indirect.frag): one instance per proxy draws a coarsely tessellated sphere bounding the
+// proxy's sphere of influence into the receiver buffer, as the viewpoint sees it. The pipelines cull
+// front faces, so that each pixel whose ray meets the hull gets exactly one fragment per proxy (its
+// far side), also where the eye is inside the hull; the fragment tests the pixel's receiver against
+// the sphere. A sphere of influence of infinite radius (no coverage oracle) is one triangle over the
+// whole buffer.
 #extension GL_GOOGLE_include_directive : require
 #include "image_splat_splat_shared.h"
 
@@ -15,7 +16,7 @@ layout(push_constant) uniform Push {
   vec4 eye_pixel;        // eye position; w: a buffer pixel's width at unit depth
   vec4 forward;          // image-plane normal E
   uvec4 sizes;           // buffer width, receivers, table rows
-  vec4 table;            // table scale, per-pair cut factor (0: none)
+  vec4 table;            // table scale, per-pair cut factor (0: none; indirect light: eta)
 } pc;
 layout(location = 0) flat out uint proxy;
 
