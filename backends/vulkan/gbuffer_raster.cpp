@@ -199,60 +199,23 @@ std::unique_ptr<RasterPipeline> make_pipeline(vk::Context& ctx) {
 
   vk::Owned<VkShaderModule> vs = ctx.create_shader_module(vs_words, "gbuffer_raster.vert");
   vk::Owned<VkShaderModule> fs = ctx.create_shader_module(fs_words, "gbuffer_raster.frag");
-  std::array<VkPipelineShaderStageCreateInfo, 2> stages{};
-  stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
-  stages[0].module = vs.get();
-  stages[0].pName = rv.entry_point.c_str();
-  stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
-  stages[1].module = fs.get();
-  stages[1].pName = rf.entry_point.c_str();
-  VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};  // vertices from storage buffers
-  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
-  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
-  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
-  vp.viewportCount = 1;
-  vp.scissorCount = 1;
-  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
-  rs.polygonMode = VK_POLYGON_MODE_FILL;
-  rs.cullMode = VK_CULL_MODE_NONE;  // two-sided surfaces: the ray caster hits both sides
-  rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
-  rs.lineWidth = 1.0f;
-  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
-  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;  // one sample at the pixel centre, like one ray
   VkPipelineDepthStencilStateCreateInfo ds{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
   ds.depthTestEnable = VK_TRUE;
   ds.depthWriteEnable = VK_TRUE;
   ds.depthCompareOp = VK_COMPARE_OP_GREATER;  // reverse Z: nearer is larger
-  std::array<VkPipelineColorBlendAttachmentState, gpu::kGbColorAttachments> blend{};
-  for (auto& b : blend)
-    b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
-  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
-  cb.attachmentCount = static_cast<std::uint32_t>(blend.size());
-  cb.pAttachments = blend.data();
-  const std::array<VkDynamicState, 2> dyn = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-  VkPipelineDynamicStateCreateInfo dy{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
-  dy.dynamicStateCount = static_cast<std::uint32_t>(dyn.size());
-  dy.pDynamicStates = dyn.data();
-  VkGraphicsPipelineCreateInfo gi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
-  gi.stageCount = static_cast<std::uint32_t>(stages.size());
-  gi.pStages = stages.data();
-  gi.pVertexInputState = &vi;
-  gi.pInputAssemblyState = &ia;
-  gi.pViewportState = &vp;
-  gi.pRasterizationState = &rs;
-  gi.pMultisampleState = &ms;
-  gi.pDepthStencilState = &ds;
-  gi.pColorBlendState = &cb;
-  gi.pDynamicState = &dy;
-  gi.layout = p->layout->handle();
-  gi.renderPass = render_pass;
-  gi.subpass = 0;
-  VkPipeline pipeline = VK_NULL_HANDLE;
-  vk::check(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &gi, nullptr, &pipeline), "vkCreateGraphicsPipelines (gbuffer_raster)");
-  p->pipeline = vk::Owned<VkPipeline>(pipeline, [dev](VkPipeline x) { vkDestroyPipeline(dev, x, nullptr); });
-  ctx.set_name(VK_OBJECT_TYPE_PIPELINE, reinterpret_cast<std::uint64_t>(pipeline), "gbuffer_raster");
+  vk::GraphicsPipelineDesc gd;
+  gd.name = "gbuffer_raster";
+  gd.layout = p->layout->handle();
+  gd.render_pass = render_pass;
+  gd.vertex = vs.get();
+  gd.fragment = fs.get();
+  gd.vertex_entry = rv.entry_point;
+  gd.fragment_entry = rf.entry_point;
+  gd.cull = VK_CULL_MODE_NONE;  // two-sided surfaces: the ray caster hits both sides
+  gd.depth = &ds;
+  gd.blend.assign(gpu::kGbColorAttachments, vk::write_all_channels());
+  // One sample at the pixel centre, like one ray.
+  p->pipeline = vk::create_graphics_pipeline(ctx, gd);
   return p;
 }
 

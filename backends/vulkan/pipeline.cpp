@@ -1,6 +1,7 @@
 // SPIR-V reflection (descriptor bindings, push-constant block size, workgroup size), pipeline
 // layouts derived from it, compute pipelines, and command recording.
 #include <algorithm>
+#include <array>
 #include <map>
 #include <sstream>
 #include <tuple>
@@ -488,6 +489,69 @@ void Recorder::end_timer() {
   if (!timer_open_) throw std::logic_error("vulkan: end_timer without begin_timer");
   timer_open_ = false;
   if (ctx_.query_pool_) vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, ctx_.query_pool_, ctx_.queries_used_++);
+}
+
+Owned<VkPipeline> create_graphics_pipeline(Context& ctx, const GraphicsPipelineDesc& d) {
+  std::vector<VkPipelineShaderStageCreateInfo> stages;
+  VkPipelineShaderStageCreateInfo vs{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  vs.stage = VK_SHADER_STAGE_VERTEX_BIT;
+  vs.module = d.vertex;
+  vs.pName = d.vertex_entry.c_str();
+  stages.push_back(vs);
+  if (d.fragment != VK_NULL_HANDLE) {
+    VkPipelineShaderStageCreateInfo fs{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    fs.stage = VK_SHADER_STAGE_FRAGMENT_BIT;
+    fs.module = d.fragment;
+    fs.pName = d.fragment_entry.c_str();
+    fs.pSpecializationInfo = d.fragment_spec;
+    stages.push_back(fs);
+  }
+  VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  vp.viewportCount = 1;
+  vp.scissorCount = 1;
+  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  rs.polygonMode = VK_POLYGON_MODE_FILL;
+  rs.cullMode = d.cull;
+  rs.frontFace = d.front_face;
+  rs.lineWidth = 1.0f;
+  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
+  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  cb.attachmentCount = static_cast<std::uint32_t>(d.blend.size());
+  cb.pAttachments = d.blend.data();
+  const std::array<VkDynamicState, 2> dyn = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+  VkPipelineDynamicStateCreateInfo dy{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+  dy.dynamicStateCount = static_cast<std::uint32_t>(dyn.size());
+  dy.pDynamicStates = dyn.data();
+  VkGraphicsPipelineCreateInfo gi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  gi.stageCount = static_cast<std::uint32_t>(stages.size());
+  gi.pStages = stages.data();
+  gi.pVertexInputState = &vi;
+  gi.pInputAssemblyState = &ia;
+  gi.pViewportState = &vp;
+  gi.pRasterizationState = &rs;
+  gi.pMultisampleState = &ms;
+  gi.pDepthStencilState = d.depth;
+  gi.pColorBlendState = &cb;
+  gi.pDynamicState = &dy;
+  gi.layout = d.layout;
+  gi.renderPass = d.render_pass;
+  gi.subpass = 0;
+  VkDevice dev = ctx.device();
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  const std::string what = "vkCreateGraphicsPipelines (" + d.name + ")";
+  check(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &gi, nullptr, &pipeline), what.c_str());
+  ctx.set_name(VK_OBJECT_TYPE_PIPELINE, reinterpret_cast<std::uint64_t>(pipeline), d.name);
+  return Owned<VkPipeline>(pipeline, [dev](VkPipeline x) { vkDestroyPipeline(dev, x, nullptr); });
+}
+
+VkPipelineColorBlendAttachmentState write_all_channels() {
+  VkPipelineColorBlendAttachmentState b{};
+  b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+  return b;
 }
 
 }  // namespace softgi::backends::vulkan

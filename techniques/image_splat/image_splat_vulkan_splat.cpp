@@ -207,60 +207,25 @@ VkPipeline splat_pipeline(vk::Context& ctx, SplatState& st, const std::array<std
   spec.pMapEntries = entries.data();
   spec.dataSize = sizeof(values);
   spec.pData = values.data();
-  std::array<VkPipelineShaderStageCreateInfo, 2> stages{};
-  stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
-  stages[0].module = st.vs.get();
-  stages[0].pName = rv.entry_point.c_str();
-  stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
-  stages[1].module = fs;
-  stages[1].pName = rf.entry_point.c_str();
-  stages[1].pSpecializationInfo = &spec;
-  VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};  // hull from a texel buffer
-  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
-  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
-  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
-  vp.viewportCount = 1;
-  vp.scissorCount = 1;
-  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
-  rs.polygonMode = VK_POLYGON_MODE_FILL;
-  rs.cullMode = VK_CULL_MODE_FRONT_BIT;  // the hull's far side: one fragment per pixel, eye inside or not
-  rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;  // vulkan::clip_from_world keeps outward counter-clockwise front-facing
-  rs.lineWidth = 1.0f;
-  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
-  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;  // the pixel centre, where the receiver was sampled
-  std::vector<VkPipelineColorBlendAttachmentState> blend(outs);
-  for (auto& b : blend) {
-    b.blendEnable = VK_TRUE;  // dst + src: the sum over proxies (section 4: "splat the proxies to the receiver buffer to sum")
-    b.srcColorBlendFactor = b.dstColorBlendFactor = VK_BLEND_FACTOR_ONE;
-    b.srcAlphaBlendFactor = b.dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE;
-    b.colorBlendOp = b.alphaBlendOp = VK_BLEND_OP_ADD;
-    b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT | VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
-  }
-  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
-  cb.attachmentCount = outs;
-  cb.pAttachments = blend.data();
-  const std::array<VkDynamicState, 2> dyn = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-  VkPipelineDynamicStateCreateInfo dy{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
-  dy.dynamicStateCount = static_cast<std::uint32_t>(dyn.size());
-  dy.pDynamicStates = dyn.data();
-  VkGraphicsPipelineCreateInfo gi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
-  gi.stageCount = static_cast<std::uint32_t>(stages.size());
-  gi.pStages = stages.data();
-  gi.pVertexInputState = &vi;
-  gi.pInputAssemblyState = &ia;
-  gi.pViewportState = &vp;
-  gi.pRasterizationState = &rs;
-  gi.pMultisampleState = &ms;
-  gi.pColorBlendState = &cb;
-  gi.pDynamicState = &dy;
-  gi.layout = layout->handle();
-  gi.renderPass = render_pass(ctx, st, outs);
-  VkDevice dev = ctx.device();
-  VkPipeline pipeline = VK_NULL_HANDLE;
-  vk::check(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &gi, nullptr, &pipeline), "vkCreateGraphicsPipelines (image_splat splats)");
-  st.pipelines.emplace(key, vk::Owned<VkPipeline>(pipeline, [dev](VkPipeline x) { vkDestroyPipeline(dev, x, nullptr); }));
+  VkPipelineColorBlendAttachmentState blend{};
+  blend.blendEnable = VK_TRUE;  // dst + src: the sum over proxies (section 4: "splat the proxies to the receiver buffer to sum")
+  blend.srcColorBlendFactor = blend.dstColorBlendFactor = VK_BLEND_FACTOR_ONE;
+  blend.srcAlphaBlendFactor = blend.dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE;
+  blend.colorBlendOp = blend.alphaBlendOp = VK_BLEND_OP_ADD;
+  blend.colorWriteMask = vk::write_all_channels().colorWriteMask;
+  vk::GraphicsPipelineDesc gd;
+  gd.name = kind == Kind::Log ? "image_splat splat_log" : "image_splat splat_indirect";
+  gd.layout = layout->handle();
+  gd.render_pass = render_pass(ctx, st, outs);
+  gd.vertex = st.vs.get();
+  gd.fragment = fs;
+  gd.vertex_entry = rv.entry_point;
+  gd.fragment_entry = rf.entry_point;
+  gd.fragment_spec = &spec;
+  gd.cull = VK_CULL_MODE_FRONT_BIT;  // the hull's far side: one fragment per pixel, eye inside or not
+  gd.front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;  // vulkan::clip_from_world keeps outward counter-clockwise front-facing
+  gd.blend.assign(outs, blend);  // one sample: the pixel centre, where the receiver was sampled
+  const VkPipeline pipeline = st.pipelines.emplace(key, vk::create_graphics_pipeline(ctx, gd)).first->second.get();
   return pipeline;
 }
 

@@ -103,48 +103,20 @@ void make_pipeline(vk::Context& ctx, DepthRaster& r) {
   r.render_pass = vk::Owned<VkRenderPass>(render_pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); });
 
   vk::Owned<VkShaderModule> vs = ctx.create_shader_module(vs_words, "point_voxels depth_raster.vert");
-  VkPipelineShaderStageCreateInfo stage{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  stage.stage = VK_SHADER_STAGE_VERTEX_BIT;
-  stage.module = vs.get();
-  stage.pName = rv.entry_point.c_str();
-  VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};  // corners from a storage buffer
-  VkPipelineInputAssemblyStateCreateInfo ia{VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
-  ia.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
-  VkPipelineViewportStateCreateInfo vp{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
-  vp.viewportCount = 1;
-  vp.scissorCount = 1;
-  VkPipelineRasterizationStateCreateInfo rs{VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
-  rs.polygonMode = VK_POLYGON_MODE_FILL;
-  rs.cullMode = VK_CULL_MODE_NONE;  // both sides cast shadows, as on the CPU
-  rs.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
-  rs.lineWidth = 1.0f;
-  VkPipelineMultisampleStateCreateInfo ms{VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
-  ms.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;  // the texel centre, as the CPU's coverage test
   VkPipelineDepthStencilStateCreateInfo ds{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
   ds.depthTestEnable = VK_TRUE;
   ds.depthWriteEnable = VK_TRUE;
   ds.depthCompareOp = VK_COMPARE_OP_GREATER;  // cube faces; the directional map is drawn with the depth flipped to match
-  VkPipelineColorBlendStateCreateInfo cb{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
-  const std::array<VkDynamicState, 2> dyn = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
-  VkPipelineDynamicStateCreateInfo dy{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
-  dy.dynamicStateCount = static_cast<std::uint32_t>(dyn.size());
-  dy.pDynamicStates = dyn.data();
-  VkGraphicsPipelineCreateInfo gi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
-  gi.stageCount = 1;
-  gi.pStages = &stage;
-  gi.pVertexInputState = &vi;
-  gi.pInputAssemblyState = &ia;
-  gi.pViewportState = &vp;
-  gi.pRasterizationState = &rs;
-  gi.pMultisampleState = &ms;
-  gi.pDepthStencilState = &ds;
-  gi.pColorBlendState = &cb;
-  gi.pDynamicState = &dy;
-  gi.layout = r.layout->handle();
-  gi.renderPass = render_pass;
-  VkPipeline pipeline = VK_NULL_HANDLE;
-  vk::check(vkCreateGraphicsPipelines(dev, VK_NULL_HANDLE, 1, &gi, nullptr, &pipeline), "vkCreateGraphicsPipelines (point_voxels depth_raster)");
-  r.pipeline = vk::Owned<VkPipeline>(pipeline, [dev](VkPipeline x) { vkDestroyPipeline(dev, x, nullptr); });
+  vk::GraphicsPipelineDesc gd;
+  gd.name = "point_voxels depth_raster";
+  gd.layout = r.layout->handle();
+  gd.render_pass = render_pass;
+  gd.vertex = vs.get();
+  gd.vertex_entry = rv.entry_point;
+  gd.cull = VK_CULL_MODE_NONE;  // both sides cast shadows, as on the CPU
+  gd.depth = &ds;
+  // One sample: the texel centre, as the CPU's coverage test.
+  r.pipeline = vk::create_graphics_pipeline(ctx, gd);
 }
 
 void make_target(vk::Context& ctx, DepthRaster& r, std::uint32_t size) {

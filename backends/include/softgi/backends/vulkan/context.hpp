@@ -288,6 +288,25 @@ class ComputePipeline {
   VkPipeline pipeline_ = VK_NULL_HANDLE;
 };
 
+// The graphics pipelines of softgi's rasterising passes (the G-buffer, depth maps, splats): triangle
+// lists without vertex input (the vertex shader fetches its corners from buffers), one sample at the
+// pixel centre, one viewport and scissor set when recording.
+struct GraphicsPipelineDesc {
+  std::string name;  // in errors and debug labels
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  VkRenderPass render_pass = VK_NULL_HANDLE;
+  VkShaderModule vertex = VK_NULL_HANDLE, fragment = VK_NULL_HANDLE;  // fragment: none for depth only
+  std::string vertex_entry = "main", fragment_entry = "main";
+  const VkSpecializationInfo* fragment_spec = nullptr;
+  VkCullModeFlags cull = VK_CULL_MODE_NONE;
+  VkFrontFace front_face = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+  const VkPipelineDepthStencilStateCreateInfo* depth = nullptr;  // null: the subpass has no depth attachment
+  std::vector<VkPipelineColorBlendAttachmentState> blend;        // one per colour attachment
+};
+Owned<VkPipeline> create_graphics_pipeline(Context& ctx, const GraphicsPipelineDesc& d);
+// Every channel written, no blending: one GraphicsPipelineDesc::blend entry.
+VkPipelineColorBlendAttachmentState write_all_channels();
+
 // Bytes per texel of the uncompressed formats softgi uses (0: not known).
 std::uint64_t texel_bytes(VkFormat f);
 
