@@ -138,64 +138,10 @@ std::unique_ptr<RasterPipeline> make_pipeline(vk::Context& ctx) {
   const vk::ShaderReflection rv = vk::reflect_spirv(vs_words), rf = vk::reflect_spirv(fs_words);
   auto p = std::make_unique<RasterPipeline>();
   p->layout = std::make_unique<vk::PipelineLayout>(ctx, std::vector<vk::ShaderReflection>{rv, rf}, "gbuffer_raster");
-  VkDevice dev = ctx.device();
 
-  std::array<VkAttachmentDescription, gpu::kGbColorAttachments + 1> att{};
-  std::array<VkAttachmentReference, gpu::kGbColorAttachments> color_refs{};
-  for (std::uint32_t a = 0; a < gpu::kGbColorAttachments; ++a) {
-    att[a].format = kColorFormats[a];
-    att[a].samples = VK_SAMPLE_COUNT_1_BIT;
-    att[a].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-    att[a].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    att[a].stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
-    att[a].stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
-    att[a].initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    att[a].finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;  // copied to the readback buffers
-    color_refs[a] = {a, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
-  }
-  VkAttachmentDescription& d = att[gpu::kGbColorAttachments];
-  d.format = kDepthFormat;
-  d.samples = VK_SAMPLE_COUNT_1_BIT;
-  d.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-  d.storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
-  d.stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
-  d.stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
-  d.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-  d.finalLayout = VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
-  const VkAttachmentReference depth_ref{gpu::kGbColorAttachments, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
-  VkSubpassDescription sub{};
-  sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
-  sub.colorAttachmentCount = gpu::kGbColorAttachments;
-  sub.pColorAttachments = color_refs.data();
-  sub.pDepthStencilAttachment = &depth_ref;
-  // Before: the previous frame's copies out of the same attachments (write-after-read) and its depth
-  // writes. After: the copies to the readback buffers read what the subpass wrote.
-  std::array<VkSubpassDependency, 2> deps{};
-  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
-  deps[0].dstSubpass = 0;
-  deps[0].srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
-  deps[0].dstStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT | VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT |
-                         VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
-  deps[0].srcAccessMask = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
-  deps[0].dstAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
-                          VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
-  deps[1].srcSubpass = 0;
-  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
-  deps[1].srcStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
-  deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
-  deps[1].srcAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
-  deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-  VkRenderPassCreateInfo rp{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
-  rp.attachmentCount = static_cast<std::uint32_t>(att.size());
-  rp.pAttachments = att.data();
-  rp.subpassCount = 1;
-  rp.pSubpasses = &sub;
-  rp.dependencyCount = static_cast<std::uint32_t>(deps.size());
-  rp.pDependencies = deps.data();
-  VkRenderPass render_pass = VK_NULL_HANDLE;
-  vk::check(vkCreateRenderPass(dev, &rp, nullptr, &render_pass), "vkCreateRenderPass (gbuffer_raster)");
-  p->render_pass = vk::Owned<VkRenderPass>(render_pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); });
-  ctx.set_name(VK_OBJECT_TYPE_RENDER_PASS, reinterpret_cast<std::uint64_t>(render_pass), "gbuffer_raster");
+  // The colour attachments are copied to the readback buffers; depth only serves the draw.
+  p->render_pass = vk::create_render_pass(ctx, {"gbuffer_raster", {kColorFormats.begin(), kColorFormats.end()}, kDepthFormat, false});
+  const VkRenderPass render_pass = p->render_pass.get();
 
   vk::Owned<VkShaderModule> vs = ctx.create_shader_module(vs_words, "gbuffer_raster.vert");
   vk::Owned<VkShaderModule> fs = ctx.create_shader_module(fs_words, "gbuffer_raster.frag");

@@ -491,6 +491,64 @@ void Recorder::end_timer() {
   if (ctx_.query_pool_) vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, ctx_.query_pool_, ctx_.queries_used_++);
 }
 
+Owned<VkRenderPass> create_render_pass(Context& ctx, const RenderPassDesc& d) {
+  const bool has_depth = d.depth != VK_FORMAT_UNDEFINED;
+  const auto colors = static_cast<std::uint32_t>(d.colors.size());
+  std::vector<VkAttachmentDescription> att(colors + (has_depth ? 1u : 0u));
+  std::vector<VkAttachmentReference> color_refs(colors);
+  for (std::uint32_t a = 0; a < att.size(); ++a) {
+    const bool depth = a == colors;
+    att[a].format = depth ? d.depth : d.colors[a];
+    att[a].samples = VK_SAMPLE_COUNT_1_BIT;
+    att[a].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+    att[a].storeOp = !depth || d.copy_depth ? VK_ATTACHMENT_STORE_OP_STORE : VK_ATTACHMENT_STORE_OP_DONT_CARE;
+    att[a].stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+    att[a].stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+    att[a].initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+    att[a].finalLayout = !depth || d.copy_depth ? VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL : VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
+    if (!depth) color_refs[a] = {a, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+  }
+  const VkAttachmentReference depth_ref{colors, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
+  VkSubpassDescription sub{};
+  sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+  sub.colorAttachmentCount = colors;
+  sub.pColorAttachments = color_refs.data();
+  sub.pDepthStencilAttachment = has_depth ? &depth_ref : nullptr;
+  // Flags, or none, as the attachment kinds present ask.
+  const auto when = [](bool present, VkFlags flags) -> VkFlags { return present ? flags : 0u; };
+  const VkFlags tests = VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+  const VkFlags depth_rw = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+  const VkFlags color_rw = VK_ACCESS_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+  // Before: the previous use's copies out of the same attachments (write after read) and its depth
+  // writes. After: the copies read what the subpass wrote.
+  std::array<VkSubpassDependency, 2> deps{};
+  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
+  deps[0].dstSubpass = 0;
+  deps[0].srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT | when(has_depth, VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT);
+  deps[0].dstStageMask = when(colors > 0, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT) | when(has_depth, tests);
+  deps[0].srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT | when(has_depth, VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
+  deps[0].dstAccessMask = when(colors > 0, color_rw) | when(has_depth, depth_rw);
+  deps[1].srcSubpass = 0;
+  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
+  deps[1].srcStageMask = when(colors > 0, VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT) | when(d.copy_depth, tests);
+  deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
+  deps[1].srcAccessMask = when(colors > 0, VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT) | when(d.copy_depth, VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT);
+  deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+  VkRenderPassCreateInfo rp{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
+  rp.attachmentCount = static_cast<std::uint32_t>(att.size());
+  rp.pAttachments = att.data();
+  rp.subpassCount = 1;
+  rp.pSubpasses = &sub;
+  rp.dependencyCount = static_cast<std::uint32_t>(deps.size());
+  rp.pDependencies = deps.data();
+  VkDevice dev = ctx.device();
+  VkRenderPass pass = VK_NULL_HANDLE;
+  const std::string what = "vkCreateRenderPass (" + d.name + ")";
+  check(vkCreateRenderPass(dev, &rp, nullptr, &pass), what.c_str());
+  ctx.set_name(VK_OBJECT_TYPE_RENDER_PASS, reinterpret_cast<std::uint64_t>(pass), d.name);
+  return Owned<VkRenderPass>(pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); });
+}
+
 Owned<VkPipeline> create_graphics_pipeline(Context& ctx, const GraphicsPipelineDesc& d) {
   std::vector<VkPipelineShaderStageCreateInfo> stages;
   VkPipelineShaderStageCreateInfo vs{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};

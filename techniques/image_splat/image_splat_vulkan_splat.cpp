@@ -125,49 +125,8 @@ struct SplatState {
 VkRenderPass render_pass(vk::Context& ctx, SplatState& st, std::uint32_t outs) {
   auto it = st.passes.find(outs);
   if (it != st.passes.end()) return it->second.get();
-  std::vector<VkAttachmentDescription> atts(outs);
-  std::vector<VkAttachmentReference> refs(outs);
-  for (std::uint32_t a = 0; a < outs; ++a) {
-    atts[a].format = kSplatFormat;
-    atts[a].samples = VK_SAMPLE_COUNT_1_BIT;
-    atts[a].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // the sums start at 0
-    atts[a].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    atts[a].stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
-    atts[a].stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
-    atts[a].initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    atts[a].finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;  // copied out after each draw
-    refs[a] = {a, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
-  }
-  VkSubpassDescription sub{};
-  sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
-  sub.colorAttachmentCount = outs;
-  sub.pColorAttachments = refs.data();
-  // Before: the previous draw's copy out of the attachments. After: the copy reads what was blended.
-  std::array<VkSubpassDependency, 2> deps{};
-  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
-  deps[0].dstSubpass = 0;
-  deps[0].srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
-  deps[0].dstStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
-  deps[0].srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-  deps[0].dstAccessMask = VK_ACCESS_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
-  deps[1].srcSubpass = 0;
-  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
-  deps[1].srcStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
-  deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
-  deps[1].srcAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
-  deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-  VkRenderPassCreateInfo rp{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
-  rp.attachmentCount = outs;
-  rp.pAttachments = atts.data();
-  rp.subpassCount = 1;
-  rp.pSubpasses = &sub;
-  rp.dependencyCount = static_cast<std::uint32_t>(deps.size());
-  rp.pDependencies = deps.data();
-  VkDevice dev = ctx.device();
-  VkRenderPass pass = VK_NULL_HANDLE;
-  vk::check(vkCreateRenderPass(dev, &rp, nullptr, &pass), "vkCreateRenderPass (image_splat splat_log)");
-  st.passes.emplace(outs, vk::Owned<VkRenderPass>(pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); }));
-  return pass;
+  // Cleared (the sums start at 0), blended into, copied out after each draw.
+  return st.passes.emplace(outs, vk::create_render_pass(ctx, {"image_splat splats", std::vector<VkFormat>(outs, kSplatFormat)})).first->second.get();
 }
 
 // The splat pipeline of `kind` for `key` (kind, N, rule, attachments (shadows) or operator

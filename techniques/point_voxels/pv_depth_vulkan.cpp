@@ -62,45 +62,9 @@ void make_pipeline(vk::Context& ctx, DepthRaster& r) {
   const auto vs_words = words(spv::point_voxels_depth_raster_vert);
   const vk::ShaderReflection rv = vk::reflect_spirv(vs_words);
   r.layout = std::make_unique<vk::PipelineLayout>(ctx, std::vector<vk::ShaderReflection>{rv}, "point_voxels depth_raster");
-  VkDevice dev = ctx.device();
-  VkAttachmentDescription att{};
-  att.format = kDepthFormat;
-  att.samples = VK_SAMPLE_COUNT_1_BIT;
-  att.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
-  att.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-  att.stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
-  att.stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
-  att.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-  att.finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;  // copied to the raw buffer after each face
-  const VkAttachmentReference ref{0, VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
-  VkSubpassDescription sub{};
-  sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
-  sub.pDepthStencilAttachment = &ref;
-  // Before: the previous face's copy out of the attachment (write after read). After: the copy
-  // reads what the subpass wrote.
-  std::array<VkSubpassDependency, 2> deps{};
-  deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
-  deps[0].dstSubpass = 0;
-  deps[0].srcStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
-  deps[0].dstStageMask = VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
-  deps[0].srcAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-  deps[0].dstAccessMask = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT | VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
-  deps[1].srcSubpass = 0;
-  deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
-  deps[1].srcStageMask = VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
-  deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
-  deps[1].srcAccessMask = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
-  deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
-  VkRenderPassCreateInfo rp{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
-  rp.attachmentCount = 1;
-  rp.pAttachments = &att;
-  rp.subpassCount = 1;
-  rp.pSubpasses = &sub;
-  rp.dependencyCount = static_cast<std::uint32_t>(deps.size());
-  rp.pDependencies = deps.data();
-  VkRenderPass render_pass = VK_NULL_HANDLE;
-  vk::check(vkCreateRenderPass(dev, &rp, nullptr, &render_pass), "vkCreateRenderPass (point_voxels depth_raster)");
-  r.render_pass = vk::Owned<VkRenderPass>(render_pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); });
+  // Depth only, copied to the raw buffer after each face.
+  r.render_pass = vk::create_render_pass(ctx, {"point_voxels depth_raster", {}, kDepthFormat, true});
+  const VkRenderPass render_pass = r.render_pass.get();
 
   vk::Owned<VkShaderModule> vs = ctx.create_shader_module(vs_words, "point_voxels depth_raster.vert");
   VkPipelineDepthStencilStateCreateInfo ds{VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};

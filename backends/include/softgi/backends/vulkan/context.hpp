@@ -288,6 +288,17 @@ class ComputePipeline {
   VkPipeline pipeline_ = VK_NULL_HANDLE;
 };
 
+// The render passes of softgi's rasterising passes: one subpass whose attachments are cleared, drawn
+// into, and then copied out by transfer commands (colour attachments always; the depth attachment
+// when copy_depth, else it is dropped). Ordered after the previous use's copies and depth writes.
+struct RenderPassDesc {
+  std::string name;  // in errors and debug labels
+  std::vector<VkFormat> colors;
+  VkFormat depth = VK_FORMAT_UNDEFINED;  // none
+  bool copy_depth = false;
+};
+Owned<VkRenderPass> create_render_pass(Context& ctx, const RenderPassDesc& d);
+
 // The graphics pipelines of softgi's rasterising passes (the G-buffer, depth maps, splats): triangle
 // lists without vertex input (the vertex shader fetches its corners from buffers), one sample at the
 // pixel centre, one viewport and scissor set when recording.
