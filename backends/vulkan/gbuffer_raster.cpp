@@ -186,17 +186,7 @@ std::unique_ptr<Targets> make_targets(vk::Context& ctx, const RasterPipeline& pi
   t->depth = ctx.create_image(w, h, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, VK_IMAGE_ASPECT_DEPTH_BIT,
                               "gbuffer_raster depth " + size);
   views[gpu::kGbColorAttachments] = t->depth.view();
-  VkFramebufferCreateInfo fi{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
-  fi.renderPass = pipe.render_pass.get();
-  fi.attachmentCount = static_cast<std::uint32_t>(views.size());
-  fi.pAttachments = views.data();
-  fi.width = w;
-  fi.height = h;
-  fi.layers = 1;
-  VkDevice dev = ctx.device();
-  VkFramebuffer fb = VK_NULL_HANDLE;
-  vk::check(vkCreateFramebuffer(dev, &fi, nullptr, &fb), "vkCreateFramebuffer (gbuffer_raster)");
-  t->framebuffer = vk::Owned<VkFramebuffer>(fb, [dev](VkFramebuffer x) { vkDestroyFramebuffer(dev, x, nullptr); });
+  t->framebuffer = vk::create_framebuffer(ctx, pipe.render_pass.get(), {views.begin(), views.end()}, w, h, "gbuffer_raster");
   return t;
 }
 

@@ -549,6 +549,22 @@ Owned<VkRenderPass> create_render_pass(Context& ctx, const RenderPassDesc& d) {
   return Owned<VkRenderPass>(pass, [dev](VkRenderPass x) { vkDestroyRenderPass(dev, x, nullptr); });
 }
 
+Owned<VkFramebuffer> create_framebuffer(Context& ctx, VkRenderPass pass, const std::vector<VkImageView>& views, std::uint32_t width,
+                                        std::uint32_t height, const std::string& name) {
+  VkFramebufferCreateInfo fi{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+  fi.renderPass = pass;
+  fi.attachmentCount = static_cast<std::uint32_t>(views.size());
+  fi.pAttachments = views.data();
+  fi.width = width;
+  fi.height = height;
+  fi.layers = 1;
+  VkDevice dev = ctx.device();
+  VkFramebuffer fb = VK_NULL_HANDLE;
+  const std::string what = "vkCreateFramebuffer (" + name + ")";
+  check(vkCreateFramebuffer(dev, &fi, nullptr, &fb), what.c_str());
+  return Owned<VkFramebuffer>(fb, [dev](VkFramebuffer x) { vkDestroyFramebuffer(dev, x, nullptr); });
+}
+
 Owned<VkPipeline> create_graphics_pipeline(Context& ctx, const GraphicsPipelineDesc& d) {
   std::vector<VkPipelineShaderStageCreateInfo> stages;
   VkPipelineShaderStageCreateInfo vs{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};

@@ -199,17 +199,7 @@ Targets& targets(vk::Context& ctx, SplatState& st, std::uint32_t outs, std::uint
                                         VK_IMAGE_ASPECT_COLOR_BIT, "image_splat splat sums " + std::to_string(a)));
     views.push_back(t.images.back().view());
   }
-  VkFramebufferCreateInfo fi{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
-  fi.renderPass = render_pass(ctx, st, outs);
-  fi.attachmentCount = outs;
-  fi.pAttachments = views.data();
-  fi.width = w;
-  fi.height = h;
-  fi.layers = 1;
-  VkDevice dev = ctx.device();
-  VkFramebuffer fb = VK_NULL_HANDLE;
-  vk::check(vkCreateFramebuffer(dev, &fi, nullptr, &fb), "vkCreateFramebuffer (image_splat splat_log)");
-  t.framebuffer = vk::Owned<VkFramebuffer>(fb, [dev](VkFramebuffer x) { vkDestroyFramebuffer(dev, x, nullptr); });
+  t.framebuffer = vk::create_framebuffer(ctx, render_pass(ctx, st, outs), views, w, h, "image_splat splats");
   t.width = w;
   t.height = h;
   return t;

@@ -88,17 +88,7 @@ void make_target(vk::Context& ctx, DepthRaster& r, std::uint32_t size) {
   r.depth = ctx.create_image(size, size, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
                              VK_IMAGE_ASPECT_DEPTH_BIT, "point_voxels depth map " + std::to_string(size) + "^2");
   const VkImageView view = r.depth.view();
-  VkFramebufferCreateInfo fi{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
-  fi.renderPass = r.render_pass.get();
-  fi.attachmentCount = 1;
-  fi.pAttachments = &view;
-  fi.width = size;
-  fi.height = size;
-  fi.layers = 1;
-  VkDevice dev = ctx.device();
-  VkFramebuffer fb = VK_NULL_HANDLE;
-  vk::check(vkCreateFramebuffer(dev, &fi, nullptr, &fb), "vkCreateFramebuffer (point_voxels depth_raster)");
-  r.framebuffer = vk::Owned<VkFramebuffer>(fb, [dev](VkFramebuffer x) { vkDestroyFramebuffer(dev, x, nullptr); });
+  r.framebuffer = vk::create_framebuffer(ctx, r.render_pass.get(), {view}, size, size, "point_voxels depth_raster");
   r.size = size;
 }
 

@@ -298,6 +298,9 @@ struct RenderPassDesc {
   bool copy_depth = false;
 };
 Owned<VkRenderPass> create_render_pass(Context& ctx, const RenderPassDesc& d);
+// A framebuffer of `pass` over `views` (in the pass's attachment order), width x height, one layer.
+Owned<VkFramebuffer> create_framebuffer(Context& ctx, VkRenderPass pass, const std::vector<VkImageView>& views, std::uint32_t width,
+                                        std::uint32_t height, const std::string& name);
 
 // The graphics pipelines of softgi's rasterising passes (the G-buffer, depth maps, splats): triangle
 // lists without vertex input (the vertex shader fetches its corners from buffers), one sample at the
