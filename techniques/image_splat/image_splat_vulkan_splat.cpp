@@ -90,7 +90,7 @@ std::vector<glm::vec4> unit_hull() {
   return out;
 }
 
-// Per attachment count, the render pass and the attachments of one buffer size.
+// Per attachment count, the attachments of one buffer size and their framebuffer.
 struct Targets {
   std::uint32_t width = 0, height = 0;
   std::vector<vk::Image> images;
