@@ -34,18 +34,10 @@ namespace is = softgi::techniques::image_splat;
 
 namespace {
 
-// Per receiver, |gpu - cpu| over the three channels relative to the receiver's largest CPU channel
-// (floored at softgi::testing::kFloorFraction of the largest). Both backends evaluate the same float formulas on the same table
-// floats, in a different order and with different primitives: the GPU's asin is the SHEXP kernel's
-// Abramowitz-Stegun polynomial (|error| <= 2e-8) where the CPU calls std::asin, and asin(r/d) is
-// ill-conditioned where r/d -> 1, which the replacement rule makes common (the adjusted sphere is
-// tangent to the receiver's tangent plane: a receiver near the tangent point sees r/d near 1): one
-// ulp of r/d moves theta by up to sqrt(2 ulp) ~ 5e-4 rad, a fraction of a table row (pi/2/255 rad);
-// the basis is the SHEXP recurrence on the GPU, sh::eval_basis on the CPU (a few ulps); lavapipe does
-// not fuse multiply-adds. Sums of up to a few hundred proxies: the bound of the accumulate_log
-// parity test, whose error sources these are.
-constexpr double kIndirectRelTol = 2e-3;
-// exact (paper 000 eqs. 16-17): the error sources above, plus per pair the rotation
+// kIndirectRelTol, kOmegaRelTol: vulkan_test_util.hpp (the indirect splats are held to them too).
+using softgi::testing::kIndirectRelTol;
+using softgi::testing::kOmegaRelTol;
+// exact (paper 000 eqs. 16-17): kIndirectRelTol's error sources, plus per pair the rotation
 // R = Q Rz(-beta) Q^T Rz(-phi) of L~ (two band-block products of up to 11 terms and the angle
 // multiples cos(m a), sin(m a) by recurrence: a few ulps each), H at N' = R N by the recurrence
 // basis, and the M blocks interpolated entry by entry (the CPU's formula, summed over up to 6 terms),
@@ -53,8 +45,6 @@ constexpr double kIndirectRelTol = 2e-3;
 // no tangent spheres: <= 4.5e-6 exact, <= 4.7e-6 averaged): the asin conditioning dominates here too,
 // so the same bound (observed <= 2.1e-4, crowd at indirect order 6; random receivers <= 3.4e-5).
 constexpr double kExactRelTol = kIndirectRelTol;
-// omega_p = sum of F_0 from the same table row pairs: the asin conditioning above only.
-constexpr double kOmegaRelTol = 2e-3;
 // Pairs inside the sphere of influence (dist < eta r): the backends may disagree only for pairs
 // whose distance lies within a float rounding of eta r. Those read exactly 0 from the smoothly clamped
 // table, so they do not change the sums; the count may differ by a few.

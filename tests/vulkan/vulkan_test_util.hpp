@@ -78,6 +78,20 @@ constexpr double kAccumulateRelTol = 2e-3;
 // exponentiate: each of the s <= 8 HYB squarings doubles the relative error of its input, and the OL
 // a, b and the DC factor are evaluated in float on the GPU, in double on the CPU. Observed: <= 8e-5.
 constexpr double kExpRelTol = 5e-4;
+// image_splat's accumulate_indirect (test_image_splat_parity2, test_image_splat_splats):
+// Per receiver, |gpu - cpu| over the three channels relative to the receiver's largest CPU channel
+// (floored at kFloorFraction of the largest). Both backends evaluate the same float formulas on the
+// same table floats, in a different order and with different primitives: the GPU's asin is the SHEXP kernel's
+// Abramowitz-Stegun polynomial (|error| <= 2e-8) where the CPU calls std::asin, and asin(r/d) is
+// ill-conditioned where r/d -> 1, which the replacement rule makes common (the adjusted sphere is
+// tangent to the receiver's tangent plane: a receiver near the tangent point sees r/d near 1): one
+// ulp of r/d moves theta by up to sqrt(2 ulp) ~ 5e-4 rad, a fraction of a table row (pi/2/255 rad);
+// the basis is the SHEXP recurrence on the GPU, sh::eval_basis on the CPU (a few ulps); lavapipe does
+// not fuse multiply-adds. Sums of up to a few hundred proxies: the bound of the accumulate_log
+// parity test, whose error sources these are.
+constexpr double kIndirectRelTol = 2e-3;
+// omega_p = sum of F_0 from the same table row pairs: the asin conditioning above only.
+constexpr double kOmegaRelTol = 2e-3;
 // Receivers whose vector is this small relative to the scene's largest are compared against that
 // largest instead (absolute cancellation noise of sums whose terms have the scene's scale).
 constexpr double kFloorFraction = 1e-4;
