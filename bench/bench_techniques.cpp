@@ -84,13 +84,16 @@ void BM_Technique(benchmark::State& state, const std::string& scene_name, const 
     return;
   }
   std::map<std::string, double> pass_seconds;
-  double up = 0.0, down = 0.0, pruned = 0.0;
+  double up = 0.0, down = 0.0, pruned = 0.0, faults = 0.0;
   for (auto _ : state) {
     req.time += kStep;
     render::FrameResult r = be->render(*tech, sc, params, req);
     state.SetIterationTime(r.total_seconds);
     out.frames.push_back(r.total_seconds);
-    for (const auto& p : r.passes) pass_seconds[p.name] += p.wall_seconds;
+    for (const auto& p : r.passes) {
+      pass_seconds[p.name] += p.wall_seconds;
+      faults += static_cast<double>(std::max(p.page_faults, 0LL));
+    }
     up += static_cast<double>(r.transfer.upload);
     down += static_cast<double>(r.transfer.download);
     pruned = static_cast<double>(r.pruned.size());
@@ -107,6 +110,8 @@ void BM_Technique(benchmark::State& state, const std::string& scene_name, const 
   state.counters["upload_MB"] = up / n / 1e6;
   state.counters["download_MB"] = down / n / 1e6;
   state.counters["pruned_passes"] = pruned;
+  // Fresh memory touched by the timed frames' passes: 0 once every per-frame buffer is recycled.
+  state.counters["page_faults/frame"] = faults / n;
 }
 
 double median(std::vector<double> v) {

@@ -149,6 +149,7 @@ Json frame_json(const render::FrameResult& r) {
                {"bytes", p.bytes},
                {"transfer_bytes", {{"upload", p.transfer.upload}, {"download", p.transfer.download}}}};
     if (p.gpu_seconds >= 0.0) jp["gpu_seconds"] = p.gpu_seconds;
+    if (p.page_faults >= 0) jp["page_faults"] = p.page_faults;
     Json c = Json::object();
     for (const auto& [k, v] : p.counters) c[k] = std::isfinite(v) ? Json(v) : Json(nullptr);
     jp["counters"] = c;

@@ -95,6 +95,16 @@ void check_sample(const PlaneView& v, const char* name, int x, int y) {
   }
 }
 
+// check_sample's condition without its message, for the per-pixel loops: a background depth (+inf),
+// or a positive finite depth with a finite normal.
+bool sample_ok(const PlaneView& v, std::size_t i) {
+  const float z = v.depth[i];
+  if (z == std::numeric_limits<float>::infinity()) return true;
+  if (!(z > 0.0f && std::isfinite(z))) return false;
+  const glm::vec3 n = v.normal[i];
+  return std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z);
+}
+
 void check_pair(const PlaneView& coarse, const PlaneView& fine) {
   check_plane(coarse, "coarse");
   check_plane(fine, "fine");
@@ -156,14 +166,22 @@ struct Block {
   std::array<double, 4> w{};  // bilinear weights w_b, all > 0
 };
 
+// The bilinear footprints of every display column and row: they depend on X or Y alone, so a pass
+// over the display works them out once per column and row instead of once per pixel.
+struct Footprints {
+  std::vector<Axis> x, y;
+  Footprints(const PlaneView& c, const PlaneView& f) : x(f.width), y(f.height) {
+    const double ratio = static_cast<double>(f.scale) / static_cast<double>(c.scale);
+    for (int X = 0; X < f.width; ++X) x[X] = axis((X + 0.5) * ratio - 0.5, c.width);
+    for (int Y = 0; Y < f.height; ++Y) y[Y] = axis((Y + 0.5) * ratio - 0.5, c.height);
+  }
+};
+
 // The 2x2 coarse block of display pixel (X, Y): its centre X + 0.5 (in fine pixels of size
 // fine.scale) is the display point (X + 0.5) fine.scale, i.e. coarse coordinate
-// (X + 0.5) fine.scale / coarse.scale - 0.5. Taps with w_b = 0 are dropped, so that a pixel sitting
-// exactly on a coarse centre takes that sample alone (scale 1 is the identity).
-Block bilinear_block(const PlaneView& c, const PlaneView& f, int X, int Y) {
-  const double ratio = static_cast<double>(f.scale) / static_cast<double>(c.scale);
-  const Axis ax = axis((X + 0.5) * ratio - 0.5, c.width);
-  const Axis ay = axis((Y + 0.5) * ratio - 0.5, c.height);
+// (X + 0.5) fine.scale / coarse.scale - 0.5 (Footprints). Taps with w_b = 0 are dropped, so that a
+// pixel sitting exactly on a coarse centre takes that sample alone (scale 1 is the identity).
+Block bilinear_block(const PlaneView& c, const Axis& ax, const Axis& ay) {
   const int xs[2] = {ax.i0, ax.i1}, ys[2] = {ay.i0, ay.i1};
   const double wx[2] = {1.0 - ax.f, ax.f}, wy[2] = {1.0 - ay.f, ay.f};
   Block b;
@@ -207,18 +225,19 @@ bool bilinear_valid(const PlaneView& c, const Block& b, Pixel& out) {
   return store_normalised(b, w, out);
 }
 
-Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptions& opt, int X, int Y) {
+// Display pixel p, whose column and row have the footprints ax and ay.
+Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptions& opt, std::size_t p, const Axis& ax,
+                     const Axis& ay) {
   Pixel out;
-  const std::size_t p = static_cast<std::size_t>(Y) * f.width + X;
   const float zp = f.depth[p];
   if (!is_hit(zp)) return out;  // background: nothing to shade, not a miss
-  const Block b = bilinear_block(c, f, X, Y);
+  const Block b = bilinear_block(c, ax, ay);
   if (opt.mode == UpsampleMode::Bilinear) {
     out.miss = !bilinear_valid(c, b, out);
     return out;
   }
   // Eq. 11: w~_i = w_b,i w_z,i w_N,i with w_z = 1 / (eps + |z_p - z_i|), w_N = max(0, N_p . N_i)^32.
-  // We use eps w_z = 1 / (1 + |z_p - z_i| / eps) in (0, 1] instead: the constant factor eps cancels
+  // We use eps w_z = eps / (eps + |z_p - z_i|) in (0, 1] instead: the constant factor eps cancels
   // in the normalisation, the sum is then directly the miss measure of UpsampleOptions (1 for a
   // perfect match), and nothing overflows for tiny eps.
   const double eps = opt.epsilon_rel * static_cast<double>(zp);
@@ -229,7 +248,7 @@ Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptio
     const float zi = c.depth[b.idx[k]];
     if (!is_hit(zi)) continue;  // background coarse sample: weight 0
     const double dz = std::abs(static_cast<double>(zp) - static_cast<double>(zi));
-    const double wz = dz == 0.0 ? 1.0 : 1.0 / (1.0 + dz / eps);
+    const double wz = eps / (eps + dz);
     const double wn = ipow(std::max(0.0, glm::dot(np, glm::dvec3(c.normal[b.idx[k]]))), opt.normal_power);
     w[k] = b.w[k] * wz * wn;
     measure += w[k];
@@ -280,12 +299,13 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
     r.weight.resize(n);
     r.miss.resize(n);
   }
+  const Footprints fp(coarse, fine);
   tbb::parallel_for(tbb::blocked_range<int>(0, fine.height), [&](const tbb::blocked_range<int>& rows) {
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < fine.width; ++x) {
-        check_sample(fine, "fine", x, y);  // throws; TBB rethrows it in the calling thread
-        const Pixel px = upsample_pixel(coarse, fine, opt, x, y);
         const std::size_t p = static_cast<std::size_t>(y) * fine.width + x;
+        if (!sample_ok(fine, p)) check_sample(fine, "fine", x, y);  // throws; TBB rethrows it in the calling thread
+        const Pixel px = upsample_pixel(coarse, fine, opt, p, fp.x[x], fp.y[y]);
         r.index[p] = px.idx;
         r.weight[p] = px.w;
         r.miss[p] = px.miss ? 1 : 0;
@@ -328,15 +348,16 @@ void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, 
     fail("pixel selection has " + std::to_string(only->size()) + " entries for " + std::to_string(w.miss.size()) +
          " pixels");
   const std::size_t ch = static_cast<std::size_t>(channels);
+  const Footprints fp(coarse, fine);
   tbb::parallel_for(tbb::blocked_range<int>(0, fine.height), [&](const tbb::blocked_range<int>& rows) {
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < fine.width; ++x) {
         const std::size_t p = static_cast<std::size_t>(y) * fine.width + x;
         if (only != nullptr && (*only)[p] == 0) continue;
-        check_sample(fine, "fine", x, y);
+        if (!sample_ok(fine, p)) check_sample(fine, "fine", x, y);
         if (!is_hit(fine.depth[p])) continue;
         Pixel px;
-        if (!bilinear_valid(coarse, bilinear_block(coarse, fine, x, y), px)) continue;  // no valid tap
+        if (!bilinear_valid(coarse, bilinear_block(coarse, fp.x[x], fp.y[y]), px)) continue;  // no valid tap
         float* o = out + p * ch;
         for (std::size_t c = 0; c < ch; ++c) o[c] = 0.0f;
         for (int k = 0; k < 4 && px.idx[k] >= 0; ++k) {

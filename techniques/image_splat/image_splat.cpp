@@ -393,13 +393,24 @@ void pass_bin(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const ProxyBins>>(kBins, bins);
 }
 
+// A per-receiver field of `count` x `channels` zeros whose storage comes from the frame pool and
+// goes back to it at the end of the frame unless a caller holds the resource: every frame needs
+// the same fields again, and fresh pages cost a fault each (bench/README.md, "Frame memory").
+std::shared_ptr<Field> pooled_field(FrameContext& ctx, int channels, std::size_t count) {
+  auto f = std::make_shared<Field>();
+  f->channels = channels;
+  f->v = ctx.pool().take(count * static_cast<std::size_t>(channels), 0.0f);
+  ctx.on_release([f](render::FramePool& pool) {
+    if (f.use_count() == 1) pool.give(std::move(f->v));
+  });
+  return f;
+}
+
 void pass_accumulate_log(const Settings& s, FrameContext& ctx) {
   const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
   const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
   const auto& bins = *ctx.get<std::shared_ptr<const ProxyBins>>(kBins);
-  auto f = std::make_shared<Field>();
-  f->channels = s.order * s.order;
-  f->v.assign(r.soa.size() * f->channels, 0.0f);
+  auto f = pooled_field(ctx, s.order * s.order, r.soa.size());
   const auto t0 = std::chrono::steady_clock::now();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.tiles.size(), 1), [&](const tbb::blocked_range<std::size_t>& tr) {
     for (std::size_t k = tr.begin(); k != tr.end(); ++k)
@@ -422,9 +433,7 @@ void pass_accumulate_log(const Settings& s, FrameContext& ctx) {
 void pass_exponentiate(const Settings& s, FrameContext& ctx) {
   const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
   const auto& f = *ctx.get<std::shared_ptr<const Field>>(kLogOcclusion);
-  auto g = std::make_shared<Field>();
-  g->channels = f.channels;
-  g->v.assign(f.v.size(), 0.0f);
+  auto g = pooled_field(ctx, f.channels, f.channels ? f.v.size() / static_cast<std::size_t>(f.channels) : 0);
   const std::size_t n2 = static_cast<std::size_t>(f.channels), count = n2 ? f.v.size() / n2 : 0;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
     try {
@@ -445,8 +454,13 @@ void pass_accumulate_indirect(FrameContext& ctx) {
   const auto& bins = *ctx.get<std::shared_ptr<const ProxyBins>>(kBins);
   const auto& ev = *ctx.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
   auto sums = std::make_shared<IndirectSums>();
-  sums->rgb.assign(r.soa.size() * 3, 0.0f);
-  sums->omega.assign(r.soa.size(), 0.0f);
+  sums->rgb = ctx.pool().take(r.soa.size() * 3, 0.0f);
+  sums->omega = ctx.pool().take(r.soa.size(), 0.0f);
+  ctx.on_release([sums](render::FramePool& pool) {
+    if (sums.use_count() > 1) return;
+    pool.give(std::move(sums->rgb));
+    pool.give(std::move(sums->omega));
+  });
   std::atomic<long long> inside{0};
   const auto t0 = std::chrono::steady_clock::now();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.tiles.size(), 1), [&](const tbb::blocked_range<std::size_t>& tr) {
@@ -501,9 +515,7 @@ void normalise(const Settings& s, const float* rgb, const float* omega, const fl
 void pass_normalize_indirect(const Settings& s, FrameContext& ctx,
                              const std::function<std::vector<float>(FrameContext&, const std::string&)>& field_dc = {}) {
   const auto& sums = *ctx.get<std::shared_ptr<const IndirectSums>>(kIndirectSums);
-  auto out = std::make_shared<Field>();
-  out->channels = 3;
-  out->v.assign(sums.rgb.size(), 0.0f);
+  auto out = pooled_field(ctx, 3, sums.omega.size());
   XiStats xs;
   std::shared_ptr<const Field> occ;
   std::vector<float> dc;
@@ -533,10 +545,19 @@ void pass_normalize_indirect(const Settings& s, FrameContext& ctx,
 PlaneView plane(const render::GBuffer& gb) { return common::plane_view(gb); }
 
 // A receiver-order field scattered to coarse-pixel order (background pixels 0), for upsampling.
-std::vector<float> to_pixels(const ReceiverBuffer& r, const float* v, int channels) {
-  std::vector<float> out(r.receiver.size() * channels, 0.0f);
-  for (std::size_t i = 0; i < r.pixel.size(); ++i)
-    std::copy(v + i * channels, v + (i + 1) * channels, out.begin() + static_cast<std::size_t>(r.pixel[i]) * channels);
+// Its storage comes from the frame pool: every frame needs it again, and fresh pages cost a fault
+// each (bench/README.md, "Frame memory").
+std::vector<float> to_pixels(const ReceiverBuffer& r, const float* v, int channels, render::FramePool& pool) {
+  const std::size_t ch = static_cast<std::size_t>(channels);
+  std::vector<float> out = pool.take_for_overwrite<float>(r.receiver.size() * ch);
+  for (std::size_t q = 0; q < r.receiver.size(); ++q) {
+    const std::int32_t i = r.receiver[q];
+    float* o = out.data() + q * ch;
+    if (i < 0)
+      std::fill(o, o + ch, 0.0f);
+    else
+      std::copy(v + static_cast<std::size_t>(i) * ch, v + (static_cast<std::size_t>(i) + 1) * ch, o);
+  }
   return out;
 }
 
@@ -562,13 +583,14 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
   } else if (ctx.has(kOcclusion)) {
     // Interpolated per block in shade_direct (see Upsampled).
     const auto& occ = *ctx.get<std::shared_ptr<const Field>>(kOcclusion);
-    up->coarse_visibility = to_pixels(r, occ.v.data(), occ.channels);
+    up->coarse_visibility = to_pixels(r, occ.v.data(), occ.channels, ctx.pool());
   }
   if (ctx.has(kIndirectNorm)) {
     const auto& ind = *ctx.get<std::shared_ptr<const Field>>(kIndirectNorm);
-    const std::vector<float> in = to_pixels(r, ind.v.data(), 3);
+    std::vector<float> in = to_pixels(r, ind.v.data(), 3, ctx.pool());
     up->indirect = ctx.pool().take(np * 3, 0.0f);
     k.apply(up->w, in.data(), 3, up->indirect.data());
+    ctx.pool().give(std::move(in));
   }
   // The per-pixel planes go back to the pool at the end of the frame, unless the caller asked for
   // this resource and holds it.
@@ -579,6 +601,7 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
     pool.give(std::move(up->w.miss));
     pool.give(std::move(up->surface));
     pool.give(std::move(up->indirect));
+    pool.give(std::move(up->coarse_visibility));
   });
   auto& rec = ctx.record();
   std::size_t hits = 0;
@@ -691,7 +714,7 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
     // Host kernels interpolate O_p from its coarse copy: read it back now.
     auto host = std::make_shared<Upsampled>(*up_ptr);
     const auto& occ = *ctx.get<std::shared_ptr<const Field>>(kOcclusion);
-    host->coarse_visibility = to_pixels(*ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), occ.v.data(), occ.channels);
+    host->coarse_visibility = to_pixels(*ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers), occ.v.data(), occ.channels, ctx.pool());
     host->device_visibility = nullptr;
     up_ptr = host;
   }
@@ -733,7 +756,7 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
     const auto& coarse = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
     std::vector<glm::vec3> ce(r.soa.size());
     k.receivers(shader, r.soa, occ.v.data(), ce.data());
-    const std::vector<float> in = to_pixels(r, reinterpret_cast<const float*>(ce.data()), 3);
+    const std::vector<float> in = to_pixels(r, reinterpret_cast<const float*>(ce.data()), 3, ctx.pool());
     std::vector<float> outv(fine.object.size() * 3);
     for (std::size_t i = 0; i < fine.object.size(); ++i)
       for (int c = 0; c < 3; ++c) outv[3 * i + c] = img.rgb[i][c];
@@ -782,7 +805,7 @@ void pass_shade_indirect(const Settings& s, FrameContext& ctx) {
     const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
     const auto& ind = *ctx.get<std::shared_ptr<const Field>>(kIndirectNorm);
     const auto& coarse = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
-    const std::vector<float> in = to_pixels(r, ind.v.data(), 3);
+    const std::vector<float> in = to_pixels(r, ind.v.data(), 3, ctx.pool());
     upsample_apply_bilinear(up.w, plane(coarse), plane(fine), in.data(), 3, v.data(), &up.w.miss);
     for (std::size_t i = 0; i < np; ++i) interpolated += up.w.miss[i] && fine.hit(i);
   }

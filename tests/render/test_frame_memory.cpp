@@ -3,6 +3,8 @@
 // SOFTGI_MEMORY_LIMIT), and frames refused before their first pass with an error naming the
 // resource, its size and the limit.
 #include <gtest/gtest.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -93,6 +95,42 @@ class Declared final : public render::Technique {
  private:
   std::vector<MemoryItem> items_;
   int ran_ = 0;
+};
+
+// Two host passes: "fresh" maps `bytes` of new anonymous memory and writes one byte per page (every
+// page faults once), "warm" writes the same count of pages of a buffer the test touched already.
+class Touching final : public render::Technique {
+ public:
+  Touching(std::size_t bytes, unsigned char* warm) : bytes_(bytes), warm_(warm) {}
+  std::string name() const override { return "touching"; }
+  std::string description() const override { return "touches fresh and resident memory"; }
+  std::vector<render::ParamDesc> params() const override { return {}; }
+  render::PassGraph plan(const scene::Scene&, const render::ParamSet&, std::set<std::string>&) override {
+    render::PassGraph g;
+    const std::size_t bytes = bytes_;
+    unsigned char* warm = warm_;
+    const std::size_t page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+    g.add({"fresh", {}, {}, {"touched"}, "touches fresh pages", render::host_impl([bytes, page](render::FrameContext& c) {
+             void* m = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+             if (m == MAP_FAILED) throw std::runtime_error("mmap failed");
+             madvise(m, bytes, MADV_NOHUGEPAGE);  // one fault per base page, not per huge page
+             auto* b = static_cast<volatile unsigned char*>(m);
+             for (std::size_t i = 0; i < bytes; i += page) b[i] = 1;
+             munmap(m, bytes);
+             c.put<int>("touched", 1);
+           })});
+    g.add({"warm", {"touched"}, {}, {render::kFinal}, "touches resident pages", render::host_impl([bytes, page, warm](render::FrameContext& c) {
+             auto* b = static_cast<volatile unsigned char*>(warm);
+             for (std::size_t i = 0; i < bytes; i += page) b[i] = 2;
+             c.put<Image>(render::kFinal, Image(c.width, c.height));
+           })});
+    return g;
+  }
+  std::vector<MemoryItem> estimate_memory(const scene::Scene&, const render::ParamSet&, int, int) const override { return {}; }
+
+ private:
+  std::size_t bytes_;
+  unsigned char* warm_;
 };
 
 render::RenderRequest request(int w, int h) {
@@ -365,4 +403,27 @@ TEST(FrameMemory, DeviceLimitsNameTheBufferAndTheLimit) {
   }
   l.device_is_host_memory = false;
   EXPECT_NO_THROW(render::check_frame_memory(m, l));
+}
+
+// PassRecord::page_faults counts the faults of fresh memory in the pass that touches it: every page
+// of a new mapping in "fresh" (not fewer: other threads can only add), and far fewer in "warm",
+// whose pages were resident before the frame (the bound leaves room for other threads' faults; it
+// fails if the counter were taken over the frame instead of the pass, or not at all).
+TEST(FrameMemory, PassRecordsCountThePageFaultsOfFreshMemory) {
+  const std::size_t page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+  const std::size_t pages = 4096, bytes = pages * page;
+  std::vector<unsigned char> warm(bytes, 1);  // resident: every page written here
+  Touching t(bytes, warm.data());
+  auto cpu = render::create_backend("cpu");
+  const render::FrameResult r = cpu->render(t, scene::make_builtin("spheres"), render::ParamSet(), request(8, 8));
+  const render::PassRecord* fresh = nullptr;
+  const render::PassRecord* resident = nullptr;
+  for (const auto& p : r.passes) {
+    if (p.name == "fresh") fresh = &p;
+    if (p.name == "warm") resident = &p;
+  }
+  ASSERT_TRUE(fresh && resident);
+  ASSERT_GE(render::minor_page_faults(), 0) << "this platform counts no page faults";
+  EXPECT_GE(fresh->page_faults, static_cast<long long>(pages));
+  EXPECT_LT(resident->page_faults, static_cast<long long>(pages / 8));
 }

@@ -27,6 +27,12 @@ std::size_t FrameResult::bytes() const {
   return b;
 }
 
+long long minor_page_faults() {
+  rusage u{};
+  if (getrusage(RUSAGE_SELF, &u) != 0) return -1;
+  return static_cast<long long>(u.ru_minflt);
+}
+
 std::size_t peak_rss_bytes() {
   std::ifstream f("/proc/self/status");
   std::string line;
@@ -364,7 +370,10 @@ FrameResult Backend::render(Technique& technique, const scene::Scene& scene, con
     result.passes.push_back(PassRecord{pass.name});
     auto p0 = std::chrono::steady_clock::now();
     const TransferBytes before = transfer_total();
+    const long long faults0 = minor_page_faults();
     execute_pass(pass, ctx);
+    const long long faults1 = minor_page_faults();
+    if (faults0 >= 0 && faults1 >= 0) result.passes.back().page_faults = faults1 - faults0;
     const TransferBytes after = transfer_total();
     result.passes.back().transfer = {after.upload - before.upload, after.download - before.download};
     result.passes.back().wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - p0).count();

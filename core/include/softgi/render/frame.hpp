@@ -37,6 +37,10 @@ struct PassRecord {
   std::map<std::string, double> counters;    // receivers, blockers accumulated, ...
   std::size_t bytes = 0;                     // tables and buffers this pass allocated or holds
   TransferBytes transfer;                    // host <-> device bytes this pass moved
+  // Minor page faults of the whole process while the pass ran (first touches of fresh memory; -1
+  // where the platform does not count them). Every one is a trip into the kernel, which on some
+  // machines costs more than the pass's own work (bench/README.md, "Frame memory").
+  long long page_faults = -1;
 };
 
 struct FrameResult {
@@ -193,5 +197,7 @@ class FrameContext {
 
 // Peak resident set size of this process (VmHWM), 0 where unavailable.
 std::size_t peak_rss_bytes();
+// Minor page faults of this process so far (getrusage), -1 where unavailable.
+long long minor_page_faults();
 
 }  // namespace softgi::render
