@@ -731,7 +731,8 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   const std::size_t np = fine.object.size();
   const std::size_t surface = up.surface.size();
   std::vector<glm::vec3> es = ctx.pool().take_for_overwrite<glm::vec3>(surface);  // k.surface writes every one
-  std::vector<glm::vec3> e = ctx.pool().take(np, glm::vec3(0.0f));
+  // Only surface pixels are read below, and every one is in up.surface.
+  std::vector<glm::vec3> e = ctx.pool().take_for_overwrite<glm::vec3>(np);
   long long clamped = k.surface(shader, fine, up, es.data());
   for (std::size_t i = 0; i < surface; ++i) e[static_cast<std::size_t>(up.surface[i])] = es[i];
   if (rm && !rm->pixel.empty()) {
@@ -740,10 +741,12 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
     for (std::size_t i = 0; i < rm->pixel.size(); ++i) e[rm->pixel[i]] = em[i];
   }
   Image img = ctx.pool().image_for_overwrite(fine.width, fine.height);
+  const render::BackgroundFn background = render::environment_background(ctx.scene.environment);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
-    // Background: the environment as seen, as the reference draws it (render/vertex_image.hpp).
+    // Eq. 10 times the receiver's albedo: outgoing radiance. Background: the environment as seen,
+    // as the reference draws it (render/vertex_image.hpp).
     for (std::size_t i = br.begin(); i != br.end(); ++i)
-      img.rgb[i] = fine.hit(i) ? e[i] : render::background_radiance(ctx.scene.environment, fine.view_dir[i]);
+      img.rgb[i] = fine.hit(i) ? e[i] * fine.albedo[i] : background(fine.view_dir[i]);
   });
   ctx.pool().give(std::move(es));
   ctx.pool().give(std::move(e));
@@ -763,13 +766,10 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
     upsample_apply_bilinear(up.w, plane(coarse), plane(fine), in.data(), 3, outv.data(), &up.w.miss);
     for (std::size_t i = 0; i < fine.object.size(); ++i)
       if (up.w.miss[i] && fine.hit(i)) {
-        img.rgb[i] = glm::max(glm::vec3(outv[3 * i], outv[3 * i + 1], outv[3 * i + 2]), glm::vec3(0.0f));
+        img.rgb[i] = glm::max(glm::vec3(outv[3 * i], outv[3 * i + 1], outv[3 * i + 2]), glm::vec3(0.0f)) * fine.albedo[i];
         ++interpolated;
       }
   }
-  // Eq. 10 times the receiver's albedo: outgoing radiance.
-  for (std::size_t i = 0; i < fine.object.size(); ++i)
-    if (fine.hit(i)) img.rgb[i] *= fine.albedo[i];
   auto& rec = ctx.record();
   rec.counters["pixels"] = static_cast<double>(img.rgb.size());
   rec.counters["surface_pixels"] = static_cast<double>(surface);

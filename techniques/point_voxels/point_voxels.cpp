@@ -536,10 +536,11 @@ void pass_direct(FrameContext& ctx) {
   }
   Image img = ctx.pool().image_for_overwrite(g.width, g.height);  // every pixel is written below
   const std::size_t np = img.rgb.size();
+  const render::BackgroundFn background = render::environment_background(ctx.scene.environment);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 256), [&](const tbb::blocked_range<std::size_t>& br) {
     for (std::size_t i = br.begin(); i < br.end(); ++i) {
       if (!g.hit(i)) {
-        img.rgb[i] = render::background_radiance(ctx.scene.environment, g.view_dir[i]);
+        img.rgb[i] = background(g.view_dir[i]);
         continue;
       }
       const Receiver r = receiver_at(ctx, g, i);

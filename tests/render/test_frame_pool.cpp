@@ -54,6 +54,26 @@ TEST(FramePool, BestFitWithinTheSlack) {
   EXPECT_EQ(pool.stats().held_bytes, 100000 * sizeof(glm::vec3));
 }
 
+// A buffer the pool allocated serves the next frame's slightly larger request (an animated scene's
+// receiver count grows by a few per cent): without the headroom that request allocates again.
+TEST(FramePool, NewBuffersHaveHeadroomForAGrowingRequest) {
+  FramePool pool;
+  pool.set_mode(FramePool::Mode::On);
+  const std::size_t n = 100000;
+  std::vector<float> v = pool.take_for_overwrite<float>(n);
+  EXPECT_EQ(v.size(), n);
+  EXPECT_EQ(v.capacity(), n + n / FramePool::kHeadroom);
+  const float* data = v.data();
+  pool.give(std::move(v));
+  std::vector<float> w = pool.take_for_overwrite<float>(n + n / (2 * FramePool::kHeadroom));
+  EXPECT_EQ(w.data(), data);
+  EXPECT_EQ(pool.stats().allocated, 1u);
+  EXPECT_EQ(pool.stats().reused, 1u);
+  // Without a pool, takes are plain allocations of what is asked.
+  pool.set_mode(FramePool::Mode::Off);
+  EXPECT_EQ(pool.take_for_overwrite<float>(n).capacity(), n);
+}
+
 TEST(FramePool, TakeFillsAndPoisonMarksUnwrittenElements) {
   FramePool pool;
   pool.set_mode(FramePool::Mode::Poison);

@@ -54,7 +54,7 @@ class FramePool {
 
   // A vector of n elements. Its storage is a given buffer of the same element type whose capacity
   // is at least n (the smallest such, and not more than kMaxSlack times n, so that a small request
-  // does not pin a large buffer), else a new one. The elements' values are unspecified (a recycled
+  // does not pin a large buffer), else a new one with capacity n + n / kHeadroom. The elements' values are unspecified (a recycled
   // buffer keeps its old values, a new or grown one is value-initialised): for a caller that
   // writes every element.
   template <class T>
@@ -62,7 +62,10 @@ class FramePool {
     static_assert(std::is_trivially_copyable_v<T>, "the pool holds buffers of plain values");
     std::any a = take_slot(typeid(std::vector<T>), n, n * sizeof(T));
     std::vector<T> v;
-    if (a.has_value()) v = std::move(*std::any_cast<std::vector<T>>(&a));
+    if (a.has_value())
+      v = std::move(*std::any_cast<std::vector<T>>(&a));
+    else if (mode() != Mode::Off)
+      v.reserve(n + n / kHeadroom);  // untouched until used: no resident memory
     v.resize(n);
     if (mode() == Mode::Poison && n > 0) std::memset(static_cast<void*>(v.data()), detail::PoisonByte<T>::value, n * sizeof(T));
     return v;
@@ -115,6 +118,10 @@ class FramePool {
   Stats stats() const;
 
   static constexpr std::size_t kMaxSlack = 4;
+  // A new buffer gets 1/kHeadroom more capacity than asked for, so that next frame's request for a
+  // few more elements (receivers, surface pixels of an animated scene) still fits it instead of
+  // allocating fresh pages.
+  static constexpr std::size_t kHeadroom = 16;
   static constexpr unsigned kKeepFrames = 2;
 
  private:
