@@ -9,12 +9,22 @@
 // each pixel sees: Embree's BVH update and trace, or the rasteriser's set-up, binning and tile
 // tests), resolve_ms (the surface attributes from them, the same code for both), and for the
 // rasteriser its set-up share.
+//
+// Also BM_Upsample/<scene>/<weights|apply>: image_splat's bilateral upsampling from a 256x256
+// receiver buffer to 1024x1024 on its own (BM_Upsample below), with its bytes moved and its share of
+// the memory bandwidth (BM_StreamTriad, run first).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstdlib>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
+#include "../techniques/common/upsample.hpp"
+#include "bandwidth.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/frame.hpp"
@@ -73,9 +83,85 @@ void BM_GBuffer(benchmark::State& state, const std::string& scene_name, const st
   state.counters["Msamples/s"] = benchmark::Counter(static_cast<double>(side) * side * n / 1e6 / vis);
 }
 
+// The display and receiver G-buffers of one frame of `scene_name`: the receiver buffer is the same
+// camera at side / scale pixels, as image_splat's receiver_gbuffer pass renders it.
+struct UpsamplePair {
+  render::GBuffer fine, coarse;
+};
+UpsamplePair upsample_pair(const std::string& scene_name, int side, int scale) {
+  backends::register_cpu_backend();
+  const render::PassFn* fn = render::find_shared_pass_impl("gbuffer", backends::cpu::kBackendName);
+  if (!fn) throw std::runtime_error("the CPU backend has no gbuffer pass");
+  const scene::Scene sc = scene::make_builtin(scene_name);
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  const render::ParamSet params;
+  render::FramePool pool;
+  auto render_at = [&](int s) {
+    render::FrameResult result;
+    render::FrameContext ctx(sc, posed, params, s, s, result, nullptr, &pool);
+    result.passes.push_back(render::PassRecord{"gbuffer"});
+    (*fn)(ctx);
+    return std::move(ctx.get<render::GBuffer>(render::kGBuffer));
+  };
+  UpsamplePair p{render_at(side), render_at(side / scale)};
+  p.coarse.scale = scale;
+  return p;
+}
+
+// image_splat's upsample pass on its own (paper 000 section 4.2): the eq. 11 weights of every
+// display pixel (weights) or their application to a 3-channel coarse field (apply, the indirect
+// light), at 1024x1024 from 256x256 receivers. Bytes moved, a lower bound: weights read each display
+// pixel's depth and normal (16 bytes) and write its 4 indices, 4 weights and miss flag (33); apply
+// reads the indices and weights (32) and writes 3 floats (12); the coarse buffers (1/16 of the pixels)
+// are not counted. The share is of the 2-thread triad, measured first in the same run.
+void BM_Upsample(benchmark::State& state, const std::string& scene_name, bool apply) {
+  constexpr int kSide = 1024, kScale = 4;
+  UpsamplePair pair;
+  try {
+    pair = upsample_pair(scene_name, kSide, kScale);
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+    return;
+  }
+  const techniques::common::PlaneView fine = techniques::common::plane_view(pair.fine);
+  techniques::common::PlaneView coarse = techniques::common::plane_view(pair.coarse);
+  coarse.scale = kScale;
+  const techniques::common::UpsampleOptions opt;
+  render::FramePool pool;
+  techniques::common::UpsampleWeights w = techniques::common::upsample_weights(coarse, fine, opt, &pool);
+  std::vector<float> in(pair.coarse.depth.size() * 3, 0.5f), out(pair.fine.depth.size() * 3, 0.0f);
+  for (auto _ : state) {
+    if (apply) {
+      techniques::common::upsample_apply(w, in.data(), 3, out.data());
+      benchmark::DoNotOptimize(out.data());
+    } else {
+      pool.give(std::move(w.index));
+      pool.give(std::move(w.weight));
+      pool.give(std::move(w.miss));
+      w = techniques::common::upsample_weights(coarse, fine, opt, &pool);
+      benchmark::DoNotOptimize(w.weight.data());
+    }
+  }
+  const double px = static_cast<double>(pair.fine.depth.size());
+  const double bytes = px * (apply ? 32.0 + 12.0 : 16.0 + 33.0);
+  const double bw = bench::bandwidth_gbps();
+  state.counters["MB_moved"] = bytes / 1e6;
+  state.counters["GB/s"] = benchmark::Counter(bytes * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["surface_pixels"] = static_cast<double>(std::count_if(pair.fine.object.begin(), pair.fine.object.end(), [](std::int32_t o) { return o >= 0; }));
+  state.counters["triad_GB/s"] = bw;
+  state.counters["share_of_triad"] = benchmark::Counter(bytes * 1e-9 / bw, benchmark::Counter::kIsIterationInvariantRate);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  benchmark::RegisterBenchmark("BM_StreamTriad", softgi::bench::BM_StreamTriad)->Arg(2)->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
+  for (const char* scene_name : {"spheres", "character", "crowd"})
+    for (const bool apply : {false, true})
+      benchmark::RegisterBenchmark((std::string("BM_Upsample/") + scene_name + (apply ? "/apply" : "/weights")).c_str(),
+                                   [s = std::string(scene_name), apply](benchmark::State& st) { BM_Upsample(st, s, apply); })
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
   for (const char* scene_name : {"spheres", "character", "crowd"})
     for (int side : {512, 1024})
       for (const char* vis : {"raster", "embree"})

@@ -15,6 +15,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace softgi::techniques::common {
 
@@ -318,22 +319,32 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
 void upsample_apply(const UpsampleWeights& w, const float* in, int channels, float* out) {
   check_weights(w);
   check_io(in, channels, out);
-  const std::size_t ch = static_cast<std::size_t>(channels);
-  tbb::parallel_for(tbb::blocked_range<int>(0, w.height), [&](const tbb::blocked_range<int>& rows) {
-    for (int y = rows.begin(); y != rows.end(); ++y)
-      for (int x = 0; x < w.width; ++x) {
-        const std::size_t p = static_cast<std::size_t>(y) * w.width + x;
-        const auto& idx = w.index[p];
-        if (idx[0] < 0) continue;  // taps are packed to the front: no tap, pixel left untouched
-        float* o = out + p * ch;
-        for (std::size_t c = 0; c < ch; ++c) o[c] = 0.0f;
-        for (int k = 0; k < 4 && idx[k] >= 0; ++k) {
-          const float wk = w.weight[p][k];
-          const float* s = in + static_cast<std::size_t>(idx[k]) * ch;
-          for (std::size_t c = 0; c < ch; ++c) o[c] += wk * s[c];
+  // The channel count as a constant where it is 3 (indirect light) or 1, so that the per-tap loop
+  // over channels is straight-line code.
+  const auto rows_with = [&](auto channel_count) {
+    const std::size_t ch = channel_count > 0 ? static_cast<std::size_t>(channel_count) : static_cast<std::size_t>(channels);
+    tbb::parallel_for(tbb::blocked_range<int>(0, w.height), [&](const tbb::blocked_range<int>& rows) {
+      for (int y = rows.begin(); y != rows.end(); ++y)
+        for (int x = 0; x < w.width; ++x) {
+          const std::size_t p = static_cast<std::size_t>(y) * w.width + x;
+          const auto& idx = w.index[p];
+          if (idx[0] < 0) continue;  // taps are packed to the front: no tap, pixel left untouched
+          float* o = out + p * ch;
+          for (std::size_t c = 0; c < ch; ++c) o[c] = 0.0f;
+          for (int k = 0; k < 4 && idx[k] >= 0; ++k) {
+            const float wk = w.weight[p][k];
+            const float* s = in + static_cast<std::size_t>(idx[k]) * ch;
+            for (std::size_t c = 0; c < ch; ++c) o[c] += wk * s[c];
+          }
         }
-      }
-  });
+    });
+  };
+  if (channels == 3)
+    rows_with(std::integral_constant<int, 3>{});
+  else if (channels == 1)
+    rows_with(std::integral_constant<int, 1>{});
+  else
+    rows_with(std::integral_constant<int, 0>{});
 }
 
 void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, const PlaneView& fine, const float* in,
