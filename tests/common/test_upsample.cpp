@@ -397,6 +397,47 @@ void expect_error(F&& f, const std::string& needle) {
 }
 }  // namespace
 
+// upsample_apply runs its loop with the channel count fixed at compile time for 1 and 3 channels
+// and read at run time otherwise: for every count, each channel of the result equals the same
+// channel applied alone (1 channel) and the weighted sum of the taps written out here, on a sloped
+// surface with background pixels at scale 4. Tolerance: the same products summed in the same order,
+// so equal unless a compiler contracts some of them into fused multiply-adds: a few units in the
+// last place of values of order 1 (a wrong stride or tap is off by order 1).
+TEST(Upsample, EveryChannelCountAppliesTheSameWeights) {
+  constexpr float kTol = 1e-6f;
+  const SceneFn slope = [](double x, double y) {
+    if (x + 2.0 * y < 9.0) return Surface{kInf, glm::vec3(0, 0, -1)};
+    return Surface{static_cast<float>(3.0 + 0.05 * x + 0.02 * y), glm::normalize(glm::vec3(0.05f, 0.02f, -1.0f))};
+  };
+  const Buffer fine = sample(slope, 32, 24, 1), coarse = sample(slope, 8, 6, 4);
+  const UpsampleWeights w = upsample_weights(coarse.view(), fine.view(), UpsampleOptions{});
+  const std::size_t nc = static_cast<std::size_t>(coarse.width) * coarse.height;
+  std::size_t written = 0;
+  for (int channels : {1, 2, 3, 4, 5}) {
+    SCOPED_TRACE("channels " + std::to_string(channels));
+    const std::vector<float> in = coarse_values(coarse, channels, [](double x, double y, int k) {
+      return static_cast<float>(std::sin(0.3 * x + k) + 0.1 * y * (k + 1));
+    });
+    const std::vector<float> out = apply(w, in, channels);
+    for (int c = 0; c < channels; ++c) {
+      std::vector<float> one(nc);
+      for (std::size_t i = 0; i < nc; ++i) one[i] = in[i * channels + c];
+      const std::vector<float> alone = apply(w, one, 1);
+      for (std::size_t p = 0; p < alone.size(); ++p) {
+        float expect = -7.0f;
+        if (w.index[p][0] >= 0) {
+          expect = 0.0f;
+          for (int k = 0; k < 4 && w.index[p][k] >= 0; ++k) expect += w.weight[p][k] * one[static_cast<std::size_t>(w.index[p][k])];
+          ++written;
+        }
+        ASSERT_NEAR(out[p * channels + c], alone[p], kTol * (1.0f + std::abs(alone[p]))) << "pixel " << p << " channel " << c;
+        ASSERT_NEAR(alone[p], expect, kTol * (1.0f + std::abs(expect))) << "pixel " << p;
+      }
+    }
+  }
+  EXPECT_GT(written, 0u);
+}
+
 TEST(Upsample, BadInputIsRejectedWithAClearMessage) {
   const SceneFn plane = [](double, double) { return Surface{2.0f, glm::vec3(0, 0, -1)}; };
   const Buffer fine = sample(plane, 16, 8, 1), coarse = sample(plane, 4, 2, 4);

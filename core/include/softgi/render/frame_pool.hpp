@@ -54,9 +54,9 @@ class FramePool {
 
   // A vector of n elements. Its storage is a given buffer of the same element type whose capacity
   // is at least n (the smallest such, and not more than kMaxSlack times n, so that a small request
-  // does not pin a large buffer), else a new one with capacity n + n / kHeadroom. The elements' values are unspecified (a recycled
-  // buffer keeps its old values, a new or grown one is value-initialised): for a caller that
-  // writes every element.
+  // does not pin a large buffer), else a new one with capacity n + n / kHeadroom. The elements'
+  // values are unspecified (a recycled buffer keeps its old values, a new or grown one is
+  // value-initialised): for a caller that writes every element.
   template <class T>
   std::vector<T> take_for_overwrite(std::size_t n) {
     static_assert(std::is_trivially_copyable_v<T>, "the pool holds buffers of plain values");
