@@ -433,8 +433,8 @@ void pass_accumulate_log(const Settings& s, FrameContext& ctx) {
 void pass_exponentiate(const Settings& s, FrameContext& ctx) {
   const auto& t = *ctx.get<std::shared_ptr<const ShadowTables>>(kTables);
   const auto& f = *ctx.get<std::shared_ptr<const Field>>(kLogOcclusion);
-  auto g = pooled_field(ctx, f.channels, f.channels ? f.v.size() / static_cast<std::size_t>(f.channels) : 0);
   const std::size_t n2 = static_cast<std::size_t>(f.channels), count = n2 ? f.v.size() / n2 : 0;
+  auto g = pooled_field(ctx, f.channels, count);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
     try {
       exponentiate(t, s.exp, s.ps_degree, s.isa, f.v.data() + br.begin() * n2, g->v.data() + br.begin() * n2, br.size(), br.begin());
