@@ -98,6 +98,35 @@ bool kernel_isa_supported(KernelIsa isa);
 int kernel_lanes(KernelIsa isa);
 void accumulate_log(KernelIsa isa, const ZhTable& table, ReplacementRule rule, const ReceiverSoA& rec,
                     std::size_t begin, std::size_t end, const BlockerList& blockers, float* out);
+
+// ---------------------------------------------------------------------------------------------
+// Sphere proxies as diffuse secondary lights of SH radiance L~ (paper 000 section 5): for receivers
+// i in [begin, end) of `rec`, rgb[3 i + c] += sum_p albedo_p/pi kappa_c(p, i) (V . H(N_i))(p, i) and
+// omega[i] += sum_p F_0, where the proxy is first adjusted by the replacement rule (as the shadow
+// kernel), theta its angular radius, s the direction to it, F_l(theta) its own visibility (`vis`),
+// V . H(N) = sum_l F_l vh_l P_l(s . N) and kappa_c = sum_l fac_l sum_m y_lm(s) L~_lm,c with
+// fac_l = (-1)^l (point-sampled, eq. 13; band_factor null) or fac_l(theta) from `band_factor`
+// (averaged, eq. 15: sqrt(4pi/(2l+1)) D_l, on the rows of `vis`). A pair counts where |c - p| <
+// reach r (reach > 0, the proxy as given) and sin theta > 1/eta (eta > 1; eta <= 0: no cut). Returns
+// the pairs counted. Vectorised across receivers like accumulate_log; the exact operator (eqs.
+// 16-17) and the per-pair reference are image_splat's IndirectEvaluator.
+struct ProxyLightTables {
+  const ZhTable* vis = nullptr;          // order n in [kMinOrder, kMaxOrder]
+  const ZhTable* band_factor = nullptr;  // null: point-sampled
+  const float* ltilde = nullptr;         // n^2 x 3, coefficient-major: [3 k + c]
+  const float* vh = nullptr;             // n: (g_cos,l / pi) sqrt((2l+1)/(4pi))
+  ReplacementRule rule = ReplacementRule::Continuous;
+  float eta = 0.0f;
+  float reach = 0.0f;
+};
+struct ProxyLightList {
+  const float *cx = nullptr, *cy = nullptr, *cz = nullptr, *r = nullptr;
+  const glm::vec3* albedo = nullptr;
+  std::size_t count = 0;
+};
+long long accumulate_proxy_lights(KernelIsa isa, const ProxyLightTables& tables, const ReceiverSoA& rec, std::size_t begin,
+                                  std::size_t end, const ProxyLightList& lights, float* rgb, float* omega);
+
 // Floating-point operations per receiver-blocker pair of the kernel at this order and rule, counted
 // by running the kernel's own code on a counting number type (add, sub, mul, div, sqrt = 1,
 // fma = 2, a refined reciprocal square root = 2 for the sqrt and division it replaces; compares,

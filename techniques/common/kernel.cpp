@@ -126,6 +126,8 @@ struct Vec {
   static I iclamp(I i, int lo, int hi) { return i < lo ? lo : (i > hi ? hi : i); }
   static F rsqrt(F a) { return 1.0f / std::sqrt(a); }
   static bool all(M m) { return m; }
+  static bool any(M m) { return m; }
+  static M land(M a, M b) { return a && b; }
   static int count(M m) { return m ? 1 : 0; }
   template <int N>
   static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
@@ -135,6 +137,7 @@ struct Vec {
 };
 #include "kernel_body.hpp"
 #include "batch_body.hpp"
+#include "proxy_light_body.hpp"
 }  // namespace kscalar
 
 // ---------------------------------------------------------------------------------------------
@@ -215,6 +218,8 @@ struct Vec {
     return _mm256_mul_ps(y, _mm256_fnmadd_ps(_mm256_mul_ps(hx, y), y, _mm256_set1_ps(1.5f)));
   }
   static bool all(M m) { return _mm256_movemask_ps(m) == 0xFF; }
+  static bool any(M m) { return _mm256_movemask_ps(m) != 0; }
+  static M land(M a, M b) { return _mm256_and_ps(a, b); }
   static int count(M m) { return __builtin_popcount(static_cast<unsigned>(_mm256_movemask_ps(m))); }
   template <int N>
   static void fetch_bands(const ZhTable& t, I row, F fr, F* out) {
@@ -226,6 +231,7 @@ struct Vec {
 };
 #include "kernel_body.hpp"
 #include "batch_body.hpp"
+#include "proxy_light_body.hpp"
 }  // namespace kavx2
 #pragma GCC pop_options
 
@@ -264,6 +270,8 @@ struct Vec {
     return _mm512_mul_ps(y, _mm512_fnmadd_ps(_mm512_mul_ps(hx, y), y, _mm512_set1_ps(1.5f)));
   }
   static bool all(M m) { return m == 0xFFFF; }
+  static bool any(M m) { return m != 0; }
+  static M land(M a, M b) { return static_cast<M>(a & b); }
   static int count(M m) { return __builtin_popcount(static_cast<unsigned>(m)); }
   // Neighbouring receivers see a blocker at nearly the same angle, so the 16 lanes' table rows
   // usually fall in a window of 16 rows around lane 0's: then each band is two loads and two
@@ -298,6 +306,7 @@ struct Vec {
 };
 #include "kernel_body.hpp"
 #include "batch_body.hpp"
+#include "proxy_light_body.hpp"
 }  // namespace kavx512
 #pragma GCC pop_options
 
@@ -365,6 +374,33 @@ long long accumulate_product_batch(KernelIsa isa, const ZhTable& vis_table, Repl
     case KernelIsa::Scalar: return kscalar::product_dispatch(order, vis_table, rule, rec, begin, end, blockers, plan, out);
     case KernelIsa::Avx2: return kavx2::product_dispatch(order, vis_table, rule, rec, begin, end, blockers, plan, out);
     case KernelIsa::Avx512: return kavx512::product_dispatch(order, vis_table, rule, rec, begin, end, blockers, plan, out);
+  }
+  return 0;
+}
+
+long long accumulate_proxy_lights(KernelIsa isa, const ProxyLightTables& t, const ReceiverSoA& rec, std::size_t begin,
+                                  std::size_t end, const ProxyLightList& lights, float* rgb, float* omega) {
+  if (!t.vis || !t.ltilde || !t.vh) throw std::invalid_argument("accumulate_proxy_lights: incomplete tables");
+  const int order = t.vis->order;
+  if (order < kMinOrder || order > kMaxOrder)
+    throw std::invalid_argument("accumulate_proxy_lights: table order " + std::to_string(order) + " outside [" +
+                                std::to_string(kMinOrder) + ", " + std::to_string(kMaxOrder) + "]");
+  if (t.vis->rows < 2) throw std::invalid_argument("accumulate_proxy_lights: table has fewer than 2 rows");
+  if (t.band_factor && (t.band_factor->order != order || t.band_factor->rows != t.vis->rows || t.band_factor->scale != t.vis->scale))
+    throw std::invalid_argument("accumulate_proxy_lights: the band-factor table's rows differ from the visibility table's");
+  if (t.eta > 0.0f && !(t.eta > 1.0f))
+    throw std::invalid_argument("accumulate_proxy_lights: a sphere of influence needs eta > 1, got " + std::to_string(t.eta));
+  if (!std::isfinite(t.eta) || !std::isfinite(t.reach)) throw std::invalid_argument("accumulate_proxy_lights: eta or reach not finite");
+  if (end > rec.size() || begin > end) throw std::invalid_argument("accumulate_proxy_lights: receiver range outside the receivers");
+  if (begin == end || lights.count == 0) return 0;
+  if (!rgb || !omega) throw std::invalid_argument("accumulate_proxy_lights: null output buffer");
+  if (!kernel_isa_supported(isa))
+    throw std::invalid_argument(std::string("accumulate_proxy_lights: this CPU cannot run the ") + to_string(isa) + " kernel");
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: return kscalar::proxy_light_dispatch(order, t, rec, begin, end, lights, rgb, omega);
+    case KernelIsa::Avx2: return kavx2::proxy_light_dispatch(order, t, rec, begin, end, lights, rgb, omega);
+    case KernelIsa::Avx512: return kavx512::proxy_light_dispatch(order, t, rec, begin, end, lights, rgb, omega);
   }
   return 0;
 }

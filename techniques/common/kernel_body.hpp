@@ -25,7 +25,8 @@ inline typename V::F asin01(typename V::F x) {
 template <class V, int N>
 __attribute__((always_inline)) inline typename V::F blocker_view(const ZhTable& table, ReplacementRule rule, const typename V::F* p,
                                                                  float bx, float by, float bz, float rj, typename V::F* fl,
-                                                                 typename V::F& sx, typename V::F& sy, typename V::F& sz) {
+                                                                 typename V::F& sx, typename V::F& sy, typename V::F& sz,
+                                                                 typename V::F* u_out = nullptr) {
   using F = typename V::F;
   using I = typename V::I;
   const F &px = p[0], &py = p[1], &pz = p[2], &nx = p[3], &ny = p[4], &nz = p[5];
@@ -91,6 +92,7 @@ __attribute__((always_inline)) inline typename V::F blocker_view(const ZhTable& 
   const I k = V::iclamp(V::trunc(u), 0, table.rows - 2);
   const F fr = V::sub(u, V::to_float(k));
   V::template fetch_bands<N>(table, k, fr, fl);
+  if (u_out) *u_out = u;
 
   // s = direction to the adjusted centre.
   sx = V::mul(vx, inv);

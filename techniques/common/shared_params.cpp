@@ -49,7 +49,7 @@ ParamDesc theta_max_deg() {
 }
 
 ParamDesc kernel(const std::string& def) {
-  return ParamDesc::choice("kernel", def, {"auto", "avx512", "avx2", "scalar"}, "accumulation kernel instruction set");
+  return ParamDesc::choice("kernel", def, {"auto", "avx512", "avx2", "scalar"}, "instruction set of the CPU kernels vectorised across receivers (accumulation, exponentiation, indirect light)");
 }
 
 double read_window_h(const render::ParamSet& p, int order) {

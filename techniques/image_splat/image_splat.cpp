@@ -449,7 +449,7 @@ void pass_exponentiate(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const Field>>(kOcclusion, g);
 }
 
-void pass_accumulate_indirect(FrameContext& ctx) {
+void pass_accumulate_indirect(const Settings& s, FrameContext& ctx) {
   const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
   const auto& bins = *ctx.get<std::shared_ptr<const ProxyBins>>(kBins);
   const auto& ev = *ctx.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
@@ -466,7 +466,7 @@ void pass_accumulate_indirect(FrameContext& ctx) {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.tiles.size(), 1), [&](const tbb::blocked_range<std::size_t>& tr) {
     long long n = 0;
     for (std::size_t k = tr.begin(); k != tr.end(); ++k)
-      n += ev.accumulate(r.soa, r.tiles[k].begin, r.tiles[k].end, bins.indirect[k], sums->rgb.data(), sums->omega.data());
+      n += ev.accumulate(r.soa, r.tiles[k].begin, r.tiles[k].end, bins.indirect[k], sums->rgb.data(), sums->omega.data(), s.isa);
     inside += n;
   });
   const double secs = common::seconds_since(t0);
@@ -479,6 +479,7 @@ void pass_accumulate_indirect(FrameContext& ctx) {
   rec.counters["pairs"] = pairs;
   rec.counters["pairs_inside_influence"] = static_cast<double>(inside.load());
   rec.counters["pairs_per_second"] = secs > 0.0 ? pairs / secs : 0.0;
+  rec.counters["kernel_lanes"] = ev.batched() ? common::kernel_lanes(s.isa) : 1;  // the exact operator: pair by pair
   rec.bytes = (sums->rgb.size() + sums->omega.size()) * sizeof(float);
   ctx.put<std::shared_ptr<const IndirectSums>>(kIndirectSums, sums);
 }
@@ -640,7 +641,7 @@ void pass_robust(const Settings& s, FrameContext& ctx) {
     accumulate_log_range(t, s.rule, s.isa, rm->soa, br.begin(), br.end(), all, log.data());
     exponentiate(t, s.exp, s.ps_degree, s.isa, log.data() + br.begin() * n2, rm->visibility.data() + br.begin() * n2, br.size(), br.begin());
     if (ev) {
-      ev->accumulate(rm->soa, br.begin(), br.end(), all_ind, rgb.data(), omega.data());
+      ev->accumulate(rm->soa, br.begin(), br.end(), all_ind, rgb.data(), omega.data(), s.isa);
       normalise(s, rgb.data() + br.begin() * 3, omega.data() + br.begin(), rm->visibility.data() + br.begin() * n2, n2, br.size(),
                 rm->indirect.data() + br.begin() * 3, nullptr);
     }
@@ -950,7 +951,7 @@ class ImageSplat final : public render::Technique {
       const auto splat = s.raster_splats ? k.splat_indirect : nullptr;
       return [s, f = k.accumulate_indirect, splat, ok = k.indirect_supported](FrameContext& c) {
         const auto& ev = *c.get<std::shared_ptr<const IndirectEvaluator>>(kIndirectTables);
-        if (!ok(ev.setup().op)) return pass_accumulate_indirect(c);
+        if (!ok(ev.setup().op)) return pass_accumulate_indirect(s, c);
         if (splat) {
           ProxyList all;
           flat_proxies(c.scene, c.posed, s.order, nullptr, &all);
@@ -1006,7 +1007,7 @@ class ImageSplat final : public render::Technique {
            with_kernels([s](FrameContext& c) { pass_exponentiate(s, c); }, dev_exponentiate)});
     g.add({"accumulate_indirect", {kReceivers, kBins, kIndirectTables}, {}, {kIndirectSums},
            "sum of I_i . H(N_p) and omega_i per receiver (section 5, eqs. 13-17)",
-           with_kernels([](FrameContext& c) { pass_accumulate_indirect(c); }, dev_accumulate_indirect)});
+           with_kernels([s](FrameContext& c) { pass_accumulate_indirect(s, c); }, dev_accumulate_indirect)});
     auto dev_normalize = [s](const DeviceKernels& k) -> render::PassFn {
       if (!k.field_dc) return {};
       return [s, f = k.field_dc](FrameContext& c) { pass_normalize_indirect(s, c, f); };

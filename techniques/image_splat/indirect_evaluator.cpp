@@ -37,6 +37,7 @@ struct IndirectEvaluator::Impl {
   // Averaged: per row the n factors sqrt(4pi/(2l+1)) D_l (eq. 8 folded in), so that
   // kappa = sum_l dfac_l sum_m y_lm(d) L~_lm (eq. 15).
   std::vector<float> dfac;
+  common::ZhTable dtab;  // dfac in ZhTable layout (value, slope per row) for the batched kernel
   // Exact: per row the m-blocks of M (block-diagonal in m: same m, same sign), block m holds
   // M_(l,m),(l',m) for l, l' in |m|..n-1, row-major; offsets per m + n - 1. Rows pre-multiplied by
   // the clamp weight (M carries the visibility of the proxy itself).
@@ -235,6 +236,21 @@ IndirectEvaluator::IndirectEvaluator(const IndirectSetup& setup, const std::vect
       for (int l = 0; l < n; ++l)
         im.dfac[static_cast<std::size_t>(k) * n + l] = static_cast<float>(sh::zh_rotation_factor(l) * D[l]);
     }
+    common::ZhTable& dt = im.dtab;
+    dt.order = n;
+    dt.rows = rows;
+    dt.scale = im.scale;
+    dt.data.assign(static_cast<std::size_t>(rows) * 2 * n, 0.0f);
+    dt.band.assign(dt.data.size(), 0.0f);
+    for (int k = 0; k < rows; ++k)
+      for (int l = 0; l < n; ++l) {
+        const float v = im.dfac[static_cast<std::size_t>(k) * n + l];
+        const float slope = k + 1 < rows ? im.dfac[static_cast<std::size_t>(k + 1) * n + l] - v : 0.0f;
+        dt.data[static_cast<std::size_t>(k) * 2 * n + 2 * l] = v;
+        dt.data[static_cast<std::size_t>(k) * 2 * n + 2 * l + 1] = slope;
+        dt.band[static_cast<std::size_t>(l) * 2 * rows + k] = v;
+        dt.band[static_cast<std::size_t>(l) * 2 * rows + rows + k] = slope;
+      }
   }
   if (setup.op == IndirectOperator::Exact) {
     int off = 0;
@@ -270,9 +286,8 @@ IndirectEvaluator::IndirectEvaluator(const IndirectSetup& setup, const std::vect
 
 const IndirectSetup& IndirectEvaluator::setup() const { return impl_->setup; }
 
-long long IndirectEvaluator::accumulate(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end,
-                                        const ProxyList& list, float* rgb, float* omega) const {
-  const Impl& im = *impl_;
+namespace {
+void check_inputs(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const ProxyList& list) {
   if (begin > end || end > rec.size())
     fail("receiver range [" + std::to_string(begin) + ", " + std::to_string(end) + ") exceeds " +
          std::to_string(rec.size()) + " receivers");
@@ -284,6 +299,52 @@ long long IndirectEvaluator::accumulate(const common::ReceiverSoA& rec, std::siz
         !std::isfinite(list.r[p]) || !(list.r[p] >= 0.0f) || !std::isfinite(list.albedo[p].x) ||
         !std::isfinite(list.albedo[p].y) || !std::isfinite(list.albedo[p].z))
       fail("proxy " + std::to_string(p) + " has a non-finite centre, radius or albedo, or a negative radius");
+}
+}  // namespace
+
+bool IndirectEvaluator::batched() const {
+  const IndirectSetup& s = impl_->setup;
+  // The batched kernel's cut is sin theta > 1/eta, which needs eta > 1; an eta in (0, 1] (every
+  // proxy that does not contain the receiver is cut) stays with the per-pair path.
+  return s.op != IndirectOperator::Exact && (s.eta <= 0.0 || s.eta > 1.0);
+}
+
+long long IndirectEvaluator::accumulate(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end,
+                                        const ProxyList& list, float* rgb, float* omega, common::KernelIsa isa) const {
+  if (batched()) return accumulate_batched(isa, rec, begin, end, list, rgb, omega);
+  return accumulate_pairwise(rec, begin, end, list, rgb, omega);
+}
+
+long long IndirectEvaluator::accumulate_batched(common::KernelIsa isa, const common::ReceiverSoA& rec, std::size_t begin,
+                                                std::size_t end, const ProxyList& list, float* rgb, float* omega) const {
+  const Impl& im = *impl_;
+  if (!batched()) fail(std::string("the batched kernel does not evaluate the ") + to_string(im.setup.op) + " operator");
+  check_inputs(rec, begin, end, list);
+  if (begin == end || list.size() == 0) return 0;
+  if (!rgb || !omega) fail("null output buffer");
+  common::ProxyLightTables t;
+  t.vis = &im.vis;
+  t.band_factor = im.setup.op == IndirectOperator::PointSampled ? nullptr : &im.dtab;
+  t.ltilde = im.lt;
+  t.vh = im.vh;
+  t.rule = im.setup.rule;
+  t.eta = im.setup.eta > 0.0 ? static_cast<float>(im.setup.eta) : 0.0f;
+  t.reach = static_cast<float>(im.setup.reach);
+  common::ProxyLightList l;
+  l.cx = list.cx.data();
+  l.cy = list.cy.data();
+  l.cz = list.cz.data();
+  l.r = list.r.data();
+  l.albedo = list.albedo.data();
+  l.count = list.size();
+  return common::accumulate_proxy_lights(isa, t, rec, begin, end, l, rgb, omega);
+}
+
+long long IndirectEvaluator::accumulate_pairwise(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end,
+                                                 const ProxyList& list, float* rgb, float* omega) const {
+  const Impl& im = *impl_;
+  check_inputs(rec, begin, end, list);
+  const std::size_t np = list.size();
   if (begin == end || np == 0) return 0;
   if (!rgb || !omega) fail("null output buffer");
   const float eta = static_cast<float>(im.setup.eta);
@@ -353,7 +414,7 @@ IndirectEvaluator::TableView IndirectEvaluator::tables() const {
 
 std::size_t IndirectEvaluator::bytes() const {
   const Impl& im = *impl_;
-  return sizeof(Impl) + im.vis.bytes() + (im.dfac.size() + im.mtab.size() + im.qrot.size()) * sizeof(float);
+  return sizeof(Impl) + im.vis.bytes() + im.dtab.bytes() + (im.dfac.size() + im.mtab.size() + im.qrot.size()) * sizeof(float);
 }
 
 IndirectEvaluator::~IndirectEvaluator() = default;

@@ -128,8 +128,18 @@ class IndirectEvaluator {
   // omega[i] += sum_p omega_p, over the proxies of `list` (i is the receiver's index in rec, not
   // i - begin). Throws for a bad range or a proxy with a non-finite centre, radius or albedo. Returns the receiver-proxy pairs inside
   // the sphere of influence.
+  // Evaluated by the batched kernel on `isa` where batched(), else pair by pair.
   long long accumulate(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const ProxyList& list,
-                       float* rgb, float* omega) const;
+                       float* rgb, float* omega, common::KernelIsa isa = common::best_kernel_isa()) const;
+  // The same sums by the batched kernel (common::accumulate_proxy_lights, vectorised across
+  // receivers) on one instruction set. Throws for the exact operator.
+  long long accumulate_batched(common::KernelIsa isa, const common::ReceiverSoA& rec, std::size_t begin, std::size_t end,
+                               const ProxyList& list, float* rgb, float* omega) const;
+  // One receiver-proxy pair at a time: the reference the batched kernel is tested against and the
+  // exact operator's only evaluation.
+  long long accumulate_pairwise(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const ProxyList& list,
+                                float* rgb, float* omega) const;
+  bool batched() const;  // the point and averaged operators with no cut or eta > 1
   std::size_t bytes() const;
   // The evaluator's own floats, read-only, for backends that upload them (the Vulkan
   // accumulate_indirect: image_splat_vulkan_shading.cpp) so that both evaluate the same tables.
