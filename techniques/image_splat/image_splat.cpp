@@ -551,15 +551,37 @@ PlaneView plane(const render::GBuffer& gb) { return common::plane_view(gb); }
 std::vector<float> to_pixels(const ReceiverBuffer& r, const float* v, int channels, render::FramePool& pool) {
   const std::size_t ch = static_cast<std::size_t>(channels);
   std::vector<float> out = pool.take_for_overwrite<float>(r.receiver.size() * ch);
-  for (std::size_t q = 0; q < r.receiver.size(); ++q) {
-    const std::int32_t i = r.receiver[q];
-    float* o = out.data() + q * ch;
-    if (i < 0)
-      std::fill(o, o + ch, 0.0f);
-    else
-      std::copy(v + static_cast<std::size_t>(i) * ch, v + (static_cast<std::size_t>(i) + 1) * ch, o);
-  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.receiver.size(), 4096), [&](const tbb::blocked_range<std::size_t>& br) {
+    for (std::size_t q = br.begin(); q != br.end(); ++q) {
+      const std::int32_t i = r.receiver[q];
+      float* o = out.data() + q * ch;
+      if (i < 0)
+        std::fill(o, o + ch, 0.0f);
+      else
+        std::copy(v + static_cast<std::size_t>(i) * ch, v + (static_cast<std::size_t>(i) + 1) * ch, o);
+    }
+  });
   return out;
+}
+
+// The indices of the display pixels that hit a surface, in scan order, into `out` (its capacity
+// kept): counted per block in parallel, then written at each block's offset.
+void surface_pixels(const render::GBuffer& fine, std::vector<std::int32_t>& out) {
+  constexpr std::size_t kRun = 16384;
+  const std::size_t np = fine.object.size(), blocks = (np + kRun - 1) / kRun;
+  std::vector<std::size_t> offset(blocks + 1, 0);
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
+    std::size_t c = 0;
+    for (std::size_t i = b * kRun, e = std::min(np, (b + 1) * kRun); i < e; ++i) c += fine.hit(i);
+    offset[b + 1] = c;
+  });
+  for (std::size_t b = 0; b < blocks; ++b) offset[b + 1] += offset[b];
+  out.resize(offset[blocks]);
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
+    std::size_t k = offset[b];
+    for (std::size_t i = b * kRun, e = std::min(np, (b + 1) * kRun); i < e; ++i)
+      if (fine.hit(i)) out[k++] = static_cast<std::int32_t>(i);
+  });
 }
 
 // The kernels (k): upsample.cpp's on the CPU, compute shaders on Vulkan (image_splat_vulkan.cpp).
@@ -573,9 +595,7 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
   up->w = k.weights(plane(coarse), plane(fine), s.upsample);
   const std::size_t np = fine.object.size();
   up->surface = ctx.pool().take_for_overwrite<std::int32_t>(np);
-  up->surface.clear();  // its capacity stays
-  for (std::size_t i = 0; i < np; ++i)
-    if (fine.hit(i)) up->surface.push_back(static_cast<std::int32_t>(i));
+  surface_pixels(fine, up->surface);
   if (ctx.has(kOcclusion) && ctx.is_deferred(kOcclusion)) {
     // O_p stays where a GPU pass left it: shade_direct's device kernel gathers from it through the
     // coarse pixels' receivers (see Upsampled).
@@ -589,7 +609,10 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
   if (ctx.has(kIndirectNorm)) {
     const auto& ind = *ctx.get<std::shared_ptr<const Field>>(kIndirectNorm);
     std::vector<float> in = to_pixels(r, ind.v.data(), 3, ctx.pool());
-    up->indirect = ctx.pool().take(np * 3, 0.0f);
+    up->indirect = ctx.pool().take_for_overwrite<float>(np * 3);  // 0 where apply writes nothing (no tap)
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np * 3, 1 << 16), [&](const tbb::blocked_range<std::size_t>& br) {
+      std::fill(up->indirect.begin() + static_cast<std::ptrdiff_t>(br.begin()), up->indirect.begin() + static_cast<std::ptrdiff_t>(br.end()), 0.0f);
+    });
     k.apply(up->w, in.data(), 3, up->indirect.data());
     ctx.pool().give(std::move(in));
   }
@@ -605,8 +628,7 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
     pool.give(std::move(up->coarse_visibility));
   });
   auto& rec = ctx.record();
-  std::size_t hits = 0;
-  for (std::size_t i = 0; i < np; ++i) hits += fine.hit(i);
+  const std::size_t hits = up->surface.size();
   rec.counters["pixels"] = static_cast<double>(np);
   rec.counters["surface_pixels"] = static_cast<double>(hits);
   rec.counters["misses"] = static_cast<double>(up->w.misses);
@@ -735,7 +757,9 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   // Only surface pixels are read below, and every one is in up.surface.
   std::vector<glm::vec3> e = ctx.pool().take_for_overwrite<glm::vec3>(np);
   long long clamped = k.surface(shader, fine, up, es.data());
-  for (std::size_t i = 0; i < surface; ++i) e[static_cast<std::size_t>(up.surface[i])] = es[i];
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
+    for (std::size_t i = br.begin(); i != br.end(); ++i) e[static_cast<std::size_t>(up.surface[i])] = es[i];
+  });
   if (rm && !rm->pixel.empty()) {
     std::vector<glm::vec3> em(rm->pixel.size());
     clamped += k.receivers(shader, rm->soa, shadowed ? rm->visibility.data() : nullptr, em.data());
