@@ -310,6 +310,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
   auto ray_dir = [&](int x, int y) {
     return cam.buffer_direction(x, y, scale);
   };
+  const bool view_dir = (planes & render::kGBufferViewDir) != 0;
   const auto t2 = clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, H, 4), [&](const tbb::blocked_range<int>& rows) {
     int last = -1, last_prim = -1;
@@ -324,9 +325,8 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
           if (oi < 0) gb.set_background(i, vec3(0.0f));
           continue;
         }
-        const vec3 dir = ray_dir(x, y);
         if (oi < 0) {
-          gb.set_background(i, dir);
+          gb.set_background(i, view_dir ? ray_dir(x, y) : vec3(0.0f));
           continue;
         }
         const int prim = gb.primitive[i];
@@ -339,6 +339,11 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
           last_prim = prim;
           tri = embree::triangle_surface(ctx.posed.objects[oi], static_cast<unsigned>(prim));
         }
+        // surface_at needs a unit ray only for view_dir and where it stands in for a degenerate
+        // triangle's normal; otherwise only the side it points to: the normalisation (a square root
+        // and a division per pixel, a third of this loop) is skipped.
+        const bool unit = view_dir || ((gb.planes & render::kGBufferSurface) && !tri.unit_ng);
+        const vec3 dir = unit ? ray_dir(x, y) : cam.buffer_ray(x, y, scale);
         shade_hit(ctx.scene, ctx.posed.objects[oi], static_cast<unsigned>(prim), gb.barycentric[i].x, gb.barycentric[i].y,
                   dir, cam, tri, uniform, albedo, gb, i);
       }

@@ -23,6 +23,7 @@
 #include "../common/shared_params.hpp"
 #include "image_splat_internal.hpp"
 #include "softgi/render/common_passes.hpp"
+#include "softgi/render/camera.hpp"
 #include "softgi/render/gbuffer.hpp"
 #include "softgi/render/vertex_image.hpp"
 
@@ -767,11 +768,16 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   }
   Image img = ctx.pool().image_for_overwrite(fine.width, fine.height);
   const render::BackgroundFn background = render::environment_background(ctx.scene.environment);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
+  // The G-buffer has no view_dir plane (gbuffer_planes): background rays come from the camera.
+  const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, "image_splat shade_direct");
+  tbb::parallel_for(tbb::blocked_range<int>(0, fine.height, 4), [&](const tbb::blocked_range<int>& rows) {
     // Eq. 10 times the receiver's albedo: outgoing radiance. Background: the environment as seen,
     // as the reference draws it (render/vertex_image.hpp).
-    for (std::size_t i = br.begin(); i != br.end(); ++i)
-      img.rgb[i] = fine.hit(i) ? e[i] * fine.albedo[i] : background(fine.view_dir[i]);
+    for (int y = rows.begin(); y != rows.end(); ++y)
+      for (int x = 0; x < fine.width; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(fine.width) + static_cast<std::size_t>(x);
+        img.rgb[i] = fine.hit(i) ? e[i] * fine.albedo[i] : background(cam.buffer_direction(x, y, fine.scale));
+      }
   });
   ctx.pool().give(std::move(es));
   ctx.pool().give(std::move(e));
@@ -919,6 +925,9 @@ std::vector<render::MemoryItem> memory_items(const render::ParamSet& params, int
 class ImageSplat final : public render::Technique {
  public:
   std::string name() const override { return "image_splat"; }
+  // Upsampling and shading read position, normal, depth and albedo; shade_direct derives the
+  // background's rays from the camera, so the view_dir plane is left out.
+  unsigned gbuffer_planes(const render::ParamSet&) const override { return render::kGBufferSurface | render::kGBufferAlbedo; }
   render::ShadowBlockers shadow_blockers() const override { return render::ShadowBlockers::SphereProxies; }
   std::string description() const override {
     return "image-space proxy accumulation (paper 000, Sloan et al. 2007): sphere proxies splatted to a low-resolution "

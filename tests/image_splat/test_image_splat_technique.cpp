@@ -18,6 +18,7 @@
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/backend.hpp"
 #include "softgi/render/common_passes.hpp"
+#include "softgi/render/vertex_image.hpp"
 #include "softgi/scene/builtin.hpp"
 #include "softgi/sh/product.hpp"
 #include "softgi/techniques/registry.hpp"
@@ -594,3 +595,50 @@ TEST(ImageSplatRender, EtaLightNormalisationSelectsThePapersValues) {
   EXPECT_GT(shading.first, peak.first * 1.5);
   EXPECT_GT(shading.second, peak.second * 1.2);
 }
+
+namespace {
+
+TEST(ImageSplatRender, TheGBufferLeavesOutViewDirAndTheImageIsUnchanged) {
+  // Upsampling and shading read the surface planes and albedo; shade_direct takes the background's
+  // rays from the camera. The frame's G-buffer leaves view_dir out (and the CPU G-buffer then tests
+  // the sides of surfaces with unnormalised rays); the image equals, to the bit, that of a frame with
+  // the whole G-buffer (requested as an output), and every background pixel is the environment seen
+  // along that G-buffer's view_dir.
+  techniques::register_all();
+  backends::CpuBackend cpu;
+  auto t = render::create_technique("image_splat");
+  const render::ParamSet p = render::default_params(*t);
+  EXPECT_EQ(t->gbuffer_planes(p), unsigned(render::kGBufferSurface | render::kGBufferAlbedo));
+  scene::Scene s = scene::make_builtin("character");
+  s.camera.width = 64;
+  s.camera.height = 48;
+  render::RenderRequest plain;
+  plain.outputs = {render::kFinal, render::kDirect};
+  render::RenderRequest whole;
+  whole.outputs = {render::kFinal, render::kDirect, render::kGBuffer};
+  const render::FrameResult a = cpu.render(*t, s, p, plain);
+  const render::FrameResult b = cpu.render(*t, s, p, whole);
+  ASSERT_EQ(a.final_image.rgb.size(), b.final_image.rgb.size());
+  for (std::size_t i = 0; i < a.final_image.rgb.size(); ++i) ASSERT_EQ(a.final_image.rgb[i], b.final_image.rgb[i]) << "pixel " << i;
+  const auto& gb = std::any_cast<const render::GBuffer&>(b.resources.at(render::kGBuffer));
+  ASSERT_EQ(gb.planes, unsigned(render::kGBufferAll));
+  const render::BackgroundFn bg = render::environment_background(s.environment);
+  std::size_t background = 0;
+  for (std::size_t i = 0; i < gb.object.size(); ++i) {
+    if (gb.hit(i)) continue;
+    ++background;
+    ASSERT_EQ(a.direct.rgb[i], bg(gb.view_dir[i])) << "background pixel " << i;
+  }
+  EXPECT_GT(background, 0u) << "the view should show some sky";
+  EXPECT_LT(background, gb.object.size()) << "and some surface";
+  auto pass_bytes = [](const render::FrameResult& r) {
+    for (const auto& pr : r.passes)
+      if (pr.name == "gbuffer") return pr.counters.at("bytes_moved");
+    return -1.0;
+  };
+  const auto n = static_cast<double>(s.camera.width * s.camera.height);
+  EXPECT_EQ(pass_bytes(a), n * 56.0) << "every plane but view_dir";
+  EXPECT_EQ(pass_bytes(b), n * 68.0) << "every plane";
+}
+
+}  // namespace

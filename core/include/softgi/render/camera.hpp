@@ -24,19 +24,23 @@ struct PinholeCamera {
   // Unit direction of the ray through image point (px, py) in pixel units: (0, 0) is the top-left
   // corner of the image, (width, height) the bottom-right; pixel (x, y) has its centre at
   // (x + 0.5, y + 0.5). Row 0 is the top row (Image convention).
-  glm::vec3 direction(float px, float py) const {
+  glm::vec3 direction(float px, float py) const { return glm::normalize(unnormalized_direction(px, py)); }
+  // The same direction before normalisation (forward + sx right + sy up, length >= 1): for a test of
+  // sides (a sign of a dot product) it saves the square root and division.
+  glm::vec3 unnormalized_direction(float px, float py) const {
     const float sx = (2.0f * px / static_cast<float>(width) - 1.0f) * tan_half_fov_y * aspect;
     const float sy = (1.0f - 2.0f * py / static_cast<float>(height)) * tan_half_fov_y;
-    return glm::normalize(forward + sx * right + sy * up);
+    return forward + sx * right + sy * up;
   }
   glm::vec3 pixel_center_direction(int x, int y) const {
     return direction(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
   }
   // The ray of pixel (x, y) of a buffer at 1/scale of the image's resolution (render::GBuffer): through
   // image point ((x + 0.5) scale, (y + 0.5) scale). Scale 1 is pixel_center_direction exactly.
-  glm::vec3 buffer_direction(int x, int y, int scale) const {
+  glm::vec3 buffer_direction(int x, int y, int scale) const { return glm::normalize(buffer_ray(x, y, scale)); }
+  glm::vec3 buffer_ray(int x, int y, int scale) const {  // buffer_direction before normalisation
     const float s = static_cast<float>(scale);
-    return direction((static_cast<float>(x) + 0.5f) * s, (static_cast<float>(y) + 0.5f) * s);
+    return unnormalized_direction((static_cast<float>(x) + 0.5f) * s, (static_cast<float>(y) + 0.5f) * s);
   }
   // Eye-space depth z_p = (p - e) . E (paper 000 section 4).
   float depth(const glm::vec3& p) const { return glm::dot(p - position, forward); }
