@@ -328,8 +328,10 @@ long long IndirectEvaluator::accumulate_batched(common::KernelIsa isa, const com
   t.ltilde = im.lt;
   t.vh = im.vh;
   t.rule = im.setup.rule;
-  t.eta = im.setup.eta > 0.0 ? static_cast<float>(im.setup.eta) : 0.0f;
-  t.reach = static_cast<float>(im.setup.reach);
+  // An infinite eta or reach admits every pair, as no cut and no reach test do (a radius-0 proxy,
+  // which the per-pair path's inf * 0 = NaN comparison drops, has sin theta = 0 and is dropped too).
+  t.eta = im.setup.eta > 0.0 && std::isfinite(im.setup.eta) ? static_cast<float>(im.setup.eta) : 0.0f;
+  t.reach = im.setup.reach > 0.0 && std::isfinite(im.setup.reach) ? static_cast<float>(im.setup.reach) : 0.0f;
   common::ProxyLightList l;
   l.cx = list.cx.data();
   l.cy = list.cy.data();

@@ -695,7 +695,8 @@ TEST(IndirectEvaluator, RangeInfluenceAndEliminatedProxies) {
 
 // The batched kernel (common::accumulate_proxy_lights) against the per-pair evaluation, on every
 // instruction set this CPU runs, for the point and averaged operators at several orders, every
-// replacement rule, with and without the sphere of influence (smooth and hard) and the reach test.
+// replacement rule, with and without the sphere of influence (smooth and hard) and the reach test,
+// and with both infinite (every pair admitted).
 // Receivers and proxies are placed so that proxies straddle tangent planes, contain receivers and
 // fall outside eta r. The kernel differs from the per-pair path only by rounding: reciprocal square
 // roots with one Newton step (~1e-7 relative), the polynomial asin (2e-8), float sums in another
@@ -730,14 +731,14 @@ TEST(IndirectEvaluator, BatchedKernelMatchesThePairwiseEvaluation) {
         const std::vector<glm::vec3> lt = random_ltilde(n, rng);
         for (ReplacementRule rule : {ReplacementRule::Off, ReplacementRule::Continuous, ReplacementRule::Clamped,
                                      ReplacementRule::Printed, ReplacementRule::InsideOnly})
-          for (int variant = 0; variant < 4; ++variant) {
+          for (int variant = 0; variant < 5; ++variant) {
             IndirectSetup s;
             s.order = n;
             s.op = op;
             s.rule = rule;
-            s.eta = variant == 0 ? 0.0 : variant == 3 ? 2.5 : 6.0;
+            s.eta = variant == 0 ? 0.0 : variant == 3 ? 2.5 : variant == 4 ? INFINITY : 6.0;
             s.smooth_clamp = variant != 3;
-            s.reach = variant == 2 ? 4.0 : 0.0;
+            s.reach = variant == 2 ? 4.0 : variant == 4 ? INFINITY : 0.0;
             const IndirectEvaluator ev(s, lt);
             ASSERT_TRUE(ev.batched());
             std::vector<float> rgb_b(3 * nrec, 0.0f), om_b(nrec, 0.0f), rgb_p(3 * nrec, 0.0f), om_p(nrec, 0.0f);
