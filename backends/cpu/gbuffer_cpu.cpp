@@ -340,8 +340,8 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
           tri = embree::triangle_surface(ctx.posed.objects[oi], static_cast<unsigned>(prim));
         }
         // surface_at needs a unit ray only for view_dir and where it stands in for a degenerate
-        // triangle's normal; otherwise only the side it points to: the normalisation (a square root
-        // and a division per pixel, a third of this loop) is skipped.
+        // triangle's normal; otherwise only the side it points to, and the normalisation (a square
+        // root and a division per pixel) is skipped.
         const bool unit = view_dir || ((gb.planes & render::kGBufferSurface) && !tri.unit_ng);
         const vec3 dir = unit ? ray_dir(x, y) : cam.buffer_ray(x, y, scale);
         shade_hit(ctx.scene, ctx.posed.objects[oi], static_cast<unsigned>(prim), gb.barycentric[i].x, gb.barycentric[i].y,
