@@ -1,7 +1,7 @@
 // Sphere proxies as diffuse secondary lights (paper 000 section 5), written once over a SIMD wrapper
 // V. Without include guard on purpose: kernel.cpp includes it once per instruction set after
-// kernel_body.hpp (see there). Expects in scope: ProxyLightTables, ProxyLightList, ReceiverSoA,
-// blocker_view, basis_consts().
+// kernel_body.hpp and batch_body.hpp (see there). Expects in scope: ProxyLightTables, ProxyLightList,
+// ReceiverSoA, blocker_view, basis_soa.
 
 // V::W receivers (lanes[0..5] = px, py, pz, nx, ny, nz; lanes at or past `valid` repeat the last
 // receiver and are not counted) against every proxy of `L`. Adds to out[c * W + lane]: c = 0..2 the
@@ -17,7 +17,6 @@ long long proxy_light_block(const ProxyLightTables& t, const float (*lanes)[V::W
   static_assert(W <= 16, "lane index table too short");
   F p[6];
   for (int a = 0; a < 6; ++a) p[a] = V::load(lanes[a]);
-  const BasisConsts& bc = basis_consts();
   const F zero = V::set(0.0f), one = V::set(1.0f);
   const M in_range = V::lt(V::load(kLane), V::set(static_cast<float>(valid)));
   const bool cut = t.eta > 0.0f;
@@ -31,6 +30,7 @@ long long proxy_light_block(const ProxyLightTables& t, const float (*lanes)[V::W
     lb[l] = static_cast<float>(l - 1) / static_cast<float>(l);
   }
   F acc_r = zero, acc_g = zero, acc_b = zero, acc_om = zero, acc_pairs = zero;
+  alignas(64) float y[N * N * W];  // the basis of the current proxy's direction, lane-major
 
   for (std::size_t j = 0; j < L.count; ++j) {
     const float cx = L.cx[j], cy = L.cy[j], cz = L.cz[j], rj = L.r[j];
@@ -76,40 +76,16 @@ long long proxy_light_block(const ProxyLightTables& t, const float (*lanes)[V::W
       for (int l = 0; l < N; ++l) fac[l] = V::set((l & 1) ? -1.0f : 1.0f);
     }
 
-    // kappa_c = sum_l fac_l sum_m y_lm(s) L~_lm,c with y by the recurrence of kernel_block.
-    F C[N], S[N];
-    C[0] = one;
-    S[0] = zero;
-#pragma GCC unroll 16
-    for (int m = 1; m < N; ++m) {
-      C[m] = V::fnma(S[m - 1], sy, V::mul(C[m - 1], sx));
-      S[m] = V::fma(S[m - 1], sx, V::mul(C[m - 1], sy));
-    }
+    // kappa_c = sum_l fac_l sum_m y_lm(s) L~_lm,c, y by the shared recurrence (basis_soa).
+    basis_soa<V>(N, sx, sy, sz, y);
     F band[N][3];
-#pragma GCC unroll 16
-    for (int l = 0; l < N; ++l) band[l][0] = band[l][1] = band[l][2] = zero;
     const float* lt = t.ltilde;
 #pragma GCC unroll 16
-    for (int m = 0; m < N; ++m) {
-      F q_prev = zero, q = V::set(bc.qmm[m]);
-#pragma GCC unroll 16
-      for (int l = m; l < N; ++l) {
-        if (l == m + 1) {
-          q_prev = q;
-          q = V::mul(V::set(bc.a1[m]), V::mul(sz, q));
-        } else if (l > m + 1) {
-          F next = V::fnma(V::set(bc.B[l][m]), q_prev, V::mul(V::set(bc.A[l][m]), V::mul(sz, q)));
-          q_prev = q;
-          q = next;
-        }
-        const int i0 = l * l + l;
-        if (m == 0) {
-          for (int c = 0; c < 3; ++c) band[l][c] = V::fma(q, V::set(lt[3 * i0 + c]), band[l][c]);
-        } else {
-          const F yc = V::mul(q, C[m]), ys = V::mul(q, S[m]);
-          for (int c = 0; c < 3; ++c)
-            band[l][c] = V::fma(yc, V::set(lt[3 * (i0 + m) + c]), V::fma(ys, V::set(lt[3 * (i0 - m) + c]), band[l][c]));
-        }
+    for (int l = 0; l < N; ++l) {
+      band[l][0] = band[l][1] = band[l][2] = zero;
+      for (int i = l * l; i < (l + 1) * (l + 1); ++i) {
+        const F yi = V::load(y + i * W);
+        for (int c = 0; c < 3; ++c) band[l][c] = V::fma(yi, V::set(lt[3 * i + c]), band[l][c]);
       }
     }
     F kap[3] = {zero, zero, zero};
