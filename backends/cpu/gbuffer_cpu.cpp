@@ -307,9 +307,8 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
     stats.visibility_seconds = stats.raster.setup_seconds + stats.raster.raster_seconds;
     stats.hits = stats.raster.hits;
   }
-  auto ray_dir = [&](int x, int y) {
-    return cam.buffer_direction(x, y, scale);
-  };
+  const render::BufferRays rays(cam, W, H, scale);  // cam.buffer_direction and buffer_ray, per column and row
+  auto ray_dir = [&](int x, int y) { return rays.direction(x, y); };
   const bool view_dir = (planes & render::kGBufferViewDir) != 0;
   const auto t2 = clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, H, 4), [&](const tbb::blocked_range<int>& rows) {
@@ -343,7 +342,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
         // triangle's normal; otherwise only the side it points to, and the normalisation (a square
         // root and a division per pixel) is skipped.
         const bool unit = view_dir || ((gb.planes & render::kGBufferSurface) && !tri.unit_ng);
-        const vec3 dir = unit ? ray_dir(x, y) : cam.buffer_ray(x, y, scale);
+        const vec3 dir = unit ? ray_dir(x, y) : rays.ray(x, y);
         shade_hit(ctx.scene, ctx.posed.objects[oi], static_cast<unsigned>(prim), gb.barycentric[i].x, gb.barycentric[i].y,
                   dir, cam, tri, uniform, albedo, gb, i);
       }

@@ -770,13 +770,14 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   const render::BackgroundFn background = render::environment_background(ctx.scene.environment);
   // The G-buffer has no view_dir plane (gbuffer_planes): background rays come from the camera.
   const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, "image_splat shade_direct");
+  const render::BufferRays rays(cam, fine.width, fine.height, fine.scale);
   tbb::parallel_for(tbb::blocked_range<int>(0, fine.height, 4), [&](const tbb::blocked_range<int>& rows) {
     // Eq. 10 times the receiver's albedo: outgoing radiance. Background: the environment as seen,
     // as the reference draws it (render/vertex_image.hpp).
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < fine.width; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(fine.width) + static_cast<std::size_t>(x);
-        img.rgb[i] = fine.hit(i) ? e[i] * fine.albedo[i] : background(cam.buffer_direction(x, y, fine.scale));
+        img.rgb[i] = fine.hit(i) ? e[i] * fine.albedo[i] : background(rays.direction(x, y));
       }
   });
   ctx.pool().give(std::move(es));

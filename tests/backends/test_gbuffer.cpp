@@ -114,6 +114,23 @@ TEST(Camera, PinholeGeometryFromFovAndAspect) {
   expect_error(bad, 10, 10, "not finite");
 }
 
+TEST(Camera, BufferRaysAreTheCamerasRaysToTheBit) {
+  // Passes that go over a whole buffer take the rays from BufferRays (screen coordinates per column
+  // and row); a background pixel's colour and a surface's side must be what buffer_direction gives,
+  // so the two agree exactly, for every pixel, at display and receiver scales.
+  scene::Scene sc = softgi::testing::make_plane_sphere_scene(65, 33);
+  for (int scale : {1, 2, 3, 4}) {
+    const render::PinholeCamera cam = render::make_pinhole_camera(sc, 65, 33, "test");
+    const int w = (65 + scale - 1) / scale, h = (33 + scale - 1) / scale;
+    const render::BufferRays rays(cam, w, h, scale);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        ASSERT_EQ(rays.direction(x, y), cam.buffer_direction(x, y, scale)) << "scale " << scale << " pixel " << x << ", " << y;
+        ASSERT_EQ(rays.ray(x, y), cam.buffer_ray(x, y, scale)) << "scale " << scale << " pixel " << x << ", " << y;
+      }
+  }
+}
+
 TEST_P(GBufferVisibility, PlaneAndSphereMatchClosedForms) {
   const scene::Scene sc = softgi::testing::make_plane_sphere_scene();
   render::FrameResult result;

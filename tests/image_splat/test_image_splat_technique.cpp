@@ -17,6 +17,7 @@
 #include "../backends/test_scene_util.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/backend.hpp"
+#include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/vertex_image.hpp"
 #include "softgi/scene/builtin.hpp"
@@ -623,10 +624,13 @@ TEST(ImageSplatRender, TheGBufferLeavesOutViewDirAndTheImageIsUnchanged) {
   const auto& gb = std::any_cast<const render::GBuffer&>(b.resources.at(render::kGBuffer));
   ASSERT_EQ(gb.planes, unsigned(render::kGBufferAll));
   const render::BackgroundFn bg = render::environment_background(s.environment);
+  const render::PinholeCamera cam = render::make_pinhole_camera(s, s.camera.width, s.camera.height, "test");
   std::size_t background = 0;
   for (std::size_t i = 0; i < gb.object.size(); ++i) {
     if (gb.hit(i)) continue;
     ++background;
+    const int x = static_cast<int>(i % static_cast<std::size_t>(gb.width)), y = static_cast<int>(i / static_cast<std::size_t>(gb.width));
+    ASSERT_EQ(gb.view_dir[i], cam.buffer_direction(x, y, 1)) << "background pixel " << i;
     ASSERT_EQ(a.direct.rgb[i], bg(gb.view_dir[i])) << "background pixel " << i;
   }
   EXPECT_GT(background, 0u) << "the view should show some sky";

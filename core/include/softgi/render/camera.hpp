@@ -5,6 +5,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -27,11 +28,12 @@ struct PinholeCamera {
   glm::vec3 direction(float px, float py) const { return glm::normalize(unnormalized_direction(px, py)); }
   // The same direction before normalisation (forward + sx right + sy up, length >= 1): for a test of
   // sides (a sign of a dot product) it saves the square root and division.
-  glm::vec3 unnormalized_direction(float px, float py) const {
-    const float sx = (2.0f * px / static_cast<float>(width) - 1.0f) * tan_half_fov_y * aspect;
-    const float sy = (1.0f - 2.0f * py / static_cast<float>(height)) * tan_half_fov_y;
-    return forward + sx * right + sy * up;
-  }
+  glm::vec3 unnormalized_direction(float px, float py) const { return screen_ray(screen_x(px), screen_y(py)); }
+  // Its parts: sx depends on px alone and sy on py alone, so that a pass over an image can work them
+  // out once per column and row (BufferRays) and get the same directions to the bit.
+  float screen_x(float px) const { return (2.0f * px / static_cast<float>(width) - 1.0f) * tan_half_fov_y * aspect; }
+  float screen_y(float py) const { return (1.0f - 2.0f * py / static_cast<float>(height)) * tan_half_fov_y; }
+  glm::vec3 screen_ray(float sx, float sy) const { return forward + sx * right + sy * up; }
   glm::vec3 pixel_center_direction(int x, int y) const {
     return direction(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
   }
@@ -44,6 +46,21 @@ struct PinholeCamera {
   }
   // Eye-space depth z_p = (p - e) . E (paper 000 section 4).
   float depth(const glm::vec3& p) const { return glm::dot(p - position, forward); }
+};
+
+// buffer_ray and buffer_direction of every pixel of a width x height buffer at `scale`, from the
+// screen coordinates of its columns and rows worked out once: the same values, without the two
+// divisions per pixel.
+struct BufferRays {
+  const PinholeCamera* cam = nullptr;
+  std::vector<float> sx, sy;  // per column, per row
+  BufferRays(const PinholeCamera& c, int width, int height, int scale) : cam(&c), sx(static_cast<std::size_t>(width)), sy(static_cast<std::size_t>(height)) {
+    const float s = static_cast<float>(scale);
+    for (int x = 0; x < width; ++x) sx[static_cast<std::size_t>(x)] = c.screen_x((static_cast<float>(x) + 0.5f) * s);
+    for (int y = 0; y < height; ++y) sy[static_cast<std::size_t>(y)] = c.screen_y((static_cast<float>(y) + 0.5f) * s);
+  }
+  glm::vec3 ray(int x, int y) const { return cam->screen_ray(sx[static_cast<std::size_t>(x)], sy[static_cast<std::size_t>(y)]); }
+  glm::vec3 direction(int x, int y) const { return glm::normalize(ray(x, y)); }
 };
 
 // The camera of `scene` at width x height pixels. Throws std::invalid_argument, prefixed with `who`
