@@ -266,6 +266,108 @@ Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptio
   return out;
 }
 
+// Eq. 11 for a run of at most kRun display pixels of one row (the bilateral mode): the same
+// weights, bits included, as upsample_pixel, written in three passes over the run (tap weights
+// without the normal power, the power by squaring across the run, normalisation and packing) so
+// that the first two vectorise and the per-pixel branches of the tap loop go. Compiled for AVX-512,
+// AVX2 and the baseline (target_clones; -ffp-contract=off for this file keeps every version's bits
+// those of the baseline).
+constexpr int kRun = 64;
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
+    const PlaneView& c, const PlaneView& f, const UpsampleOptions& opt, const Footprints& fp, int y, int x0, int n,
+    std::array<std::int32_t, 4>* __restrict out_idx, std::array<float, 4>* __restrict out_w,
+    std::uint8_t* __restrict out_miss) {
+  const Axis& ay = fp.y[y];
+  const std::size_t row0 = static_cast<std::size_t>(y) * f.width;
+  const int ys[2] = {ay.i0, ay.i1};
+  const double wy[2] = {1.0 - ay.f, ay.f};
+  // Tap k of pixel t at [k * n + t]: flat runs, so that every loop below is one stream.
+  alignas(64) double wbz[4 * kRun];   // w_b w_z eps, 0 for a background tap or one with w_b = 0
+  alignas(64) double base[4 * kRun];  // max(0, N_p . N_i)
+  alignas(64) double wn[4 * kRun];    // base^normal_power
+  alignas(64) std::int32_t tap[4 * kRun];
+  const float* __restrict fz = f.depth + row0 + x0;
+  const glm::vec3* __restrict fn = f.normal + row0 + x0;
+  const Axis* __restrict axes = fp.x.data() + x0;
+  const float* __restrict cz = c.depth;
+  const glm::vec3* __restrict cn = c.normal;
+  const double eps_rel = opt.epsilon_rel;
+  // One tap column (left or right: a constant, so that the loop has no branch) of one tap row.
+  const auto taps = [&](auto right, int k) {
+    const int j = k >> 1;
+    const std::int32_t crow = ys[j] * c.width;
+    const double wyj = wy[j];
+    double* __restrict wbz_k = wbz + k * n;
+    double* __restrict base_k = base + k * n;
+    std::int32_t* __restrict tap_k = tap + k * n;
+    for (int t = 0; t < n; ++t) {
+      const double wb = (right ? axes[t].f : 1.0 - axes[t].f) * wyj;
+      const std::int32_t id = crow + (right ? axes[t].i1 : axes[t].i0);
+      const float zp = fz[t], zi = cz[id];
+      const double eps = eps_rel * static_cast<double>(zp);
+      const double dz = std::abs(static_cast<double>(zp) - static_cast<double>(zi));
+      const double wz = eps / (eps + dz);
+      const double d = static_cast<double>(fn[t].x) * cn[id].x + static_cast<double>(fn[t].y) * cn[id].y +
+                       static_cast<double>(fn[t].z) * cn[id].z;
+      tap_k[t] = id;
+      const bool live = (wb > 0.0) & (zi < std::numeric_limits<float>::infinity());
+      wbz_k[t] = live ? wb * wz : 0.0;
+      base_k[t] = d > 0.0 ? d : 0.0;
+    }
+  };
+  for (int j = 0; j < 2; ++j) {
+    taps(std::false_type{}, 2 * j);
+    taps(std::true_type{}, 2 * j + 1);
+  }
+  // ipow across the run: the exponent's bits are the same for every pixel.
+  const int m4 = 4 * n;
+  for (int t = 0; t < m4; ++t) wn[t] = 1.0;
+  for (int e = opt.normal_power; e > 0; e >>= 1) {
+    if (e & 1)
+      for (int t = 0; t < m4; ++t) wn[t] *= base[t];
+    for (int t = 0; t < m4; ++t) base[t] *= base[t];
+  }
+  // The eq. 11 weights, their sum (the miss measure) and the normalised weights, across the run.
+  // A background tap's normal may be anything: its weight is 0 whatever its power.
+  alignas(64) double measure[kRun];
+  alignas(64) float wf[4 * kRun];
+  for (int t = 0; t < m4; ++t) wn[t] = wbz[t] > 0.0 ? wbz[t] * wn[t] : 0.0;
+  for (int t = 0; t < n; ++t) measure[t] = 0.0;
+  for (int k = 0; k < 4; ++k)
+    for (int t = 0; t < n; ++t) measure[t] += wn[k * n + t];
+  for (int k = 0; k < 4; ++k)
+    for (int t = 0; t < n; ++t) wf[k * n + t] = static_cast<float>(wn[k * n + t] / measure[t]);  // used where measure > 0
+  for (int t = 0; t < n; ++t) {
+    std::array<std::int32_t, 4>& oi = out_idx[t];
+    std::array<float, 4>& ow = out_w[t];
+    oi = {-1, -1, -1, -1};
+    ow = {0.0f, 0.0f, 0.0f, 0.0f};
+    out_miss[t] = 0;
+    if (!is_hit(fz[t])) continue;  // background: nothing to shade, not a miss
+    if (measure[t] > 0.0) {
+      // The taps with positive weight, packed to the front in tap order.
+      int m = 0;
+      for (int k = 0; k < 4; ++k) {
+        oi[m] = tap[k * n + t];
+        ow[m] = wf[k * n + t];
+        m += wn[k * n + t] > 0.0 ? 1 : 0;
+      }
+      for (int k = m; k < 4; ++k) {
+        oi[k] = -1;
+        ow[k] = 0.0f;
+      }
+      out_miss[t] = measure[t] < opt.miss_threshold ? 1 : 0;
+    } else {
+      // Every eq. 11 weight vanished: upsample_pixel's bilinear fallback, rare.
+      const Pixel px = upsample_pixel(c, f, opt, row0 + static_cast<std::size_t>(x0 + t), axes[t], ay);
+      oi = px.idx;
+      ow = px.w;
+      out_miss[t] = px.miss ? 1 : 0;
+    }
+  }
+}
+
 void check_weights(const UpsampleWeights& w) {
   const std::size_t n = static_cast<std::size_t>(std::max(w.width, 0)) * static_cast<std::size_t>(std::max(w.height, 0));
   if (w.width <= 0 || w.height <= 0 || w.index.size() != n || w.weight.size() != n || w.miss.size() != n)
@@ -302,15 +404,26 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
   }
   const Footprints fp(coarse, fine);
   tbb::parallel_for(tbb::blocked_range<int>(0, fine.height), [&](const tbb::blocked_range<int>& rows) {
-    for (int y = rows.begin(); y != rows.end(); ++y)
+    for (int y = rows.begin(); y != rows.end(); ++y) {
+      const std::size_t row0 = static_cast<std::size_t>(y) * fine.width;
+      for (int x = 0; x < fine.width; ++x)
+        if (!sample_ok(fine, row0 + x)) check_sample(fine, "fine", x, y);  // throws; TBB rethrows it in the calling thread
+      if (opt.mode == UpsampleMode::Bilateral) {
+        for (int x0 = 0; x0 < fine.width; x0 += kRun) {
+          const std::size_t p = row0 + x0;
+          bilateral_run(coarse, fine, opt, fp, y, x0, std::min(kRun, fine.width - x0), &r.index[p], &r.weight[p],
+                        &r.miss[p]);
+        }
+        continue;
+      }
       for (int x = 0; x < fine.width; ++x) {
-        const std::size_t p = static_cast<std::size_t>(y) * fine.width + x;
-        if (!sample_ok(fine, p)) check_sample(fine, "fine", x, y);  // throws; TBB rethrows it in the calling thread
+        const std::size_t p = row0 + x;
         const Pixel px = upsample_pixel(coarse, fine, opt, p, fp.x[x], fp.y[y]);
         r.index[p] = px.idx;
         r.weight[p] = px.w;
         r.miss[p] = px.miss ? 1 : 0;
       }
+    }
   });
   r.misses = static_cast<std::size_t>(std::count(r.miss.begin(), r.miss.end(), std::uint8_t{1}));
   return r;

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <random>
@@ -302,6 +304,129 @@ TEST(Upsample, ScaleOneIsIdentity) {
       EXPECT_EQ(out[2 * p + 1], in[2 * p + 1]);
     }
   }
+}
+
+// Eq. 11 evaluated pixel by pixel as section 4.2 states it, for comparison with upsample_weights's
+// run-wise kernel: the 2x2 bilinear block (clamp-to-edge, taps of zero bilinear weight dropped),
+// w~ = w_b eps / (eps + |z_p - z_i|) max(0, N_p . N_i)^power over hit taps, normalised; a miss
+// below the threshold; bilinear over hit taps where every w~ vanishes.
+struct ReferencePixel {
+  std::array<std::int32_t, 4> idx{-1, -1, -1, -1};
+  std::array<double, 4> w{};
+  bool miss = false;
+  double measure = 0.0;
+};
+ReferencePixel reference_pixel(const Buffer& c, const Buffer& f, const UpsampleOptions& o, int X, int Y) {
+  ReferencePixel r;
+  const std::size_t p = static_cast<std::size_t>(Y) * f.width + X;
+  if (std::isinf(f.depth[p])) return r;
+  const double ratio = static_cast<double>(f.scale) / c.scale;
+  const auto axis = [&](double u, int n, int& i0, int& i1, double& t) {
+    u = std::clamp(u, 0.0, static_cast<double>(n - 1));
+    i0 = std::min(static_cast<int>(std::floor(u)), std::max(n - 2, 0));
+    i1 = std::min(i0 + 1, n - 1);
+    t = u - i0;
+  };
+  int x0, x1, y0, y1;
+  double fx, fy;
+  axis((X + 0.5) * ratio - 0.5, c.width, x0, x1, fx);
+  axis((Y + 0.5) * ratio - 0.5, c.height, y0, y1, fy);
+  const int xs[4] = {x0, x1, x0, x1}, ys[4] = {y0, y0, y1, y1};
+  const double wb[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+  const double zp = f.depth[p], eps = o.epsilon_rel * zp;
+  const glm::dvec3 np(f.normal[p]);
+  std::array<double, 4> w{}, wbil{};
+  for (int k = 0; k < 4; ++k) {
+    const std::size_t i = static_cast<std::size_t>(ys[k]) * c.width + xs[k];
+    if (!(wb[k] > 0.0) || std::isinf(c.depth[i])) continue;
+    wbil[k] = wb[k];
+    const double cosine = std::max(0.0, glm::dot(np, glm::dvec3(c.normal[i])));
+    w[k] = wb[k] * eps / (eps + std::abs(zp - c.depth[i])) * std::pow(cosine, o.normal_power);
+  }
+  double sum = 0.0, sum_bil = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    sum += w[k];
+    sum_bil += wbil[k];
+  }
+  r.measure = sum;
+  r.miss = !(sum > 0.0) || sum < o.miss_threshold;
+  const std::array<double, 4>& use = sum > 0.0 ? w : wbil;
+  const double norm = sum > 0.0 ? sum : sum_bil;
+  int m = 0;
+  for (int k = 0; k < 4; ++k)
+    if (use[k] > 0.0) {
+      r.idx[m] = ys[k] * c.width + xs[k];
+      r.w[m++] = use[k] / norm;
+    }
+  return r;
+}
+
+// upsample_weights (bilateral) against reference_pixel on random planes: background in both
+// buffers (their normals NaN or infinite, which must not reach any weight), normals that face away,
+// display widths that cross and end inside the kernel's runs of pixels, coarse buffers of floor and
+// ceil size, scales 1 to 4 and several powers, epsilons and thresholds. Taps, their order and the
+// miss flags must be the same; weights within kWeightTol. The reference uses std::pow where the
+// kernel squares, and both are in double before the store to float: 1e-6 (about 8 float ulps at 1)
+// covers the float rounding and the pow/squaring difference of a few double ulps.
+TEST(Upsample, BilateralWeightsMatchAPerPixelEvaluationOfEq11) {
+  constexpr double kWeightTol = 1e-6;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f), coin(0.0f, 1.0f);
+  const auto plane = [&](int w, int h, int scale, float background) {
+    Buffer b;
+    b.width = w;
+    b.height = h;
+    b.scale = scale;
+    for (int i = 0; i < w * h; ++i) {
+      const bool bg = coin(rng) < background;
+      // Depths cluster on two layers, so that some taps match and some do not.
+      b.depth.push_back(bg ? kInf : (coin(rng) < 0.5f ? 5.0f : 20.0f) * (1.0f + 0.02f * u(rng)));
+      glm::vec3 n = glm::normalize(glm::vec3(0.3f * u(rng), 0.3f * u(rng), 1.0f) + (coin(rng) < 0.2f ? glm::vec3(0, 0, -2.5f) : glm::vec3(0)));
+      if (bg) n = coin(rng) < 0.5f ? glm::vec3(std::nanf("")) : glm::vec3(kInf, -kInf, kInf);
+      b.normal.push_back(n);
+    }
+    return b;
+  };
+  struct Case {
+    int fine_w, fine_h, coarse_scale, power;
+    double epsilon_rel, threshold;
+    bool ceil;
+  };
+  const Case cases[] = {{150, 9, 4, 32, 0.01, 0.05, true},  {150, 9, 4, 32, 0.01, 0.05, false}, {64, 5, 2, 1, 0.1, 0.3, true},
+                        {129, 7, 3, 7, 0.02, 0.5, true},   {65, 6, 1, 0, 0.01, 0.05, true},    {200, 4, 4, 2, 1e-4, 0.01, false},
+                        {1, 3, 4, 32, 0.01, 0.05, true},   {63, 1, 4, 32, 0.05, 0.05, true}};
+  int compared = 0, misses = 0, fallbacks = 0;
+  for (const Case& cs : cases) {
+    const int cw = cs.ceil ? (cs.fine_w + cs.coarse_scale - 1) / cs.coarse_scale : std::max(1, cs.fine_w / cs.coarse_scale);
+    const int ch = cs.ceil ? (cs.fine_h + cs.coarse_scale - 1) / cs.coarse_scale : std::max(1, cs.fine_h / cs.coarse_scale);
+    const Buffer coarse = plane(cw, ch, cs.coarse_scale, 0.15f), fine = plane(cs.fine_w, cs.fine_h, 1, 0.1f);
+    UpsampleOptions o = with_mode(UpsampleMode::Bilateral, cs.epsilon_rel, cs.power);
+    o.miss_threshold = cs.threshold;
+    const UpsampleWeights w = upsample_weights(coarse.view(), fine.view(), o);
+    for (int Y = 0; Y < fine.height; ++Y)
+      for (int X = 0; X < fine.width; ++X) {
+        const std::size_t p = static_cast<std::size_t>(Y) * fine.width + X;
+        const ReferencePixel r = reference_pixel(coarse, fine, o, X, Y);
+        SCOPED_TRACE("fine " + std::to_string(fine.width) + "x" + std::to_string(fine.height) + " scale " +
+                     std::to_string(cs.coarse_scale) + " power " + std::to_string(cs.power) + " pixel (" +
+                     std::to_string(X) + ", " + std::to_string(Y) + ")");
+        // A measure within rounding of the threshold may fall either way.
+        if (std::abs(r.measure - o.miss_threshold) > 1e-9) {
+          EXPECT_EQ(w.miss[p] != 0, r.miss);
+        }
+        for (int k = 0; k < 4; ++k) {
+          EXPECT_EQ(w.index[p][k], r.idx[k]);
+          EXPECT_NEAR(w.weight[p][k], r.w[k], kWeightTol);
+        }
+        ++compared;
+        misses += r.miss;
+        fallbacks += !std::isinf(fine.depth[p]) && !(r.measure > 0.0);
+      }
+  }
+  // The random planes exercise every branch: matches, misses and the bilinear fallback.
+  EXPECT_GT(compared, 3000);
+  EXPECT_GT(misses, 50);
+  EXPECT_GT(fallbacks, 10);
 }
 
 // A background plane (z = 100) with two thin foreground bars (z = 1): bar 1 covers display x in
