@@ -171,10 +171,46 @@ struct Block {
 // over the display works them out once per column and row instead of once per pixel.
 struct Footprints {
   std::vector<Axis> x, y;
-  Footprints(const PlaneView& c, const PlaneView& f) : x(f.width), y(f.height) {
+  // The columns' footprints again as streams (left column, right column, right weight f), for
+  // bilateral_run's vector loops.
+  std::vector<std::int32_t> x_i0, x_i1;
+  std::vector<double> x_f;
+  Footprints(const PlaneView& c, const PlaneView& f) : x(f.width), y(f.height), x_i0(f.width), x_i1(f.width), x_f(f.width) {
     const double ratio = static_cast<double>(f.scale) / static_cast<double>(c.scale);
-    for (int X = 0; X < f.width; ++X) x[X] = axis((X + 0.5) * ratio - 0.5, c.width);
+    for (int X = 0; X < f.width; ++X) {
+      x[X] = axis((X + 0.5) * ratio - 0.5, c.width);
+      x_i0[X] = x[X].i0;
+      x_i1[X] = x[X].i1;
+      x_f[X] = x[X].f;
+    }
     for (int Y = 0; Y < f.height; ++Y) y[Y] = axis((Y + 0.5) * ratio - 0.5, c.height);
+  }
+};
+
+// One coarse row's depth and normal at the left and right tap column of every display column:
+// the coarse samples that bilateral_run reads, laid out as streams, so that its loops load instead of
+// gathering. A coarse row serves the display rows of two block rows (about 2 scale of them), so a
+// run of display rows expands each once.
+struct ExpandedRow {
+  int row = -1;
+  std::vector<float> z[2], nx[2], ny[2], nz[2];  // [0]: left tap column, [1]: right
+  void expand(const PlaneView& c, const Footprints& fp, int coarse_row) {
+    row = coarse_row;
+    const std::size_t w = fp.x.size();
+    for (int side = 0; side < 2; ++side) {
+      z[side].resize(w);
+      nx[side].resize(w);
+      ny[side].resize(w);
+      nz[side].resize(w);
+      const std::int32_t* col = side == 0 ? fp.x_i0.data() : fp.x_i1.data();
+      for (std::size_t X = 0; X < w; ++X) {
+        const std::size_t i = static_cast<std::size_t>(coarse_row) * c.width + col[X];
+        z[side][X] = c.depth[i];
+        nx[side][X] = c.normal[i].x;
+        ny[side][X] = c.normal[i].y;
+        nz[side][X] = c.normal[i].z;
+      }
+    }
   }
 };
 
@@ -267,16 +303,16 @@ Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptio
 }
 
 // Eq. 11 for a run of at most kRun display pixels of one row (the bilateral mode): the same
-// weights, bits included, as upsample_pixel, written in three passes over the run (tap weights
-// without the normal power, the power by squaring across the run, normalisation and packing) so
-// that the first two vectorise and the per-pixel branches of the tap loop go. Compiled for AVX-512,
-// AVX2 and the baseline (target_clones; -ffp-contract=off for this file keeps every version's bits
-// those of the baseline).
+// weights, bits included, as upsample_pixel, written as passes over the run (tap weights without
+// the normal power, the power by squaring, sums and normalisation; then the packing per pixel) so
+// that all but the packing vectorise, with the coarse samples of the row's two tap rows from
+// `rows` (ExpandedRow) instead of gathered. Compiled for AVX-512, AVX2 and the baseline
+// (target_clones; -ffp-contract=off for this file keeps every version's bits those of the baseline).
 constexpr int kRun = 64;
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
-    const PlaneView& c, const PlaneView& f, const UpsampleOptions& opt, const Footprints& fp, int y, int x0, int n,
-    std::array<std::int32_t, 4>* __restrict out_idx, std::array<float, 4>* __restrict out_w,
+    const PlaneView& c, const PlaneView& f, const UpsampleOptions& opt, const Footprints& fp, const ExpandedRow* const rows[2],
+    int y, int x0, int n, std::array<std::int32_t, 4>* __restrict out_idx, std::array<float, 4>* __restrict out_w,
     std::uint8_t* __restrict out_miss) {
   const Axis& ay = fp.y[y];
   const std::size_t row0 = static_cast<std::size_t>(y) * f.width;
@@ -289,28 +325,31 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
   alignas(64) std::int32_t tap[4 * kRun];
   const float* __restrict fz = f.depth + row0 + x0;
   const glm::vec3* __restrict fn = f.normal + row0 + x0;
-  const Axis* __restrict axes = fp.x.data() + x0;
-  const float* __restrict cz = c.depth;
-  const glm::vec3* __restrict cn = c.normal;
   const double eps_rel = opt.epsilon_rel;
   // One tap column (left or right: a constant, so that the loop has no branch) of one tap row.
   const auto taps = [&](auto right, int k) {
-    const int j = k >> 1;
+    const int j = k >> 1, side = right ? 1 : 0;
     const std::int32_t crow = ys[j] * c.width;
     const double wyj = wy[j];
+    const ExpandedRow& er = *rows[j];
+    const float* __restrict cz = er.z[side].data() + x0;
+    const float* __restrict cnx = er.nx[side].data() + x0;
+    const float* __restrict cny = er.ny[side].data() + x0;
+    const float* __restrict cnz = er.nz[side].data() + x0;
+    const double* __restrict fx = fp.x_f.data() + x0;
+    const std::int32_t* __restrict col = (right ? fp.x_i1.data() : fp.x_i0.data()) + x0;
     double* __restrict wbz_k = wbz + k * n;
     double* __restrict base_k = base + k * n;
     std::int32_t* __restrict tap_k = tap + k * n;
     for (int t = 0; t < n; ++t) {
-      const double wb = (right ? axes[t].f : 1.0 - axes[t].f) * wyj;
-      const std::int32_t id = crow + (right ? axes[t].i1 : axes[t].i0);
-      const float zp = fz[t], zi = cz[id];
+      const double wb = (right ? fx[t] : 1.0 - fx[t]) * wyj;
+      const float zp = fz[t], zi = cz[t];
       const double eps = eps_rel * static_cast<double>(zp);
       const double dz = std::abs(static_cast<double>(zp) - static_cast<double>(zi));
       const double wz = eps / (eps + dz);
-      const double d = static_cast<double>(fn[t].x) * cn[id].x + static_cast<double>(fn[t].y) * cn[id].y +
-                       static_cast<double>(fn[t].z) * cn[id].z;
-      tap_k[t] = id;
+      const double d = static_cast<double>(fn[t].x) * cnx[t] + static_cast<double>(fn[t].y) * cny[t] +
+                       static_cast<double>(fn[t].z) * cnz[t];
+      tap_k[t] = crow + col[t];
       const bool live = (wb > 0.0) & (zi < std::numeric_limits<float>::infinity());
       wbz_k[t] = live ? wb * wz : 0.0;
       base_k[t] = d > 0.0 ? d : 0.0;
@@ -322,11 +361,19 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
   }
   // ipow across the run: the exponent's bits are the same for every pixel.
   const int m4 = 4 * n;
+  // One pass over the run per bit; the last bit needs no further square.
   for (int t = 0; t < m4; ++t) wn[t] = 1.0;
   for (int e = opt.normal_power; e > 0; e >>= 1) {
-    if (e & 1)
+    if ((e & 1) && e > 1) {
+      for (int t = 0; t < m4; ++t) {
+        wn[t] *= base[t];
+        base[t] *= base[t];
+      }
+    } else if (e & 1) {
       for (int t = 0; t < m4; ++t) wn[t] *= base[t];
-    for (int t = 0; t < m4; ++t) base[t] *= base[t];
+    } else {
+      for (int t = 0; t < m4; ++t) base[t] *= base[t];
+    }
   }
   // The eq. 11 weights, their sum (the miss measure) and the normalised weights, across the run.
   // A background tap's normal may be anything: its weight is 0 whatever its power.
@@ -360,7 +407,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
       out_miss[t] = measure[t] < opt.miss_threshold ? 1 : 0;
     } else {
       // Every eq. 11 weight vanished: upsample_pixel's bilinear fallback, rare.
-      const Pixel px = upsample_pixel(c, f, opt, row0 + static_cast<std::size_t>(x0 + t), axes[t], ay);
+      const Pixel px = upsample_pixel(c, f, opt, row0 + static_cast<std::size_t>(x0 + t), fp.x[x0 + t], ay);
       oi = px.idx;
       ow = px.w;
       out_miss[t] = px.miss ? 1 : 0;
@@ -403,15 +450,37 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
     r.miss.resize(n);
   }
   const Footprints fp(coarse, fine);
-  tbb::parallel_for(tbb::blocked_range<int>(0, fine.height), [&](const tbb::blocked_range<int>& rows) {
+  // Runs of display rows, so that each task expands a coarse row once for the rows it serves.
+  constexpr int kRowsPerTask = 16;
+  tbb::parallel_for(tbb::blocked_range<int>(0, fine.height, kRowsPerTask), [&](const tbb::blocked_range<int>& rows) {
+    ExpandedRow expanded[2];
     for (int y = rows.begin(); y != rows.end(); ++y) {
       const std::size_t row0 = static_cast<std::size_t>(y) * fine.width;
       for (int x = 0; x < fine.width; ++x)
         if (!sample_ok(fine, row0 + x)) check_sample(fine, "fine", x, y);  // throws; TBB rethrows it in the calling thread
       if (opt.mode == UpsampleMode::Bilateral) {
+        // The two coarse rows of this display row's blocks, expanded unless a slot holds them.
+        const int need[2] = {fp.y[y].i0, fp.y[y].i1};
+        const auto held = [&](int row) -> ExpandedRow* {
+          for (ExpandedRow& e : expanded)
+            if (e.row == row) return &e;
+          return nullptr;
+        };
+        const auto other = [&](const ExpandedRow* e) { return e == &expanded[0] ? &expanded[1] : &expanded[0]; };
+        ExpandedRow* top = held(need[0]);
+        ExpandedRow* bottom = held(need[1]);
+        if (top == nullptr) {
+          top = other(bottom);
+          top->expand(coarse, fp, need[0]);
+        }
+        if (bottom == nullptr) {
+          bottom = need[1] == need[0] ? top : other(top);
+          if (bottom != top) bottom->expand(coarse, fp, need[1]);
+        }
+        const ExpandedRow* const tap_rows[2] = {top, bottom};
         for (int x0 = 0; x0 < fine.width; x0 += kRun) {
           const std::size_t p = row0 + x0;
-          bilateral_run(coarse, fine, opt, fp, y, x0, std::min(kRun, fine.width - x0), &r.index[p], &r.weight[p],
+          bilateral_run(coarse, fine, opt, fp, tap_rows, y, x0, std::min(kRun, fine.width - x0), &r.index[p], &r.weight[p],
                         &r.miss[p]);
         }
         continue;
