@@ -302,12 +302,10 @@ long long product_range(const ZhTable& vis, ReplacementRule rule, const Receiver
   constexpr int W = V::W, N2 = N * N;
   alignas(64) float lanes[6][W];
   alignas(64) float res[N2 * W];
-  const float* src[6] = {rec.px.data(), rec.py.data(), rec.pz.data(), rec.nx.data(), rec.ny.data(), rec.nz.data()};
   long long products = 0;
   for (std::size_t i0 = begin; i0 < end; i0 += W) {
     const std::size_t cnt = end - i0 < static_cast<std::size_t>(W) ? end - i0 : static_cast<std::size_t>(W);
-    for (int a = 0; a < 6; ++a)
-      for (int k = 0; k < W; ++k) lanes[a][k] = src[a][i0 + (static_cast<std::size_t>(k) < cnt ? k : cnt - 1)];
+    receiver_lanes<W>(rec, i0, cnt, lanes);
     products += product_block<V, N>(vis, rule, lanes, cnt, b, plan, res);
     for (std::size_t k = 0; k < cnt; ++k)
       for (int c = 0; c < N2; ++c) out[(i0 + k) * N2 + c] = res[c * W + k];

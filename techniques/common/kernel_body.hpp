@@ -163,17 +163,25 @@ void kernel_block(const ZhTable& table, ReplacementRule rule, const float (*lane
   for (int c = 0; c < N2; ++c) V::store(out + c * V::W, acc[c]);
 }
 
+// Receivers i0 .. i0 + cnt - 1 of rec (0 < cnt <= W) as the lane arrays px, py, pz, nx, ny, nz of a
+// block; the lanes past cnt repeat the last receiver, so that a short block computes a real
+// receiver's values in lanes whose results are dropped.
+template <int W>
+inline void receiver_lanes(const ReceiverSoA& rec, std::size_t i0, std::size_t cnt, float (*lanes)[W]) {
+  const float* src[6] = {rec.px.data(), rec.py.data(), rec.pz.data(), rec.nx.data(), rec.ny.data(), rec.nz.data()};
+  for (int a = 0; a < 6; ++a)
+    for (int k = 0; k < W; ++k) lanes[a][k] = src[a][i0 + (static_cast<std::size_t>(k) < cnt ? k : cnt - 1)];
+}
+
 template <class V, int N>
 void kernel_range(const ZhTable& table, ReplacementRule rule, const ReceiverSoA& rec, std::size_t begin, std::size_t end,
                   const BlockerList& b, float* out) {
   constexpr int W = V::W, N2 = N * N;
   alignas(64) float lanes[6][W];
   alignas(64) float res[N2 * W];
-  const float* src[6] = {rec.px.data(), rec.py.data(), rec.pz.data(), rec.nx.data(), rec.ny.data(), rec.nz.data()};
   for (std::size_t i0 = begin; i0 < end; i0 += W) {
     const std::size_t cnt = end - i0 < static_cast<std::size_t>(W) ? end - i0 : static_cast<std::size_t>(W);
-    for (int a = 0; a < 6; ++a)
-      for (int k = 0; k < W; ++k) lanes[a][k] = src[a][i0 + (static_cast<std::size_t>(k) < cnt ? k : cnt - 1)];
+    receiver_lanes<W>(rec, i0, cnt, lanes);
     kernel_block<V, N>(table, rule, lanes, b, res);
     for (std::size_t k = 0; k < cnt; ++k)
       for (int c = 0; c < N2; ++c) out[(i0 + k) * N2 + c] = res[c * W + k];

@@ -119,12 +119,10 @@ long long proxy_light_range(const ProxyLightTables& t, const ReceiverSoA& rec, s
   constexpr int W = V::W;
   alignas(64) float lanes[6][W];
   alignas(64) float res[4 * W];
-  const float* src[6] = {rec.px.data(), rec.py.data(), rec.pz.data(), rec.nx.data(), rec.ny.data(), rec.nz.data()};
   long long pairs = 0;
   for (std::size_t i0 = begin; i0 < end; i0 += W) {
     const std::size_t cnt = end - i0 < static_cast<std::size_t>(W) ? end - i0 : static_cast<std::size_t>(W);
-    for (int a = 0; a < 6; ++a)
-      for (int k = 0; k < W; ++k) lanes[a][k] = src[a][i0 + (static_cast<std::size_t>(k) < cnt ? k : cnt - 1)];
+    receiver_lanes<W>(rec, i0, cnt, lanes);
     for (float& v : res) v = 0.0f;
     pairs += proxy_light_block<V, N>(t, lanes, static_cast<int>(cnt), L, res);
     for (std::size_t k = 0; k < cnt; ++k) {

@@ -23,6 +23,7 @@
 #include "softgi/scene/builtin.hpp"
 #include "softgi/sh/product.hpp"
 #include "softgi/techniques/registry.hpp"
+#include "../support/pass_counter.hpp"
 
 using namespace softgi;
 
@@ -635,11 +636,7 @@ TEST(ImageSplatRender, TheGBufferLeavesOutViewDirAndTheImageIsUnchanged) {
   }
   EXPECT_GT(background, 0u) << "the view should show some sky";
   EXPECT_LT(background, gb.object.size()) << "and some surface";
-  auto pass_bytes = [](const render::FrameResult& r) {
-    for (const auto& pr : r.passes)
-      if (pr.name == "gbuffer") return pr.counters.at("bytes_moved");
-    return -1.0;
-  };
+  auto pass_bytes = [](const render::FrameResult& r) { return test::pass_counter(r, "gbuffer", "bytes_moved"); };
   const auto n = static_cast<double>(s.camera.width * s.camera.height);
   EXPECT_EQ(pass_bytes(a), n * 56.0) << "every plane but view_dir";
   EXPECT_EQ(pass_bytes(b), n * 68.0) << "every plane";

@@ -25,6 +25,7 @@
 #include "softgi/scene/builtin.hpp"
 #include "softgi/sh/product.hpp"
 #include "softgi/techniques/registry.hpp"
+#include "../support/pass_counter.hpp"
 
 using namespace softgi;
 using namespace softgi::techniques::shexp;
@@ -866,11 +867,7 @@ TEST(ShexpRender, TheGBufferHoldsOnlyThePlanesToImageReads) {
   const auto& gb = std::any_cast<const render::GBuffer&>(b.resources.at(render::kGBuffer));
   EXPECT_EQ(gb.planes, unsigned(render::kGBufferAll));
   EXPECT_EQ(gb.position.size(), gb.object.size());
-  auto pass_bytes = [](const render::FrameResult& r) {
-    for (const auto& pr : r.passes)
-      if (pr.name == "gbuffer") return pr.counters.at("bytes_moved");
-    return -1.0;
-  };
+  auto pass_bytes = [](const render::FrameResult& r) { return test::pass_counter(r, "gbuffer", "bytes_moved"); };
   const auto n = static_cast<double>(s.camera.width * s.camera.height);
   EXPECT_EQ(pass_bytes(a), n * 16.0) << "object, primitive, barycentric";
   EXPECT_EQ(pass_bytes(b), n * 68.0) << "every plane";
