@@ -314,8 +314,15 @@ std::shared_ptr<Lights> plan_lights(const Settings& s, FrameContext& ctx, SkyCac
 // Figure 2a's depth maps, rasterised in software from the posed triangles.
 void pass_light_maps(const Settings& s, FrameContext& ctx, SkyCache& sky_cache) {
   const std::shared_ptr<Lights> L = plan_lights(s, ctx, sky_cache);
-  for (auto& m : L->local) m = rasterize_cube_depth(ctx.posed, m.center, s.shadow_map_size);
-  if (L->sun) L->sun_map = rasterize_ortho_depth(ctx.posed, L->sun_map.dir, s.shadow_map_size);
+  for (auto& m : L->local) m = rasterize_cube_depth(ctx.posed, m.center, s.shadow_map_size, &ctx.pool());
+  if (L->sun) L->sun_map = rasterize_ortho_depth(ctx.posed, L->sun_map.dir, s.shadow_map_size, &ctx.pool());
+  // The maps go back to the pool at the end of the frame (fresh pages cost a fault each), unless the
+  // caller asked for this resource and holds it.
+  ctx.on_release([L](render::FramePool& pool) {
+    if (L.use_count() > 1) return;
+    for (auto& m : L->local) pool.give(std::move(m.depth));
+    pool.give(std::move(L->sun_map.depth));
+  });
   ctx.record().bytes = L->bytes();
   ctx.put<std::shared_ptr<const Lights>>(kLightMaps, L);
 }
@@ -490,15 +497,26 @@ void pass_gather(const Settings& s, FrameContext& ctx) {
 // shared kernel; paper 002 section 3.3 asks for a geometry-aware bilateral filter). The weights
 // depend only on the two buffers' geometry, so they are computed once for all the fields, each given
 // as (floats, channels).
-std::vector<std::vector<float>> upsample_fields(const GBuffer& coarse, const GBuffer& fine,
+// The weights' planes and the fields come from the frame's pool; give_fields hands the fields back.
+std::vector<std::vector<float>> upsample_fields(FrameContext& ctx, const GBuffer& coarse, const GBuffer& fine,
                                                 const std::vector<std::pair<const float*, int>>& in) {
-  const common::UpsampleWeights w = common::upsample_weights(common::plane_view(coarse), common::plane_view(fine), common::UpsampleOptions{});
+  render::FramePool& pool = ctx.pool();
+  common::UpsampleWeights w =
+      common::upsample_weights(common::plane_view(coarse), common::plane_view(fine), common::UpsampleOptions{}, &pool);
   std::vector<std::vector<float>> out;
   for (const auto& [field, channels] : in) {
-    out.emplace_back(static_cast<std::size_t>(fine.width) * fine.height * channels, 0.0f);
+    out.push_back(pool.take<float>(static_cast<std::size_t>(fine.width) * fine.height * channels, 0.0f));
     common::upsample_apply(w, field, channels, out.back().data());
   }
+  pool.give(std::move(w.index));
+  pool.give(std::move(w.weight));
+  pool.give(std::move(w.miss));
   return out;
+}
+
+void give_fields(FrameContext& ctx, std::vector<std::vector<float>>& fields) {
+  for (auto& f : fields) ctx.pool().give(std::move(f));
+  fields.clear();
 }
 
 glm::vec3 at3(const std::vector<float>& v, std::size_t i) { return {v[3 * i], v[3 * i + 1], v[3 * i + 2]}; }
@@ -507,18 +525,24 @@ void pass_indirect(FrameContext& ctx) {
   const auto& fine = ctx.get<GBuffer>(render::kGBuffer);
   const auto& gg = ctx.get<GBuffer>(kGatherGBuffer);
   const auto& gathered = *ctx.get<std::shared_ptr<const std::vector<Gathered>>>(kGathered);
-  std::vector<glm::vec3> e(gathered.size()), sp(gathered.size());
+  std::vector<glm::vec3> e = ctx.pool().take_for_overwrite<glm::vec3>(gathered.size());
+  std::vector<glm::vec3> sp = ctx.pool().take_for_overwrite<glm::vec3>(gathered.size());
   for (std::size_t i = 0; i < gathered.size(); ++i) {
     e[i] = gathered[i].irradiance;
     sp[i] = gathered[i].glossy_term();
   }
-  const auto up = upsample_fields(gg, fine, {{&e[0].x, 3}, {&sp[0].x, 3}});
+  auto up = upsample_fields(ctx, gg, fine, {{&e[0].x, 3}, {&sp[0].x, 3}});
   Image img = ctx.pool().image(fine.width, fine.height);
-  for (std::size_t i = 0; i < img.rgb.size(); ++i) {
-    if (!fine.hit(i)) continue;
-    const Receiver r = receiver_at(ctx, fine, i);
-    img.rgb[i] = fine.albedo[i] * ((1.0f - r.glossy) / kPi * at3(up[0], i) + r.glossy * at3(up[1], i));
-  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, img.rgb.size(), 4096), [&](const tbb::blocked_range<std::size_t>& br) {
+    for (std::size_t i = br.begin(); i < br.end(); ++i) {
+      if (!fine.hit(i)) continue;
+      const Receiver r = receiver_at(ctx, fine, i);
+      img.rgb[i] = fine.albedo[i] * ((1.0f - r.glossy) / kPi * at3(up[0], i) + r.glossy * at3(up[1], i));
+    }
+  });
+  give_fields(ctx, up);
+  ctx.pool().give(std::move(e));
+  ctx.pool().give(std::move(sp));
   ctx.record().bytes = 2 * img.rgb.size() * sizeof(glm::vec3);
   ctx.put<Image>(render::kIndirect, std::move(img));
 }
@@ -532,7 +556,7 @@ void pass_direct(FrameContext& ctx) {
   std::vector<std::vector<float>> sky;  // irradiance (3 channels), escaped fraction (1)
   if (L.sky && ctx.has(kFilteredSky)) {
     const auto& F = *ctx.get<std::shared_ptr<const SkyLight>>(kFilteredSky);
-    sky = upsample_fields(ctx.get<GBuffer>(kMarchGBuffer), g, {{&F.irradiance[0].x, 3}, {F.escaped.data(), 1}});
+    sky = upsample_fields(ctx, ctx.get<GBuffer>(kMarchGBuffer), g, {{&F.irradiance[0].x, 3}, {F.escaped.data(), 1}});
   }
   Image img = ctx.pool().image_for_overwrite(g.width, g.height);  // every pixel is written below
   const std::size_t np = img.rgb.size();
@@ -561,6 +585,7 @@ void pass_direct(FrameContext& ctx) {
       img.rgb[i] = g.albedo[i] * lo;
     }
   });
+  give_fields(ctx, sky);
   ctx.record().bytes = np * sizeof(glm::vec3);
   ctx.put<Image>(render::kDirect, std::move(img));
 }

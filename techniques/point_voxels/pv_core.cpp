@@ -2,6 +2,10 @@
 // depth maps (paper 002, Chen et al. 2014, sections 3.1-3.3).
 #include "pv_core.hpp"
 
+#include <tbb/parallel_for.h>
+
+#include "softgi/render/frame_pool.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -470,20 +474,23 @@ void check_size(int size, const char* what) {
 
 }  // namespace
 
-CubeDepthMap rasterize_cube_depth(const scene::PosedScene& posed, const glm::vec3& center, int size) {
+CubeDepthMap rasterize_cube_depth(const scene::PosedScene& posed, const glm::vec3& center, int size, render::FramePool* pool) {
   check_size(size, "cube depth map");
   CubeDepthMap m;
   m.center = center;
   m.size = size;
   // Rasterised as 1/z (affine on screen under a perspective projection), the largest kept.
-  std::vector<float> inv(static_cast<std::size_t>(6) * size * size, 0.0f);
+  const std::size_t texels = static_cast<std::size_t>(6) * size * size;
+  std::vector<float> inv = pool ? pool->take<float>(texels, 0.0f) : std::vector<float>(texels, 0.0f);
   const float near = kCubeNear;
-  for (const auto& obj : posed.objects)
-    for (const auto& t : obj.source->triangles) {
-      const glm::vec3 d[3] = {obj.positions[t.x] - center, obj.positions[t.y] - center, obj.positions[t.z] - center};
-      for (int face = 0; face < 6; ++face) {
-        const int a = face / 2, ua = (a + 1) % 3, va = (a + 2) % 3;
-        const float s = face % 2 == 0 ? 1.0f : -1.0f;
+  // A face's texels are its own: the faces run in parallel, each over the triangles in scene order.
+  tbb::parallel_for(0, 6, [&](int face) {
+    const int a = face / 2, ua = (a + 1) % 3, va = (a + 2) % 3;
+    const float s = face % 2 == 0 ? 1.0f : -1.0f;
+    float* face_texels = inv.data() + static_cast<std::size_t>(face) * size * size;
+    for (const auto& obj : posed.objects)
+      for (const auto& t : obj.source->triangles) {
+        const glm::vec3 d[3] = {obj.positions[t.x] - center, obj.positions[t.y] - center, obj.positions[t.z] - center};
         // Clip against z > near (Sutherland-Hodgman), then fan.
         glm::vec3 poly[4];
         int n = 0;
@@ -499,12 +506,12 @@ CubeDepthMap rasterize_cube_depth(const scene::PosedScene& posed, const glm::vec
           const float x = poly[i].x / poly[i].z, y = poly[i].y / poly[i].z;
           sv[i] = {(x + 1.0f) * 0.5f * size, (y + 1.0f) * 0.5f * size, 1.0f / poly[i].z};
         }
-        float* texels = inv.data() + static_cast<std::size_t>(face) * size * size;
-        for (int i = 1; i + 1 < n; ++i) raster_triangle(sv[0], sv[i], sv[i + 1], size, texels, true);
+        for (int i = 1; i + 1 < n; ++i) raster_triangle(sv[0], sv[i], sv[i + 1], size, face_texels, true);
       }
-    }
-  m.depth.resize(inv.size());
-  for (std::size_t i = 0; i < inv.size(); ++i) m.depth[i] = inv[i] > 0.0f ? 1.0f / inv[i] : kInf;
+  });
+  m.depth = pool ? pool->take_for_overwrite<float>(texels) : std::vector<float>(texels);
+  for (std::size_t i = 0; i < texels; ++i) m.depth[i] = inv[i] > 0.0f ? 1.0f / inv[i] : kInf;
+  if (pool) pool->give(std::move(inv));
   return m;
 }
 
@@ -554,9 +561,14 @@ OrthoDepthMap ortho_frame(const scene::PosedScene& posed, const glm::vec3& towar
   return m;
 }
 
-OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::vec3& towards_light, int size) {
+OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::vec3& towards_light, int size,
+                                    render::FramePool* pool) {
   OrthoDepthMap m = ortho_frame(posed, towards_light, size);
-  m.depth.assign(static_cast<std::size_t>(size) * size, kInf);
+  const std::size_t texels = static_cast<std::size_t>(size) * size;
+  if (pool)
+    m.depth = pool->take<float>(texels, kInf);
+  else
+    m.depth.assign(texels, kInf);
   for (const auto& obj : posed.objects)
     for (const auto& tri : obj.source->triangles) {
       ScreenVertex sv[3];

@@ -12,6 +12,10 @@
 
 #include "softgi/scene/scene.hpp"
 
+namespace softgi::render {
+class FramePool;
+}
+
 namespace softgi::techniques::point_voxels {
 
 // --- Section 3.1: point proxies ------------------------------------------------------------------
@@ -174,9 +178,11 @@ struct CubeDepthMap {
 // Faces 2a (+axis a) and 2a + 1 (-axis a), a = x, y, z; texel (i, j) of a face looks along
 // (d[(a + 1) % 3], d[(a + 2) % 3]) / |d[a]| = ((i + 0.5) / size * 2 - 1, (j + 0.5) / size * 2 - 1).
 // Triangles nearer than kCubeNear along the face's axis are clipped. Throws std::invalid_argument
-// for a size outside 1 to 8192.
+// for a size outside 1 to 8192. The six faces are rasterised in parallel. `pool`: where the depths
+// and the rasteriser's scratch plane come from (render::FramePool), else allocated.
 inline constexpr float kCubeNear = 1e-4f;
-CubeDepthMap rasterize_cube_depth(const scene::PosedScene& posed, const glm::vec3& center, int size);
+CubeDepthMap rasterize_cube_depth(const scene::PosedScene& posed, const glm::vec3& center, int size,
+                                  render::FramePool* pool = nullptr);
 // An orthographic depth map along a distant light's direction, covering the posed scene.
 struct OrthoDepthMap {
   glm::vec3 dir{0.0f, 1.0f, 0.0f};  // towards the light
@@ -189,6 +195,7 @@ struct OrthoDepthMap {
 // The map's frame without its depths: dir, u, v, and lo and extent covering every posed vertex
 // (padded by 1 %). Throws std::invalid_argument for a size outside 1 to 8192.
 OrthoDepthMap ortho_frame(const scene::PosedScene& posed, const glm::vec3& towards_light, int size);
-OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::vec3& towards_light, int size);
+OrthoDepthMap rasterize_ortho_depth(const scene::PosedScene& posed, const glm::vec3& towards_light, int size,
+                                    render::FramePool* pool = nullptr);
 
 }  // namespace softgi::techniques::point_voxels
