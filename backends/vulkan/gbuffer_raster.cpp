@@ -283,8 +283,10 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
   stats.draws = static_cast<long long>(draws.size());
 
   render::GBuffer gb = render::GBuffer::background(bw, bh, scale, &fc.pool(), planes);
-  // The CPU G-buffer's ray of each pixel (PinholeCamera::buffer_direction).
-  auto ray = [&](int x, int y) { return cam.buffer_direction(x, y, scale); };
+  // The CPU G-buffer's ray of each pixel (PinholeCamera::buffer_direction, to the bit), from screen
+  // coordinates worked out once per column and row; only the view_dir plane needs it.
+  const render::BufferRays rays(cam, bw, bh, scale);
+  auto ray = [&](int x, int y) { return rays.direction(x, y); };
 
   // Nothing in front of the camera: every pixel is background (no GPU work); the background's view
   // directions where the frame holds that plane.
@@ -403,10 +405,9 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
   for (int y = 0; y < bh; ++y)
     for (int x = 0; x < bw; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * bw + x;
-      const vec3 dir = ray(x, y);
       const int oi = ids[i].x;
       if (oi < 0) {
-        if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = dir;
+        if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = ray(x, y);
         continue;
       }
       const int prim = ids[i].y;
@@ -425,7 +426,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
       gb.barycentric[i] = bc[i];
       if (gb.planes & render::kGBufferAlbedo)
         gb.albedo[i] = scene::surface_albedo(fc.scene, fc.posed.objects[oi], static_cast<std::size_t>(prim), bc[i].x, bc[i].y);
-      if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = -dir;
+      if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = -ray(x, y);
       ++hits;
     }
   stats.readback_seconds = std::chrono::duration<double>(clock::now() - t1).count();
