@@ -172,6 +172,17 @@ struct BatchShade {
   const float* hcoef = nullptr;  // order^2: H(N)_lm = hcoef y_lm(N) (clamped cosine / pi, rotation factor folded in)
   const float* gwin = nullptr;   // order^2: window factor of the visibility per coefficient (1 = none)
   const float* g = nullptr;      // visibility, receiver-major order^2 per receiver; null = unshadowed
+  // Instead of g: the visibility of receiver i interpolated from a coarse field (paper 000 eq. 11),
+  // g_i = sum_t weight[pixel[i]][t] coarse[index[pixel[i]][t] order^2 + k], the taps packed to the
+  // front (-1 unused); a receiver whose first tap is -1 is unshadowed. Interpolated in the kernel,
+  // straight into its lanes, so that no receiver-major copy is written and read back.
+  struct Taps {
+    const std::int32_t* pixel = nullptr;                 // per receiver of rec
+    const std::array<std::int32_t, 4>* index = nullptr;  // per pixel
+    const std::array<float, 4>* weight = nullptr;        // per pixel
+    const float* coarse = nullptr;                       // order^2 per coarse sample
+  };
+  const Taps* taps = nullptr;
   // The plan of `order` with the given arrays (ProductPlan::get is cached).
   static BatchShade make(int order, const float* L, const float* hcoef, const float* gwin, const float* g);
 };

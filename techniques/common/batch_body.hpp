@@ -241,7 +241,32 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
     lane[0][l] = rec.nx[i];
     lane[1][l] = rec.ny[i];
     lane[2][l] = rec.nz[i];
-    for (int k = 0; k < n2; ++k) g[k * W + l] = b.g ? b.g[i * n2 + k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f);
+    if (b.taps && b.taps->index[b.taps->pixel[i]][0] >= 0) {
+      const std::size_t p = static_cast<std::size_t>(b.taps->pixel[i]);
+      const std::array<std::int32_t, 4>& idx = b.taps->index[p];
+      const std::array<float, 4>& wt = b.taps->weight[p];
+      const float* src[4];
+      int taps = 0;
+      for (; taps < 4 && idx[taps] >= 0; ++taps) src[taps] = b.taps->coarse + static_cast<std::size_t>(idx[taps]) * n2;
+      // W coefficients at a time, summed in a register over the taps (a sum kept in memory would
+      // chain every tap's load to the last one's store); the rest one at a time.
+      alignas(64) float row[sh::kMaxCoeffs];
+      int k = 0;
+      for (; k + W <= n2; k += W) {
+        F acc = V::mul(V::set(wt[0]), V::load(src[0] + k));
+        for (int t = 1; t < taps; ++t) acc = V::fma(V::set(wt[t]), V::load(src[t] + k), acc);
+        V::store(row + k, acc);
+      }
+      for (; k < n2; ++k) {
+        float acc = wt[0] * src[0][k];
+        for (int t = 1; t < taps; ++t) acc += wt[t] * src[t][k];
+        row[k] = acc;
+      }
+      for (k = 0; k < n2; ++k) g[k * W + l] = row[k];
+    } else {
+      const float* gi = b.g && !b.taps ? b.g + i * n2 : nullptr;
+      for (int k = 0; k < n2; ++k) g[k * W + l] = gi ? gi[k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f);
+    }
   }
   basis_soa<V>(n, V::load(lane[0]), V::load(lane[1]), V::load(lane[2]), H);
   for (int k = 0; k < n2; ++k) {

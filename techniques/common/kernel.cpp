@@ -441,6 +441,8 @@ BatchShade BatchShade::make(int order, const float* L, const float* hcoef, const
 void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out) {
   if (!b.plan || b.plan->order != b.order || !b.L || !b.hcoef || !b.gwin)
     throw std::invalid_argument("shade_batch: incomplete shading inputs");
+  if (b.taps && (!b.taps->pixel || !b.taps->index || !b.taps->weight || !b.taps->coarse))
+    throw std::invalid_argument("shade_batch: incomplete interpolation taps");
   if (end > rec.size() || begin > end) throw std::invalid_argument("shade_batch: receiver range outside the receivers");
   if (begin == end) return;
   if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("shade_batch: this CPU cannot run ") + to_string(isa));

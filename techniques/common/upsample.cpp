@@ -168,23 +168,24 @@ struct Block {
 };
 
 // The bilinear footprints of every display column and row: they depend on X or Y alone, so a pass
-// over the display works them out once per column and row instead of once per pixel.
+// over the display works them out once per column and row instead of once per pixel. The columns'
+// are kept as streams (left column, right column, right weight f) for bilateral_run's vector loops;
+// column(X) puts one together for the per-pixel paths.
 struct Footprints {
-  std::vector<Axis> x, y;
-  // The columns' footprints again as streams (left column, right column, right weight f), for
-  // bilateral_run's vector loops.
   std::vector<std::int32_t> x_i0, x_i1;
   std::vector<double> x_f;
-  Footprints(const PlaneView& c, const PlaneView& f) : x(f.width), y(f.height), x_i0(f.width), x_i1(f.width), x_f(f.width) {
+  std::vector<Axis> y;
+  Footprints(const PlaneView& c, const PlaneView& f) : x_i0(f.width), x_i1(f.width), x_f(f.width), y(f.height) {
     const double ratio = static_cast<double>(f.scale) / static_cast<double>(c.scale);
     for (int X = 0; X < f.width; ++X) {
-      x[X] = axis((X + 0.5) * ratio - 0.5, c.width);
-      x_i0[X] = x[X].i0;
-      x_i1[X] = x[X].i1;
-      x_f[X] = x[X].f;
+      const Axis a = axis((X + 0.5) * ratio - 0.5, c.width);
+      x_i0[X] = a.i0;
+      x_i1[X] = a.i1;
+      x_f[X] = a.f;
     }
     for (int Y = 0; Y < f.height; ++Y) y[Y] = axis((Y + 0.5) * ratio - 0.5, c.height);
   }
+  Axis column(int X) const { return {x_i0[X], x_i1[X], x_f[X]}; }
 };
 
 // One coarse row's depth and normal at the left and right tap column of every display column:
@@ -196,7 +197,7 @@ struct ExpandedRow {
   std::vector<float> z[2], nx[2], ny[2], nz[2];  // [0]: left tap column, [1]: right
   void expand(const PlaneView& c, const Footprints& fp, int coarse_row) {
     row = coarse_row;
-    const std::size_t w = fp.x.size();
+    const std::size_t w = fp.x_i0.size();
     for (int side = 0; side < 2; ++side) {
       z[side].resize(w);
       nx[side].resize(w);
@@ -407,7 +408,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
       out_miss[t] = measure[t] < opt.miss_threshold ? 1 : 0;
     } else {
       // Every eq. 11 weight vanished: upsample_pixel's bilinear fallback, rare.
-      const Pixel px = upsample_pixel(c, f, opt, row0 + static_cast<std::size_t>(x0 + t), fp.x[x0 + t], ay);
+      const Pixel px = upsample_pixel(c, f, opt, row0 + static_cast<std::size_t>(x0 + t), fp.column(x0 + t), ay);
       oi = px.idx;
       ow = px.w;
       out_miss[t] = px.miss ? 1 : 0;
@@ -487,7 +488,7 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
       }
       for (int x = 0; x < fine.width; ++x) {
         const std::size_t p = row0 + x;
-        const Pixel px = upsample_pixel(coarse, fine, opt, p, fp.x[x], fp.y[y]);
+        const Pixel px = upsample_pixel(coarse, fine, opt, p, fp.column(x), fp.y[y]);
         r.index[p] = px.idx;
         r.weight[p] = px.w;
         r.miss[p] = px.miss ? 1 : 0;
@@ -550,7 +551,7 @@ void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, 
         if (!sample_ok(fine, p)) check_sample(fine, "fine", x, y);
         if (!is_hit(fine.depth[p])) continue;
         Pixel px;
-        if (!bilinear_valid(coarse, bilinear_block(coarse, fp.x[x], fp.y[y]), px)) continue;  // no valid tap
+        if (!bilinear_valid(coarse, bilinear_block(coarse, fp.column(x), fp.y[y]), px)) continue;  // no valid tap
         float* o = out + p * ch;
         for (std::size_t c = 0; c < ch; ++c) o[c] = 0.0f;
         for (int k = 0; k < 4 && px.idx[k] >= 0; ++k) {
@@ -564,6 +565,13 @@ void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, 
 UpsampleKernels cpu_upsample_kernels(render::FramePool* pool) {
   return {[pool](const PlaneView& c, const PlaneView& f, const UpsampleOptions& o) { return upsample_weights(c, f, o, pool); },
           upsample_apply};
+}
+
+void give(render::FramePool& pool, UpsampleWeights&& w) {
+  pool.give(std::move(w.index));
+  pool.give(std::move(w.weight));
+  pool.give(std::move(w.miss));
+  w = UpsampleWeights();
 }
 
 }  // namespace softgi::techniques::common

@@ -77,6 +77,8 @@ struct UpsampleWeights {
 // `pool`: where the per-pixel planes are taken from (render::FramePool), else allocated.
 UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine, const UpsampleOptions& opt,
                                  render::FramePool* pool = nullptr);
+// Hands w's per-pixel planes to `pool` for a later upsample_weights (w is left empty).
+void give(render::FramePool& pool, UpsampleWeights&& w);
 
 // out[p * channels + c] = sum_k weight[p][k] * in[index[p][k] * channels + c] for every display
 // pixel with samples (misses included: their weights are the eq. 11 weights however small, or the

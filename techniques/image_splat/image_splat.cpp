@@ -16,6 +16,7 @@
 #include <tuple>
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "../common/device_kernels.hpp"
@@ -621,9 +622,7 @@ void pass_upsample(const Settings& s, FrameContext& ctx, const UpsampleKernels& 
   // this resource and holds it.
   ctx.on_release([up](render::FramePool& pool) {
     if (up.use_count() > 1) return;
-    pool.give(std::move(up->w.index));
-    pool.give(std::move(up->w.weight));
-    pool.give(std::move(up->w.miss));
+    common::give(pool, std::move(up->w));
     pool.give(std::move(up->surface));
     pool.give(std::move(up->indirect));
     pool.give(std::move(up->coarse_visibility));
@@ -693,16 +692,46 @@ DirectKernels cpu_direct_kernels() {
     // (section 4.2), then shaded.
     const bool shadowed = !up.coarse_visibility.empty();
     const std::size_t n2 = static_cast<std::size_t>(shader.order) * shader.order;
-    std::atomic<long long> clamped{0};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, up.surface.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+    // Each thread's block buffers, kept across its blocks.
+    struct Scratch {
       common::ReceiverSoA soa;
+      std::vector<float> g;
+    };
+    tbb::enumerable_thread_specific<Scratch> scratch;
+    std::atomic<long long> clamped{0};
+    if (shadowed && !shader.has_lights()) {
+      // The kernel interpolates each pixel's O_p into its lanes itself.
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, up.surface.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+        common::ReceiverSoA& soa = scratch.local().soa;
+        soa.resize(br.size());
+        // Without spherical lights the shading reads the normals only.
+        for (std::size_t k = br.begin(); k != br.end(); ++k) {
+          const glm::vec3& n = fine.normal[static_cast<std::size_t>(up.surface[k])];
+          const std::size_t j = k - br.begin();
+          soa.nx[j] = n.x;
+          soa.ny[j] = n.y;
+          soa.nz[j] = n.z;
+        }
+        common::BatchShade::Taps taps;
+        taps.pixel = up.surface.data() + br.begin();
+        taps.index = up.w.index.data();
+        taps.weight = up.w.weight.data();
+        taps.coarse = up.coarse_visibility.data();
+        clamped += shader.shade(soa, 0, br.size(), taps, e + br.begin());
+      });
+      return clamped.load();
+    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, up.surface.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+      Scratch& sc = scratch.local();
+      common::ReceiverSoA& soa = sc.soa;
       soa.resize(br.size());
-      std::vector<float> g(shadowed ? br.size() * n2 : 0, 0.0f);
+      if (shadowed) sc.g.resize(br.size() * n2);
       for (std::size_t k = br.begin(); k != br.end(); ++k) {
         const std::size_t p = static_cast<std::size_t>(up.surface[k]), j = k - br.begin();
         soa.set(j, fine.position[p], fine.normal[p]);
         if (!shadowed) continue;
-        float* gj = g.data() + j * n2;
+        float* gj = sc.g.data() + j * n2;
+        std::fill(gj, gj + n2, 0.0f);
         const auto& idx = up.w.index[p];
         const auto& wt = up.w.weight[p];
         if (idx[0] < 0) {  // no coarse sample at all: unshadowed unless a fallback shades the pixel
@@ -714,7 +743,7 @@ DirectKernels cpu_direct_kernels() {
           for (std::size_t c = 0; c < n2; ++c) gj[c] += wt[t] * src[c];
         }
       }
-      clamped += shader.shade(soa, 0, br.size(), shadowed ? g.data() : nullptr, e + br.begin());
+      clamped += shader.shade(soa, 0, br.size(), shadowed ? sc.g.data() : nullptr, e + br.begin());
     });
     return clamped.load();
   };
@@ -752,36 +781,45 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   const DirectShader shader = make_direct_shader(env_light(st, ctx.scene, n, s.window_h), n, s.window_h, lt, ctx.posed.lights, s.isa);
 
   // Surface pixels with the eq. 11 interpolation of O_p; the robust misses are shaded apart below.
+  // Eq. 10 times the receiver's albedo is the outgoing radiance, written straight to the image:
+  // surface pixels from the kernel's output in up.surface order, the robust misses over them, and
+  // every other pixel the environment as seen, as the reference draws it (render/vertex_image.hpp).
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
   const std::size_t np = fine.object.size();
   const std::size_t surface = up.surface.size();
   std::vector<glm::vec3> es = ctx.pool().take_for_overwrite<glm::vec3>(surface);  // k.surface writes every one
-  // Only surface pixels are read below, and every one is in up.surface.
-  std::vector<glm::vec3> e = ctx.pool().take_for_overwrite<glm::vec3>(np);
   long long clamped = k.surface(shader, fine, up, es.data());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
-    for (std::size_t i = br.begin(); i != br.end(); ++i) e[static_cast<std::size_t>(up.surface[i])] = es[i];
-  });
+  std::vector<glm::vec3> em;
   if (rm && !rm->pixel.empty()) {
-    std::vector<glm::vec3> em(rm->pixel.size());
+    em.resize(rm->pixel.size());
     clamped += k.receivers(shader, rm->soa, shadowed ? rm->visibility.data() : nullptr, em.data());
-    for (std::size_t i = 0; i < rm->pixel.size(); ++i) e[rm->pixel[i]] = em[i];
   }
+  const auto t1 = clock::now();
   Image img = ctx.pool().image_for_overwrite(fine.width, fine.height);
   const render::BackgroundFn background = render::environment_background(ctx.scene.environment);
   // The G-buffer has no view_dir plane (gbuffer_planes): background rays come from the camera.
   const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, "image_splat shade_direct");
   const render::BufferRays rays(cam, fine.width, fine.height, fine.scale);
   tbb::parallel_for(tbb::blocked_range<int>(0, fine.height, 4), [&](const tbb::blocked_range<int>& rows) {
-    // Eq. 10 times the receiver's albedo: outgoing radiance. Background: the environment as seen,
-    // as the reference draws it (render/vertex_image.hpp).
     for (int y = rows.begin(); y != rows.end(); ++y)
       for (int x = 0; x < fine.width; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(fine.width) + static_cast<std::size_t>(x);
-        img.rgb[i] = fine.hit(i) ? e[i] * fine.albedo[i] : background(rays.direction(x, y));
+        if (!fine.hit(i)) img.rgb[i] = background(rays.direction(x, y));
       }
   });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
+    for (std::size_t i = br.begin(); i != br.end(); ++i) {
+      const std::size_t p = static_cast<std::size_t>(up.surface[i]);
+      img.rgb[p] = es[i] * fine.albedo[p];
+    }
+  });
+  for (std::size_t i = 0; i < em.size(); ++i) {
+    const std::size_t p = static_cast<std::size_t>(rm->pixel[i]);
+    img.rgb[p] = em[i] * fine.albedo[p];
+  }
   ctx.pool().give(std::move(es));
-  ctx.pool().give(std::move(e));
+  const auto t2 = clock::now();
 
   // Section 4.2's cheap fallback: misses take the bilinear interpolation of the shaded coarse receivers.
   std::size_t interpolated = 0;
@@ -810,6 +848,8 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   rec.counters["robust_pixels"] = rm ? static_cast<double>(rm->pixel.size()) : 0.0;
   rec.counters["interpolated_pixels"] = static_cast<double>(interpolated);
   rec.counters["pixels_clamped"] = static_cast<double>(clamped);
+  rec.counters["shade_seconds"] = std::chrono::duration<double>(t1 - t0).count();
+  rec.counters["image_seconds"] = std::chrono::duration<double>(t2 - t1).count();
   rec.bytes = img.rgb.size() * sizeof(glm::vec3) + np * 6 * sizeof(float);
   ctx.put<Image>(render::kDirect, std::move(img));
 }
@@ -892,9 +932,8 @@ std::vector<render::MemoryItem> memory_items(const render::ParamSet& params, int
   host("image_splat.coarse_occlusion", nc * n2 * f, "exponentiate");
   host("image_splat.upsampled_indirect", np * 3 * f, "normalize_indirect");
   host("image_splat upsample input", nc * 3 * f, "upsample", true);
-  // Shading: the irradiance of surface pixels and of every pixel while they are gathered, then the
-  // images.
-  host("image_splat direct scratch", np * 2 * sizeof(glm::vec3), "shade_direct", true);
+  // Shading: the irradiance of the surface pixels, then the images.
+  host("image_splat direct scratch", np * sizeof(glm::vec3), "shade_direct", true);
   host(render::kDirect, render::image_bytes(w, h), "shade_direct");
   host("image_splat indirect scratch", np * 3 * f, "shade_indirect", true);
   host(render::kIndirect, render::image_bytes(w, h), "shade_indirect");

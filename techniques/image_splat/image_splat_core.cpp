@@ -277,6 +277,15 @@ long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::si
   return common::add_lights_and_clamp(lights_table.get(), lights, order, gwin.data(), rec, begin, end, g, true, out);
 }
 
+long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::size_t end, const common::BatchShade::Taps& taps,
+                              glm::vec3* out) const {
+  if (has_lights()) throw std::logic_error("image_splat: interpolated visibility with spherical lights (they read it per receiver)");
+  common::BatchShade bs = batch(nullptr);
+  bs.taps = &taps;
+  common::shade_batch(isa, bs, rec, begin, end, out);
+  return common::add_lights_and_clamp(nullptr, lights, order, gwin.data(), rec, begin, end, nullptr, true, out);
+}
+
 std::vector<glm::vec3> irradiance_sh(const std::vector<glm::vec3>& env_sh, int order) {
   const int n2 = order * order;
   if (static_cast<int>(env_sh.size()) < n2)

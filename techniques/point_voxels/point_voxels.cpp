@@ -508,9 +508,7 @@ std::vector<std::vector<float>> upsample_fields(FrameContext& ctx, const GBuffer
     out.push_back(pool.take<float>(static_cast<std::size_t>(fine.width) * fine.height * channels, 0.0f));
     common::upsample_apply(w, field, channels, out.back().data());
   }
-  pool.give(std::move(w.index));
-  pool.give(std::move(w.weight));
-  pool.give(std::move(w.miss));
+  common::give(pool, std::move(w));
   return out;
 }
 

@@ -217,10 +217,10 @@ TEST(FrameMemory, ImageSplatEstimateGrowsWithDisplayAndReceiverPixels) {
   const auto small = estimate(cpu, "image_splat", sc, 320, 240), large = estimate(cpu, "image_splat", sc, 1280, 960);
   // Per display pixel: G-buffer 56 (every plane but view_dir: shade_direct takes the background's
   // rays from the camera), final 12, eq. 11 taps + weights + miss flag 33, surface index 4,
-  // upsampled indirect 12, direct and indirect images 24, and the largest pass scratch: shade_direct's
-  // two irradiance arrays 24. Per receiver pixel (order 4: 16 floats per vector): receiver G-buffer
+  // upsampled indirect 12, direct and indirect images 24, and the largest pass scratch 12 (shade_direct's
+  // irradiance of the surface pixels, shade_indirect's copy of the upsampled indirect). Per receiver pixel (order 4: 16 floats per vector): receiver G-buffer
   // 68, receivers 32, log occlusion 64, O_p 64 and its coarse copy 64, indirect sums 16 and shading 12.
-  const std::size_t per_display = 56 + 12 + 33 + 4 + 12 + 24 + 24, per_receiver = 68 + 32 + 64 + 64 + 64 + 16 + 12;
+  const std::size_t per_display = 56 + 12 + 33 + 4 + 12 + 24 + 12, per_receiver = 68 + 32 + 64 + 64 + 64 + 16 + 12;
   const std::size_t dp = 1280 * 960 - 320 * 240, dc = 640 * 480 - 160 * 120;
   EXPECT_EQ(large.bytes(MemoryPlace::Host) - small.bytes(MemoryPlace::Host), per_display * dp + per_receiver * dc);
   EXPECT_EQ(item_bytes(large, render::kReceiverGBuffer), render::gbuffer_bytes(640, 480));

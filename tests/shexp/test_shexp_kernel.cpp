@@ -288,6 +288,21 @@ TEST(ShexpBatch, NonFiniteLogVectorsAreReportedWithTheReceiver) {
   }
 }
 
+namespace {
+// The clamped cosine's factors (H(N)_lm = hcoef y_lm(N)) and a window on the visibility, as the
+// shading passes set them up.
+void shading_factors(int order, std::vector<float>& hcoef, std::vector<float>& gwin) {
+  hcoef.assign(order * order, 0.0f);
+  gwin.assign(order * order, 0.0f);
+  const std::vector<double> cc = sh::clamped_cosine_zh(order);
+  for (int l = 0; l < order; ++l)
+    for (int m = -l; m <= l; ++m) {
+      hcoef[sh::index(l, m)] = static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+      gwin[sh::index(l, m)] = static_cast<float>(sh::window_factor(l, 2.0 * order));
+    }
+}
+}  // namespace
+
 TEST_P(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
   const KernelIsa isa = GetParam();
   for (int order : {3, 4, 6}) {
@@ -295,15 +310,10 @@ TEST_P(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
     RandomSetup s = random_setup(order, 21, 1, 4);
     std::mt19937 rng(5);
     std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-    std::vector<float> g(21 * n2), L(3 * n2), gwin(n2), hcoef(n2);
+    std::vector<float> g(21 * n2), L(3 * n2), gwin, hcoef;
     for (auto& v : g) v = u(rng);
     for (auto& v : L) v = u(rng);
-    const std::vector<double> cc = sh::clamped_cosine_zh(order);
-    for (int l = 0; l < order; ++l)
-      for (int m = -l; m <= l; ++m) {
-        hcoef[sh::index(l, m)] = static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
-        gwin[sh::index(l, m)] = static_cast<float>(sh::window_factor(l, 2.0 * order));
-      }
+    shading_factors(order, hcoef, gwin);
     BatchShade b;
     b.order = order;
     b.plan = &ProductPlan::get(order);
@@ -323,6 +333,73 @@ TEST_P(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
         EXPECT_NEAR(out[i][c], expect, 1e-5 * (1.0 + std::abs(expect))) << "order " << order << " " << to_string(isa);
       }
     }
+  }
+}
+// BatchShade::Taps: the visibility interpolated in the kernel from a coarse field must shade as the
+// same interpolation written out per receiver (b.g), and a receiver without taps as an unshadowed
+// one. Orders 3-6 put n^2 = 9, 16, 25, 36 against 8 and 16 lanes (whole vectors and tails); 41
+// receivers end inside a block. Only the rounding of the interpolation differs (fused multiply-adds
+// in the kernel): kBatchRelTol of the shaded value.
+TEST_P(ShexpBatch, InterpolatedVisibilityShadesAsTheInterpolationWrittenOut) {
+  const KernelIsa isa = GetParam();
+  for (int order : {3, 4, 5, 6}) {
+    const int n2 = order * order;
+    constexpr int kReceivers = 41, kPixels = 60, kCoarse = 30;
+    RandomSetup s = random_setup(order, kReceivers, 1, 4);
+    std::mt19937 rng(11 + order);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f), w01(0.05f, 1.0f);
+    std::uniform_int_distribution<int> pick(0, kCoarse - 1), ntaps(0, 4), px(0, kPixels - 1);
+    std::vector<float> coarse(kCoarse * n2), L(3 * n2), gwin, hcoef;
+    for (auto& v : coarse) v = u(rng);
+    for (auto& v : L) v = u(rng);
+    shading_factors(order, hcoef, gwin);
+    std::vector<std::array<std::int32_t, 4>> index(kPixels);
+    std::vector<std::array<float, 4>> weight(kPixels);
+    for (int p = 0; p < kPixels; ++p) {
+      const int t = p < 3 ? p : ntaps(rng);  // pixels 0-2: no tap, one, two
+      for (int k = 0; k < 4; ++k) {
+        index[p][k] = k < t ? pick(rng) : -1;
+        weight[p][k] = k < t ? w01(rng) : 0.0f;
+      }
+    }
+    std::vector<std::int32_t> pixel(kReceivers);
+    for (int i = 0; i < kReceivers; ++i) pixel[i] = i < 3 ? i : px(rng);
+    // The interpolation written out, and which receivers have no tap.
+    std::vector<float> g(kReceivers * n2);
+    std::vector<bool> untapped(kReceivers);
+    for (int i = 0; i < kReceivers; ++i) {
+      const auto& idx = index[pixel[i]];
+      untapped[i] = idx[0] < 0;
+      for (int k = 0; k < n2; ++k) {
+        double v = untapped[i] ? (k == 0 ? sh::kSqrt4Pi : 0.0) : 0.0;
+        for (int t = 0; t < 4 && idx[t] >= 0; ++t) v += static_cast<double>(weight[pixel[i]][t]) * coarse[idx[t] * n2 + k];
+        g[i * n2 + k] = static_cast<float>(v);
+      }
+    }
+    BatchShade b = BatchShade::make(order, L.data(), hcoef.data(), gwin.data(), g.data());
+    std::vector<glm::vec3> want(kReceivers), unshadowed(kReceivers), got(kReceivers);
+    shade_batch(isa, b, s.rec, 0, kReceivers, want.data());
+    b.g = nullptr;
+    shade_batch(isa, b, s.rec, 0, kReceivers, unshadowed.data());
+    BatchShade::Taps taps;
+    taps.pixel = pixel.data();
+    taps.index = index.data();
+    taps.weight = weight.data();
+    taps.coarse = coarse.data();
+    b.taps = &taps;
+    shade_batch(isa, b, s.rec, 0, kReceivers, got.data());
+    int with_taps = 0;
+    for (int i = 0; i < kReceivers; ++i) {
+      with_taps += !untapped[i];
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(got[i][c], want[i][c], kBatchRelTol * (1.0 + std::abs(want[i][c])))
+            << "order " << order << " receiver " << i << " " << to_string(isa);
+        if (untapped[i]) {
+          EXPECT_EQ(got[i][c], unshadowed[i][c]) << "order " << order << " receiver " << i;
+        }
+      }
+    }
+    EXPECT_GT(with_taps, kReceivers / 2);
   }
 }
 INSTANTIATE_TEST_SUITE_P(Isa, ShexpBatch, kEveryIsa, isa_param_name);
