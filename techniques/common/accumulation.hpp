@@ -175,12 +175,14 @@ struct BatchShade {
   // Instead of g: the visibility of receiver i interpolated from a coarse field (paper 000 eq. 11),
   // g_i = sum_t weight[pixel[i]][t] coarse[index[pixel[i]][t] order^2 + k], the taps packed to the
   // front (-1 unused); a receiver whose first tap is -1 is unshadowed. Interpolated in the kernel,
-  // straight into its lanes, so that no receiver-major copy is written and read back.
+  // straight into its lanes, so that no receiver-major copy is needed. A reader after the kernel
+  // that wants g_i per receiver (add_lights_and_clamp's spherical lights) has it written to `out`.
   struct Taps {
     const std::int32_t* pixel = nullptr;                 // per receiver of rec
     const std::array<std::int32_t, 4>* index = nullptr;  // per pixel
     const std::array<float, 4>* weight = nullptr;        // per pixel
     const float* coarse = nullptr;                       // order^2 per coarse sample
+    float* out = nullptr;  // null, or g_i written at out + i order^2 (the unshadowed vector where no tap)
   };
   const Taps* taps = nullptr;
   // The plan of `order` with the given arrays (ProductPlan::get is cached).
@@ -239,6 +241,10 @@ inline constexpr double kLightThetaFloor = 1e-3;
 // (H(N) * g) . L (shade_batch); adds the spherical lights' L_H . (gwin g_i) (section 7; g_i at
 // g + i n^2, null: unshadowed) when `table` is given, then clamps at 0. zero_normal_empty: a receiver
 // with a zero normal (no surface) gets 0 and is not counted. Returns the receivers clamped at 0.
+// shades_lights says whether it shades spherical lights (and so reads g) at all.
+inline bool shades_lights(const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights) {
+  return table && !lights.empty();
+}
 long long add_lights_and_clamp(const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights, int order,
                                const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
                                bool zero_normal_empty, glm::vec3* out);

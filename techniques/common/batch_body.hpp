@@ -241,10 +241,11 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
     lane[0][l] = rec.nx[i];
     lane[1][l] = rec.ny[i];
     lane[2][l] = rec.nz[i];
-    if (b.taps && b.taps->index[b.taps->pixel[i]][0] >= 0) {
-      const std::size_t p = static_cast<std::size_t>(b.taps->pixel[i]);
-      const std::array<std::int32_t, 4>& idx = b.taps->index[p];
-      const std::array<float, 4>& wt = b.taps->weight[p];
+    const std::array<std::int32_t, 4>* tap_index = b.taps ? &b.taps->index[b.taps->pixel[i]] : nullptr;
+    float* row_out = b.taps && b.taps->out ? b.taps->out + i * n2 : nullptr;
+    if (tap_index && (*tap_index)[0] >= 0) {
+      const std::array<std::int32_t, 4>& idx = *tap_index;
+      const std::array<float, 4>& wt = b.taps->weight[b.taps->pixel[i]];
       const float* src[4];
       int taps = 0;
       for (; taps < 4 && idx[taps] >= 0; ++taps) src[taps] = b.taps->coarse + static_cast<std::size_t>(idx[taps]) * n2;
@@ -263,9 +264,12 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
         row[k] = acc;
       }
       for (k = 0; k < n2; ++k) g[k * W + l] = row[k];
+      if (row_out) std::copy(row, row + n2, row_out);
     } else {
       const float* gi = b.g && !b.taps ? b.g + i * n2 : nullptr;
       for (int k = 0; k < n2; ++k) g[k * W + l] = gi ? gi[k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f);
+      if (row_out)
+        for (int k = 0; k < n2; ++k) row_out[k] = k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f;
     }
   }
   basis_soa<V>(n, V::load(lane[0]), V::load(lane[1]), V::load(lane[2]), H);

@@ -173,7 +173,7 @@ long long add_lights_and_clamp(const LightLobeTable* table, const std::vector<sc
                                const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
                                bool zero_normal_empty, glm::vec3* out) {
   const int n2 = order * order;
-  const bool shade_lights = table && !lights.empty();
+  const bool shade_lights = shades_lights(table, lights);
   std::array<float, sh::kMaxCoeffs> gw{}, LH{};
   long long clamped = 0;
   for (std::size_t i = begin; i < end; ++i) {

@@ -688,9 +688,10 @@ void register_device_kernels(const std::string& backend, DeviceKernels kernels) 
 DirectKernels cpu_direct_kernels() {
   DirectKernels kern;
   kern.surface = [](const DirectShader& shader, const render::GBuffer& fine, const Upsampled& up, glm::vec3* e) {
-    // Surface pixels in blocks: O_p interpolated with the eq. 11 weights into a block-local buffer
-    // (section 4.2), then shaded.
+    // Surface pixels in blocks, shaded with O_p interpolated by the eq. 11 weights (section 4.2)
+    // inside the kernel.
     const bool shadowed = !up.coarse_visibility.empty();
+    const bool lit = shader.shades_lights();
     const std::size_t n2 = static_cast<std::size_t>(shader.order) * shader.order;
     // Each thread's block buffers, kept across its blocks.
     struct Scratch {
@@ -699,51 +700,35 @@ DirectKernels cpu_direct_kernels() {
     };
     tbb::enumerable_thread_specific<Scratch> scratch;
     std::atomic<long long> clamped{0};
-    if (shadowed && !shader.has_lights()) {
-      // The kernel interpolates each pixel's O_p into its lanes itself.
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, up.surface.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
-        common::ReceiverSoA& soa = scratch.local().soa;
-        soa.resize(br.size());
-        // Without spherical lights the shading reads the normals only.
-        for (std::size_t k = br.begin(); k != br.end(); ++k) {
-          const glm::vec3& n = fine.normal[static_cast<std::size_t>(up.surface[k])];
-          const std::size_t j = k - br.begin();
-          soa.nx[j] = n.x;
-          soa.ny[j] = n.y;
-          soa.nz[j] = n.z;
-        }
-        common::BatchShade::Taps taps;
-        taps.pixel = up.surface.data() + br.begin();
-        taps.index = up.w.index.data();
-        taps.weight = up.w.weight.data();
-        taps.coarse = up.coarse_visibility.data();
-        clamped += shader.shade(soa, 0, br.size(), taps, e + br.begin());
-      });
-      return clamped.load();
-    }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, up.surface.size(), kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
       Scratch& sc = scratch.local();
       common::ReceiverSoA& soa = sc.soa;
       soa.resize(br.size());
-      if (shadowed) sc.g.resize(br.size() * n2);
+      // The positions are read by the spherical lights only.
       for (std::size_t k = br.begin(); k != br.end(); ++k) {
         const std::size_t p = static_cast<std::size_t>(up.surface[k]), j = k - br.begin();
-        soa.set(j, fine.position[p], fine.normal[p]);
-        if (!shadowed) continue;
-        float* gj = sc.g.data() + j * n2;
-        std::fill(gj, gj + n2, 0.0f);
-        const auto& idx = up.w.index[p];
-        const auto& wt = up.w.weight[p];
-        if (idx[0] < 0) {  // no coarse sample at all: unshadowed unless a fallback shades the pixel
-          gj[0] = static_cast<float>(sh::kSqrt4Pi);
-          continue;
-        }
-        for (int t = 0; t < 4 && idx[t] >= 0; ++t) {
-          const float* src = up.coarse_visibility.data() + static_cast<std::size_t>(idx[t]) * n2;
-          for (std::size_t c = 0; c < n2; ++c) gj[c] += wt[t] * src[c];
+        if (lit) {
+          soa.set(j, fine.position[p], fine.normal[p]);
+        } else {
+          soa.nx[j] = fine.normal[p].x;
+          soa.ny[j] = fine.normal[p].y;
+          soa.nz[j] = fine.normal[p].z;
         }
       }
-      clamped += shader.shade(soa, 0, br.size(), shadowed ? sc.g.data() : nullptr, e + br.begin());
+      if (!shadowed) {
+        clamped += shader.shade(soa, 0, br.size(), static_cast<const float*>(nullptr), e + br.begin());
+        return;
+      }
+      common::BatchShade::Taps taps;
+      taps.pixel = up.surface.data() + br.begin();
+      taps.index = up.w.index.data();
+      taps.weight = up.w.weight.data();
+      taps.coarse = up.coarse_visibility.data();
+      if (lit) {
+        sc.g.resize(br.size() * n2);
+        taps.out = sc.g.data();
+      }
+      clamped += shader.shade(soa, 0, br.size(), taps, e + br.begin());
     });
     return clamped.load();
   };

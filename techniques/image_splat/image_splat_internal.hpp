@@ -192,11 +192,12 @@ struct DirectShader {
   // unshadowed). A receiver with a zero normal (no surface) gets 0. Returns the receivers clamped at 0.
   long long shade(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
                   glm::vec3* out) const;
-  // The same with the visibility interpolated from a coarse field in the kernel (BatchShade::Taps),
-  // for a shader without spherical lights (their shading reads g per receiver).
+  // The same with the visibility interpolated from a coarse field in the kernel (BatchShade::Taps).
+  // The spherical lights read it per receiver: when shades_lights(), taps.out must hold n^2 floats
+  // per receiver of rec (the kernel writes them, the lights read them).
   long long shade(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const common::BatchShade::Taps& taps,
                   glm::vec3* out) const;
-  bool has_lights() const { return lights_table && !lights.empty(); }
+  bool shades_lights() const { return common::shades_lights(lights_table.get(), lights); }
   // SHEXP's batch-shading constants over this shader's floats (g: visibility, n^2 per receiver).
   common::BatchShade batch(const float* g) const;
 };

@@ -337,7 +337,7 @@ TEST_P(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
 }
 // BatchShade::Taps: the visibility interpolated in the kernel from a coarse field must shade as the
 // same interpolation written out per receiver (b.g), and a receiver without taps as an unshadowed
-// one. Orders 3-6 put n^2 = 9, 16, 25, 36 against 8 and 16 lanes (whole vectors and tails); 41
+// one; Taps::out must hand out that interpolation. Orders 3-6 put n^2 = 9, 16, 25, 36 against 8 and 16 lanes (whole vectors and tails); 41
 // receivers end inside a block. Only the rounding of the interpolation differs (fused multiply-adds
 // in the kernel): kBatchRelTol of the shaded value.
 TEST_P(ShexpBatch, InterpolatedVisibilityShadesAsTheInterpolationWrittenOut) {
@@ -386,11 +386,22 @@ TEST_P(ShexpBatch, InterpolatedVisibilityShadesAsTheInterpolationWrittenOut) {
     taps.index = index.data();
     taps.weight = weight.data();
     taps.coarse = coarse.data();
+    std::vector<float> handed_out(kReceivers * n2, std::numeric_limits<float>::quiet_NaN());
+    taps.out = handed_out.data();
     b.taps = &taps;
     shade_batch(isa, b, s.rec, 0, kReceivers, got.data());
     int with_taps = 0;
     for (int i = 0; i < kReceivers; ++i) {
       with_taps += !untapped[i];
+      // The interpolated vector handed out (for a later per-receiver reader) is the one shaded.
+      for (int k = 0; k < n2; ++k) {
+        if (untapped[i]) {
+          EXPECT_EQ(handed_out[i * n2 + k], g[i * n2 + k]) << "order " << order << " receiver " << i << " k " << k;
+        } else {
+          EXPECT_NEAR(handed_out[i * n2 + k], g[i * n2 + k], kBatchRelTol * (1.0 + std::abs(g[i * n2 + k])))
+              << "order " << order << " receiver " << i << " k " << k << " " << to_string(isa);
+        }
+      }
       for (int c = 0; c < 3; ++c) {
         EXPECT_NEAR(got[i][c], want[i][c], kBatchRelTol * (1.0 + std::abs(want[i][c])))
             << "order " << order << " receiver " << i << " " << to_string(isa);
