@@ -603,9 +603,8 @@ std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const re
   host("shexp shade scratch", v * sizeof(glm::vec3), "shade", true);
   host(kShading, v * sizeof(glm::vec3), "shade");
   host("vertex radiance", v * sizeof(glm::vec3), "shade");
-  // The direct image, in the frame and in the result.
+  // The direct image (the frame result takes it over when the frame ends, a move, not a copy).
   host(render::kDirect, render::image_bytes(w, h), "to_image");
-  host("direct (frame result)", render::image_bytes(w, h), "to_image");
   device("shexp receivers", v * 6 * f, "accumulate_log");
   device("shexp log vectors", v * n2a * f, "accumulate_log");
   device("shexp visibility", v * n2 * f, "exponentiate");

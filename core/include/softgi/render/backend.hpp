@@ -46,7 +46,7 @@ struct FrameMemory {
 
 // Totals are compared with a limit after adding this fraction, for what the estimate leaves out
 // (tables, the BVH, thread arenas, proxy bins, allocator rounding): at 2048x2048 the listed
-// resources are 0.98 of a shexp frame's measured growth of the resident set (docs/backends.md,
+// resources are 0.96 of a shexp frame's measured growth of the resident set (docs/backends.md,
 // "Memory limits"). Per-buffer and per-allocation limits are compared with exact sizes.
 inline constexpr double kMemoryMargin = 0.10;
 
