@@ -25,12 +25,21 @@ double product_flops(const ProductPlan& p) {
 }
 
 // rho_N of eq. 24 in SH: the clamped cosine about n over pi (E/pi per unit radiance), n^2 floats.
+// Its band factors are the same for every receiver: computed once per order (the clamped cosine's
+// quadrature takes a lock and allocates, which per receiver cost more than the rest of the vector).
 std::array<float, sh::kMaxCoeffs> brdf_vector(int order, const glm::vec3& n) {
+  static const auto band_factor = [] {
+    std::array<std::array<float, sh::kMaxOrder>, sh::kMaxOrder + 1> f{};
+    for (int o = 1; o <= sh::kMaxOrder; ++o) {
+      const std::vector<double> cc = sh::clamped_cosine_zh(o);
+      for (int l = 0; l < o; ++l) f[o][l] = static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+    }
+    return f;
+  }();
   std::array<float, sh::kMaxCoeffs> hn{};
   sh::eval_basis(order, sh::Vec3<float>{n.x, n.y, n.z}, hn.data());
-  const std::vector<double> cc = sh::clamped_cosine_zh(order);
   for (int l = 0; l < order; ++l)
-    for (int mm = -l; mm <= l; ++mm) hn[sh::index(l, mm)] *= static_cast<float>(sh::zh_rotation_factor(l) * cc[l] / sh::kPi);
+    for (int mm = -l; mm <= l; ++mm) hn[sh::index(l, mm)] *= band_factor[order][l];
   return hn;
 }
 
@@ -60,6 +69,7 @@ struct Scratch {
   std::vector<int> active, order, position;
   std::vector<float> f, g;        // 2 log vectors per active SL and their exponentials
   std::vector<float> prefix;
+  std::vector<float> object_distance;  // per object: distance of its centre from p (per-object blocking)
 };
 
 // Fills vbar / lbar for every SL at receiver (p, n). Returns nothing for an SL the rules eliminate
@@ -121,18 +131,22 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
   // orders objects by the distance of their centres (the paper's object-centre sorting) and the SLs
   // of an object by distance. Either way an SL is darkened by every SL before it except the
   // intersecting ones of its own object, so the two differ only in the order (prefix sums below).
+  // Ties keep the list's order: sc.active is ascending, so the index as the last key gives what a
+  // stable sort would, without the temporary buffer std::stable_sort allocates per call.
   sc.order = sc.active;
   if (s.blocking == Blocking::PerSphere) {
-    std::stable_sort(sc.order.begin(), sc.order.end(), [&](int a, int b) { return sc.key[a] < sc.key[b]; });
+    std::sort(sc.order.begin(), sc.order.end(), [&](int a, int b) { return sc.key[a] != sc.key[b] ? sc.key[a] < sc.key[b] : a < b; });
   } else {
-    std::vector<float> od(pose.object_centre.size());
+    std::vector<float>& od = sc.object_distance;
+    od.resize(pose.object_centre.size());
     for (std::size_t o = 0; o < od.size(); ++o) od[o] = glm::length(pose.object_centre[o] - p);
-    std::stable_sort(sc.order.begin(), sc.order.end(), [&](int a, int b) {
+    std::sort(sc.order.begin(), sc.order.end(), [&](int a, int b) {
       const int oa = pose.object[list.sl[a]], ob = pose.object[list.sl[b]];
       const float da = od[oa], db = od[ob];
       if (da != db) return da < db;
       if (oa != ob) return oa < ob;
-      return sc.key[a] < sc.key[b];
+      if (sc.key[a] != sc.key[b]) return sc.key[a] < sc.key[b];
+      return a < b;
     });
   }
   const std::size_t na = sc.order.size();
