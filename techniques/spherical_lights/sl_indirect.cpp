@@ -25,8 +25,8 @@ double product_flops(const ProductPlan& p) {
 }
 
 // rho_N of eq. 24 in SH: the clamped cosine about n over pi (E/pi per unit radiance), n^2 floats.
-// Its band factors are the same for every receiver: computed once per order (the clamped cosine's
-// quadrature takes a lock and allocates, which per receiver cost more than the rest of the vector).
+// Its band factors are the same for every receiver: computed once per order, for the clamped
+// cosine's quadrature takes a lock and allocates (per receiver, on every thread at once).
 std::array<float, sh::kMaxCoeffs> brdf_vector(int order, const glm::vec3& n) {
   static const auto band_factor = [] {
     std::array<std::array<float, sh::kMaxOrder>, sh::kMaxOrder + 1> f{};
