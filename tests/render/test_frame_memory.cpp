@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <ostream>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -448,6 +449,7 @@ struct ResidentCase {
   const char* scene;
   int size;
 };
+void PrintTo(const ResidentCase& c, std::ostream* os) { *os << c.technique << " on " << c.scene << " at " << c.size; }
 
 std::size_t status_kib(const char* field) {
   std::FILE* f = std::fopen("/proc/self/status", "r");
