@@ -279,13 +279,12 @@ long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::si
 
 long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::size_t end, const common::BatchShade::Taps& taps,
                               glm::vec3* out) const {
-  const bool lit = shades_lights();
-  if (lit && !taps.out) throw std::logic_error("image_splat: spherical lights with interpolated visibility need it written out");
+  if (shades_lights() && !taps.out)
+    throw std::logic_error("image_splat: spherical lights with interpolated visibility need it written out");
   common::BatchShade bs = batch(nullptr);
   bs.taps = &taps;
   common::shade_batch(isa, bs, rec, begin, end, out);
-  return common::add_lights_and_clamp(lit ? lights_table.get() : nullptr, lights, order, gwin.data(), rec, begin, end, taps.out, true,
-                                      out);
+  return common::add_lights_and_clamp(lights_table.get(), lights, order, gwin.data(), rec, begin, end, taps.out, true, out);
 }
 
 std::vector<glm::vec3> irradiance_sh(const std::vector<glm::vec3>& env_sh, int order) {
