@@ -241,17 +241,19 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
     lane[0][l] = rec.nx[i];
     lane[1][l] = rec.ny[i];
     lane[2][l] = rec.nz[i];
-    const std::array<std::int32_t, 4>* tap_index = b.taps ? &b.taps->index[b.taps->pixel[i]] : nullptr;
-    float* row_out = b.taps && b.taps->out ? b.taps->out + i * n2 : nullptr;
-    if (tap_index && (*tap_index)[0] >= 0) {
-      const std::array<std::int32_t, 4>& idx = *tap_index;
-      const std::array<float, 4>& wt = b.taps->weight[b.taps->pixel[i]];
+    // The receiver's vector: interpolated from the eq. 11 taps, g_i, or the unshadowed vector (a
+    // pixel without a tap, or no g given).
+    alignas(64) float row[sh::kMaxCoeffs];
+    const float* gi = row;
+    const std::int32_t pixel = b.taps ? b.taps->pixel[i] : -1;
+    if (b.taps && b.taps->index[pixel][0] >= 0) {
+      const std::array<std::int32_t, 4>& idx = b.taps->index[pixel];
+      const std::array<float, 4>& wt = b.taps->weight[pixel];
       const float* src[4];
       int taps = 0;
       for (; taps < 4 && idx[taps] >= 0; ++taps) src[taps] = b.taps->coarse + static_cast<std::size_t>(idx[taps]) * n2;
       // W coefficients at a time, summed in a register over the taps (a sum kept in memory would
       // chain every tap's load to the last one's store); the rest one at a time.
-      alignas(64) float row[sh::kMaxCoeffs];
       int k = 0;
       for (; k + W <= n2; k += W) {
         F acc = V::mul(V::set(wt[0]), V::load(src[0] + k));
@@ -263,14 +265,14 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
         for (int t = 1; t < taps; ++t) acc += wt[t] * src[t][k];
         row[k] = acc;
       }
-      for (k = 0; k < n2; ++k) g[k * W + l] = row[k];
-      if (row_out) std::copy(row, row + n2, row_out);
+    } else if (b.g && !b.taps) {
+      gi = b.g + i * n2;
     } else {
-      const float* gi = b.g && !b.taps ? b.g + i * n2 : nullptr;
-      for (int k = 0; k < n2; ++k) g[k * W + l] = gi ? gi[k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f);
-      if (row_out)
-        for (int k = 0; k < n2; ++k) row_out[k] = k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f;
+      row[0] = static_cast<float>(sh::kSqrt4Pi);
+      std::fill(row + 1, row + n2, 0.0f);
     }
+    for (int k = 0; k < n2; ++k) g[k * W + l] = gi[k];
+    if (b.taps && b.taps->out) std::copy(gi, gi + n2, b.taps->out + i * n2);
   }
   basis_soa<V>(n, V::load(lane[0]), V::load(lane[1]), V::load(lane[2]), H);
   for (int k = 0; k < n2; ++k) {

@@ -362,10 +362,11 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
     }
   });
   accumulate_voxel_sh(v->grid, P);
+  v->planes = vpl_planes(P);
   auto& rec = ctx.record();
   rec.counters["vpls"] = static_cast<double>(n);
   rec.counters["env_rays"] = static_cast<double>(n) * k_rays;
-  rec.bytes = n * sizeof(glm::vec3) + v->grid.bytes();
+  rec.bytes = n * sizeof(glm::vec3) + v->grid.bytes() + v->planes.bytes();
   ctx.put<std::shared_ptr<const Voxels>>(kVpls, std::move(v));
 }
 
@@ -454,34 +455,48 @@ void pass_gather(const Settings& s, FrameContext& ctx) {
   const float near_range = static_cast<float>(s.near_range) * V.diagonal;
   std::atomic<std::size_t> unmatched{0}, voxels_gathered{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 64), [&](const tbb::blocked_range<std::size_t>& br) {
-    std::vector<std::pair<std::int32_t, float>> taps;
+    std::size_t block_unmatched = 0, block_voxels = 0;  // counted per block: shared counters per pixel contend
     for (std::size_t i = br.begin(); i < br.end(); ++i) {
       if (!gg.hit(i)) continue;
       GatherTap t[4];
       bool geometric = false;
       const int nt = gather_taps(s, gg, mg, i, t, geometric);
-      if (!geometric) ++unmatched;
+      if (!geometric) ++block_unmatched;
       if (nt == 0) continue;
-      taps.clear();
-      for (int k = 0; k < nt; ++k)
-        for (std::uint32_t e = F.lists.offset[t[k].q]; e < F.lists.offset[t[k].q + 1]; ++e) taps.push_back({F.lists.voxel[e], t[k].weight});
-      // A voxel in several neighbours' lists is gathered once with the sum of their weights.
-      std::sort(taps.begin(), taps.end());
       Receiver r = receiver_at(ctx, gg, i);
       if (s.eq7 && r.glossy > 0.0f) r.eq7_sigma = eq7_sigma(r.ns, static_cast<float>(s.eq7_sigma_scale));
       Gathered acc;
       std::size_t used = 0;
-      for (std::size_t a = 0; a < taps.size();) {
-        std::size_t b = a;
-        float w = 0.0f;
-        while (b < taps.size() && taps[b].first == taps[a].first) w += taps[b++].second;
-        gather_voxel(V.grid, V.proxies, taps[a].first, r, near_range, w, acc);
-        ++used;
-        a = b;
+      // The neighbours' lists are sorted and free of repeats: merged in ascending voxel order, a
+      // voxel in several of them is gathered once with the sum of their weights.
+      std::uint32_t at[4], end[4];
+      for (int k = 0; k < nt; ++k) {
+        at[k] = F.lists.offset[t[k].q];
+        end[k] = F.lists.offset[t[k].q + 1];
       }
-      voxels_gathered += used;
+      for (;;) {
+        bool any = false;
+        std::int32_t v = 0;
+        for (int k = 0; k < nt; ++k)
+          if (at[k] < end[k] && (!any || F.lists.voxel[at[k]] < v)) {
+            v = F.lists.voxel[at[k]];
+            any = true;
+          }
+        if (!any) break;
+        float w = 0.0f;
+        for (int k = 0; k < nt; ++k)
+          if (at[k] < end[k] && F.lists.voxel[at[k]] == v) {
+            w += t[k].weight;
+            ++at[k];
+          }
+        gather_voxel(V.grid, V.proxies, v, r, near_range, w, acc, &V.planes);
+        ++used;
+      }
+      block_voxels += used;
       (*out)[i] = acc;
     }
+    unmatched += block_unmatched;
+    voxels_gathered += block_voxels;
   });
   const std::size_t hits = hit_pixels(gg);
   auto& rec = ctx.record();
@@ -608,7 +623,7 @@ std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const re
   const std::size_t grid_bytes = (cells + 1) * 4 + n * 4 + cells * (5 * sizeof(glm::vec3));
   host(kProxies, n * (4 * sizeof(glm::vec3) + 4), "proxies");
   host(kVoxels, n * (4 * sizeof(glm::vec3) + 8) + grid_bytes, "voxelize", false, true);
-  host(kVpls, n * (4 * sizeof(glm::vec3) + 8) + grid_bytes, "light_vpls", false, true);
+  host(kVpls, n * (4 * sizeof(glm::vec3) + 8 + 9 * sizeof(float)) + grid_bytes, "light_vpls", false, true);
   const std::size_t face = static_cast<std::size_t>(s.shadow_map_size) * s.shadow_map_size * sizeof(float);
   const std::size_t maps = scene.lights.size() * 6 * face + (s.environment ? face : 0);
   host(kLightMaps, maps, "light_maps");

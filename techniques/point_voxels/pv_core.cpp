@@ -2,6 +2,8 @@
 // depth maps (paper 002, Chen et al. 2014, sections 3.1-3.3).
 #include "pv_core.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "softgi/render/frame_pool.hpp"
@@ -317,31 +319,76 @@ void check_filter(const FilterOptions& opt) {
 
 PixelLists visibility_filter(const PixelLists& in, const float* depth, const glm::vec3* normal, const FilterOptions& opt) {
   check_filter(opt);
+  if (in.width < 0 || in.height < 0) throw std::invalid_argument("visibility filter: negative list size");
+  const std::size_t np = static_cast<std::size_t>(in.width) * in.height;
+  if (in.offset.size() != np + 1 || in.offset.front() != 0 || in.offset.back() != in.voxel.size())
+    throw std::invalid_argument("visibility filter: " + std::to_string(in.offset.size()) + " list offsets ending at " +
+                                (in.offset.empty() ? std::string("nothing") : std::to_string(in.offset.back())) + " for " +
+                                std::to_string(in.width) + "x" + std::to_string(in.height) + " pixels and " +
+                                std::to_string(in.voxel.size()) + " voxel entries");
+  std::int32_t top = -1;
+  for (const std::int32_t v : in.voxel) {
+    if (v < 0) throw std::invalid_argument("visibility filter: negative voxel index " + std::to_string(v) + " in a list");
+    top = std::max(top, v);
+  }
   PixelLists out;
   out.width = in.width;
   out.height = in.height;
-  const std::size_t np = static_cast<std::size_t>(in.width) * in.height;
   out.offset.assign(np + 1, 0);
-  std::vector<std::int32_t> scratch;
-  for (int y = 0; y < in.height; ++y) {
-    for (int x = 0; x < in.width; ++x) {
-      const std::size_t p = static_cast<std::size_t>(y) * in.width + x;
-      scratch.clear();
-      const float zp = depth[p];
-      if (std::isfinite(zp)) {
-        for (int j = std::max(0, y - opt.radius_y); j <= std::min(in.height - 1, y + opt.radius_y); ++j)
-          for (int i = std::max(0, x - opt.radius_x); i <= std::min(in.width - 1, x + opt.radius_x); ++i) {
-            const std::size_t q = static_cast<std::size_t>(j) * in.width + i;
-            if (q != p && !same_surface(zp, depth[q], normal[p], normal[q], opt)) continue;
-            scratch.insert(scratch.end(), in.voxel.begin() + in.offset[q], in.voxel.begin() + in.offset[q + 1]);
-          }
-        std::sort(scratch.begin(), scratch.end());
-        scratch.erase(std::unique(scratch.begin(), scratch.end()), scratch.end());
+  // A window's lists overlap heavily (neighbours see the same voxels): each voxel is kept the first
+  // time it is met, marked with the pixel that took it, and only the union is sorted. Voxel indices
+  // beyond kMaxMarks (no grid of the technique has so many) fall back to sorting every entry.
+  constexpr std::int32_t kMaxMarks = 1 << 24;
+  const bool marked = top < kMaxMarks;
+  tbb::enumerable_thread_specific<std::vector<std::uint32_t>> marks(
+      [&] { return std::vector<std::uint32_t>(marked ? static_cast<std::size_t>(top) + 1 : 0, 0u); });
+  // Rows run in parallel into lists of their own, laid end to end afterwards.
+  std::vector<std::vector<std::int32_t>> rows(static_cast<std::size_t>(in.height));
+  tbb::parallel_for(tbb::blocked_range<int>(0, in.height), [&](const tbb::blocked_range<int>& range) {
+    std::vector<std::uint32_t>& mark = marks.local();
+    for (int y = range.begin(); y != range.end(); ++y) {
+      std::vector<std::int32_t>& row = rows[static_cast<std::size_t>(y)];
+      for (int x = 0; x < in.width; ++x) {
+        const std::size_t p = static_cast<std::size_t>(y) * in.width + x;
+        const std::size_t first = row.size();
+        const float zp = depth[p];
+        if (std::isfinite(zp)) {
+          const auto stamp = static_cast<std::uint32_t>(p + 1);
+          for (int j = std::max(0, y - opt.radius_y); j <= std::min(in.height - 1, y + opt.radius_y); ++j)
+            for (int i = std::max(0, x - opt.radius_x); i <= std::min(in.width - 1, x + opt.radius_x); ++i) {
+              const std::size_t q = static_cast<std::size_t>(j) * in.width + i;
+              if (q != p && !same_surface(zp, depth[q], normal[p], normal[q], opt)) continue;
+              for (std::uint32_t e = in.offset[q]; e < in.offset[q + 1]; ++e) {
+                const std::int32_t v = in.voxel[e];
+                if (!marked) {
+                  row.push_back(v);
+                } else if (mark[static_cast<std::size_t>(v)] != stamp) {
+                  mark[static_cast<std::size_t>(v)] = stamp;
+                  row.push_back(v);
+                }
+              }
+            }
+          std::sort(row.begin() + static_cast<std::ptrdiff_t>(first), row.end());
+          if (!marked) row.erase(std::unique(row.begin() + static_cast<std::ptrdiff_t>(first), row.end()), row.end());
+        }
+        out.offset[p + 1] = static_cast<std::uint32_t>(row.size() - first);
       }
-      out.voxel.insert(out.voxel.end(), scratch.begin(), scratch.end());
-      out.offset[p + 1] = static_cast<std::uint32_t>(out.voxel.size());
     }
+  });
+  std::size_t total = 0;
+  for (std::size_t p = 0; p < np; ++p) {
+    total += out.offset[p + 1];
+    if (total > std::numeric_limits<std::uint32_t>::max())
+      throw std::invalid_argument("visibility filter: the filtered lists exceed 2^32 entries");
+    out.offset[p + 1] = static_cast<std::uint32_t>(total);
   }
+  out.voxel.resize(total);
+  tbb::parallel_for(tbb::blocked_range<int>(0, in.height), [&](const tbb::blocked_range<int>& range) {
+    for (int y = range.begin(); y != range.end(); ++y) {
+      const std::vector<std::int32_t>& row = rows[static_cast<std::size_t>(y)];
+      std::copy(row.begin(), row.end(), out.voxel.begin() + out.offset[static_cast<std::size_t>(y) * in.width]);
+    }
+  });
   return out;
 }
 
@@ -349,21 +396,24 @@ void filter_field(const float* in, int channels, int width, int height, const fl
                   const FilterOptions& opt, float* out) {
   check_filter(opt);
   const auto c = static_cast<std::size_t>(channels);
-  for (int y = 0; y < height; ++y)
-    for (int x = 0; x < width; ++x) {
-      const std::size_t p = static_cast<std::size_t>(y) * width + x;
-      for (std::size_t k = 0; k < c; ++k) out[p * c + k] = 0.0f;
-      if (!std::isfinite(depth[p])) continue;
-      int n = 0;
-      for (int j = std::max(0, y - opt.radius_y); j <= std::min(height - 1, y + opt.radius_y); ++j)
-        for (int i = std::max(0, x - opt.radius_x); i <= std::min(width - 1, x + opt.radius_x); ++i) {
-          const std::size_t q = static_cast<std::size_t>(j) * width + i;
-          if (q != p && !same_surface(depth[p], depth[q], normal[p], normal[q], opt)) continue;
-          for (std::size_t k = 0; k < c; ++k) out[p * c + k] += in[q * c + k];
-          ++n;
-        }
-      for (std::size_t k = 0; k < c; ++k) out[p * c + k] /= static_cast<float>(n);
-    }
+  // Each pixel writes only its own output: rows run in parallel.
+  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& range) {
+    for (int y = range.begin(); y != range.end(); ++y)
+      for (int x = 0; x < width; ++x) {
+        const std::size_t p = static_cast<std::size_t>(y) * width + x;
+        for (std::size_t k = 0; k < c; ++k) out[p * c + k] = 0.0f;
+        if (!std::isfinite(depth[p])) continue;
+        int n = 0;
+        for (int j = std::max(0, y - opt.radius_y); j <= std::min(height - 1, y + opt.radius_y); ++j)
+          for (int i = std::max(0, x - opt.radius_x); i <= std::min(width - 1, x + opt.radius_x); ++i) {
+            const std::size_t q = static_cast<std::size_t>(j) * width + i;
+            if (q != p && !same_surface(depth[p], depth[q], normal[p], normal[q], opt)) continue;
+            for (std::size_t k = 0; k < c; ++k) out[p * c + k] += in[q * c + k];
+            ++n;
+          }
+        for (std::size_t k = 0; k < c; ++k) out[p * c + k] /= static_cast<float>(n);
+      }
+  });
 }
 
 float eq7_weight(float cos_theta, float ns, float sigma) {
@@ -397,8 +447,63 @@ inline void add_glossy(const Receiver& r, const glm::vec3& e, const glm::vec3& w
 
 }  // namespace
 
+VplPlanes vpl_planes(const PosedProxies& proxies) {
+  const std::size_t n = proxies.size();
+  if (proxies.normal.size() != n || proxies.radiance.size() != n)
+    throw std::invalid_argument("vpl_planes: " + std::to_string(n) + " positions, " + std::to_string(proxies.normal.size()) +
+                                " normals and " + std::to_string(proxies.radiance.size()) + " radiances");
+  VplPlanes v;
+  v.size = n;
+  std::vector<float>* planes[9] = {&v.px, &v.py, &v.pz, &v.nx, &v.ny, &v.nz, &v.lr, &v.lg, &v.lb};
+  const std::vector<glm::vec3>* from[3] = {&proxies.position, &proxies.normal, &proxies.radiance};
+  for (int k = 0; k < 9; ++k) {
+    std::vector<float>& plane = *planes[k];
+    plane.assign(n + kVplLanes, 0.0f);
+    const std::vector<glm::vec3>& src = *from[k / 3];
+    for (std::size_t i = 0; i < n; ++i) plane[i] = src[i][k % 3];
+  }
+  return v;
+}
+
+namespace {
+
+// Eq. 6's near case for a diffuse receiver at p with normal nr: sum over VPLs [b, e) of
+// L_i A cos_v cos_r / (d^2 + A / pi), kVplLanes VPLs at a time, lanes past e counting 0. With w the
+// vector to the VPL, cos_r cos_v = (nr . w)(-n_i . w) / d^2: no square root, one division. Compiled
+// for several instruction sets; -ffp-contract=off for this file keeps every version's bits those
+// of the baseline.
+__attribute__((target_clones("avx512f", "avx2", "default"))) glm::vec3 near_diffuse(const VplPlanes& v, std::uint32_t b,
+                                                                                    std::uint32_t e, glm::vec3 p, glm::vec3 nr,
+                                                                                    float area, float reg) {
+  float sr[kVplLanes] = {}, sg[kVplLanes] = {}, sb[kVplLanes] = {};
+  const float *px = v.px.data(), *py = v.py.data(), *pz = v.pz.data();
+  const float *nx = v.nx.data(), *ny = v.ny.data(), *nz = v.nz.data();
+  const float *lr = v.lr.data(), *lg = v.lg.data(), *lb = v.lb.data();
+  for (std::uint32_t i = b; i < e; i += kVplLanes) {
+    const int left = static_cast<int>(e - i);
+    for (std::size_t l = 0; l < kVplLanes; ++l) {
+      const std::size_t j = i + l;
+      const float wx = px[j] - p.x, wy = py[j] - p.y, wz = pz[j] - p.z;
+      const float d2 = wx * wx + wy * wy + wz * wz;
+      const float dr = nr.x * wx + nr.y * wy + nr.z * wz;
+      const float dv = -(nx[j] * wx + ny[j] * wy + nz[j] * wz);
+      const bool ok = (static_cast<int>(l) < left) & (d2 > 0.0f) & (dr > 0.0f) & (dv > 0.0f);
+      const float f = area * (dr * dv) / (d2 * (d2 + reg));
+      const float fk = ok ? f : 0.0f;
+      sr[l] += lr[j] * fk;
+      sg[l] += lg[j] * fk;
+      sb[l] += lb[j] * fk;
+    }
+  }
+  glm::vec3 sum(0.0f);
+  for (std::size_t l = 0; l < kVplLanes; ++l) sum += glm::vec3(sr[l], sg[l], sb[l]);
+  return sum;
+}
+
+}  // namespace
+
 void gather_voxel(const VoxelGrid& grid, const PosedProxies& proxies, std::int32_t voxel, const Receiver& r,
-                  float near_range, float weight, Gathered& out) {
+                  float near_range, float weight, Gathered& out, const VplPlanes* planes) {
   const auto k = static_cast<std::size_t>(voxel);
   const std::uint32_t b = grid.start[k], e = grid.start[k + 1];
   if (b == e) return;
@@ -409,6 +514,13 @@ void gather_voxel(const VoxelGrid& grid, const PosedProxies& proxies, std::int32
   if (dc2 < near_range * near_range) {
     // Near: each VPL a disc (eq. 6, first case).
     const float area = proxies.patch_area, reg = area / kPi;
+    if (planes != nullptr && !glossy) {
+      if (planes->size != proxies.size())
+        throw std::invalid_argument("gather_voxel: VPL planes of " + std::to_string(planes->size) + " VPLs for " +
+                                    std::to_string(proxies.size()) + " proxies");
+      out.irradiance += weight * near_diffuse(*planes, b, e, r.position, r.normal, area, reg);
+      return;
+    }
     glm::vec3 e_sum(0.0f);
     for (std::uint32_t i = b; i < e; ++i) {
       const glm::vec3 w = proxies.position[i] - r.position;

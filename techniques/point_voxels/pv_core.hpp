@@ -161,8 +161,21 @@ struct Gathered {
 // the voxel's centroid, else its SH intensity from the centroid. A VPL is a disc of area A: the
 // irradiance it gives is L A cos_v cos_r / (d^2 + A / pi), exact on the disc's axis and bounded as
 // d -> 0 (the usual VPL singularity).
+// With `planes` (vpl_planes of the same proxies), a diffuse receiver's near VPLs are summed
+// kVplLanes at a time in partial sums per lane, and cos_v cos_r / d^2 without the square root: the
+// same sum in another order of float operations (equal within rounding to the one VPL at a time).
+struct VplPlanes;
 void gather_voxel(const VoxelGrid& grid, const PosedProxies& proxies, std::int32_t voxel, const Receiver& r,
-                  float near_range, float weight, Gathered& out);
+                  float near_range, float weight, Gathered& out, const VplPlanes* planes = nullptr);
+// The VPLs' positions, normals and radiance as float planes in the proxies' order, with kVplLanes
+// zeros after the last VPL so that a voxel's last lanes read inside the planes.
+constexpr std::size_t kVplLanes = 16;
+struct VplPlanes {
+  std::vector<float> px, py, pz, nx, ny, nz, lr, lg, lb;
+  std::size_t size = 0;  // VPLs (the planes hold size + kVplLanes floats)
+  std::size_t bytes() const { return 9 * px.size() * sizeof(float); }
+};
+VplPlanes vpl_planes(const PosedProxies& proxies);
 
 // --- Depth maps of the lights (Figure 2a) -----------------------------------------------------------
 // A cube depth map around a local light: six 90-degree faces of size x size texels holding the
