@@ -258,12 +258,13 @@ void pass_voxelize(const Settings& s, FrameContext& ctx) {
   v->ray_seed.resize(v->sample.size());
   for (std::size_t i = 0; i < v->sample.size(); ++i) v->ray_seed[i] = in.ray_seed[v->sample[i]];
   v->diagonal = glm::length(v->grid.cell * glm::vec3(v->grid.dims));
+  v->planes = proxy_planes(v->proxies);
   std::size_t occupied = 0;
   for (std::size_t k = 0; k < v->grid.cells(); ++k) occupied += v->grid.start[k + 1] > v->grid.start[k];
   auto& rec = ctx.record();
   rec.counters["voxels"] = static_cast<double>(v->grid.cells());
   rec.counters["voxels_occupied"] = static_cast<double>(occupied);
-  rec.bytes = v->proxies.size() * (4 * sizeof(glm::vec3) + 2 * sizeof(std::uint32_t)) + v->grid.bytes();
+  rec.bytes = v->proxies.size() * (4 * sizeof(glm::vec3) + 2 * sizeof(std::uint32_t)) + v->grid.bytes() + v->planes.bytes();
   ctx.put<std::shared_ptr<const Voxels>>(kVoxels, std::move(v));
 }
 
@@ -354,7 +355,7 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
         for (int k = 0; k < k_rays; ++k) {
           const glm::vec2 u = ray_sample(k, k_rays, in.ray_seed[i]);
           const glm::vec3 d = cosine_direction(nn, u.x, u.y);
-          if (march_ray(in.grid, in.proxies, o, d, 0.5f * P.radius, 1e30f) < 0) sky += L.sky_radiance(d);
+          if (march_ray(in.grid, in.proxies, o, d, 0.5f * P.radius, 1e30f, &in.planes) < 0) sky += L.sky_radiance(d);
         }
         e += sky * (kPi / static_cast<float>(k_rays));
       }
@@ -362,7 +363,7 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
     }
   });
   accumulate_voxel_sh(v->grid, P);
-  v->planes = vpl_planes(P);
+  v->planes = proxy_planes(P);
   auto& rec = ctx.record();
   rec.counters["vpls"] = static_cast<double>(n);
   rec.counters["env_rays"] = static_cast<double>(n) * k_rays;
@@ -393,7 +394,7 @@ void pass_march(const Settings& s, FrameContext& ctx) {
       for (int k = 0; k < s.rays; ++k) {
         const glm::vec2 u = ray_sample(k, s.rays, seed);
         const glm::vec3 d = cosine_direction(nn, u.x, u.y);
-        const std::int32_t vox = march_ray(V.grid, V.proxies, o, d, 0.5f * r, 1e30f);
+        const std::int32_t vox = march_ray(V.grid, V.proxies, o, d, 0.5f * r, 1e30f, &V.planes);
         if (vox >= 0) {
           list.push_back(vox);
         } else {
@@ -622,7 +623,7 @@ std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const re
   const std::size_t cells = static_cast<std::size_t>(s.grid) * s.grid * s.grid;
   const std::size_t grid_bytes = (cells + 1) * 4 + n * 4 + cells * (5 * sizeof(glm::vec3));
   host(kProxies, n * (4 * sizeof(glm::vec3) + 4), "proxies");
-  host(kVoxels, n * (4 * sizeof(glm::vec3) + 8) + grid_bytes, "voxelize", false, true);
+  host(kVoxels, n * (4 * sizeof(glm::vec3) + 8 + 9 * sizeof(float)) + grid_bytes, "voxelize", false, true);
   host(kVpls, n * (4 * sizeof(glm::vec3) + 8 + 9 * sizeof(float)) + grid_bytes, "light_vpls", false, true);
   const std::size_t face = static_cast<std::size_t>(s.shadow_map_size) * s.shadow_map_size * sizeof(float);
   const std::size_t maps = scene.lights.size() * 6 * face + (s.environment ? face : 0);

@@ -233,6 +233,37 @@ float ray_disc(const glm::vec3& o, const glm::vec3& d, const glm::vec3& c, const
   return glm::dot(q, q) <= r * r ? t : -1.0f;
 }
 
+namespace {
+
+// Whether o + t d, t in [t_min, t_max], hits any of the discs [b, e) of `v` (radius r): ray_disc's
+// arithmetic, operation for operation, kVplLanes discs at a time (lanes past e count no hit).
+// Compiled for several instruction sets; -ffp-contract=off for this file keeps every version's
+// bits those of the baseline, so each disc's answer is ray_disc's.
+__attribute__((target_clones("avx512f", "avx2", "default"))) bool any_disc_hit(const ProxyPlanes& v, std::uint32_t b,
+                                                                               std::uint32_t e, glm::vec3 o, glm::vec3 d, float r,
+                                                                               float t_min, float t_max) {
+  const float *px = v.px.data(), *py = v.py.data(), *pz = v.pz.data();
+  const float *nx = v.nx.data(), *ny = v.ny.data(), *nz = v.nz.data();
+  const float r2 = r * r;
+  for (std::uint32_t i = b; i < e; i += kVplLanes) {
+    const int left = static_cast<int>(e - i);
+    int hits = 0;
+    for (std::size_t l = 0; l < kVplLanes; ++l) {
+      const std::size_t j = i + l;
+      const float dn = d.x * nx[j] + d.y * ny[j] + d.z * nz[j];
+      const float t = ((px[j] - o.x) * nx[j] + (py[j] - o.y) * ny[j] + (pz[j] - o.z) * nz[j]) / dn;
+      const float qx = (o.x + t * d.x) - px[j], qy = (o.y + t * d.y) - py[j], qz = (o.z + t * d.z) - pz[j];
+      const bool hit = (static_cast<int>(l) < left) & !(std::abs(dn) < 1e-8f) & (t >= 0.0f) & (qx * qx + qy * qy + qz * qz <= r2) &
+                       (t >= t_min) & (t <= t_max);
+      hits += hit ? 1 : 0;
+    }
+    if (hits > 0) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 glm::vec3 cosine_direction(const glm::vec3& n, float u, float v) {
   const float a = 2.0f * u - 1.0f, b = 2.0f * v - 1.0f;
   float r, phi;
@@ -253,8 +284,11 @@ glm::vec3 cosine_direction(const glm::vec3& n, float u, float v) {
 }
 
 std::int32_t march_ray(const VoxelGrid& grid, const PosedProxies& proxies, const glm::vec3& o, const glm::vec3& d,
-                       float t_min, float t_max) {
+                       float t_min, float t_max, const ProxyPlanes* planes) {
   if (grid.key.empty()) return -1;
+  if (planes != nullptr && planes->size != proxies.size())
+    throw std::invalid_argument("march_ray: proxy planes of " + std::to_string(planes->size) + " proxies for " +
+                                std::to_string(proxies.size()));
   const glm::vec3 hi = grid.lo + grid.cell * glm::vec3(grid.dims);
   float t0 = t_min, t1 = t_max;
   for (int a = 0; a < 3; ++a) {
@@ -286,9 +320,13 @@ std::int32_t march_ray(const VoxelGrid& grid, const PosedProxies& proxies, const
   const float r = proxies.radius;
   for (;;) {
     const std::uint32_t k = grid.hash(v);
-    for (std::uint32_t i = grid.start[k]; i < grid.start[k + 1]; ++i) {
-      const float t = ray_disc(o, d, proxies.position[i], proxies.normal[i], r);
-      if (t >= t_min && t <= t_max) return static_cast<std::int32_t>(k);
+    if (planes != nullptr) {
+      if (any_disc_hit(*planes, grid.start[k], grid.start[k + 1], o, d, r, t_min, t_max)) return static_cast<std::int32_t>(k);
+    } else {
+      for (std::uint32_t i = grid.start[k]; i < grid.start[k + 1]; ++i) {
+        const float t = ray_disc(o, d, proxies.position[i], proxies.normal[i], r);
+        if (t >= t_min && t <= t_max) return static_cast<std::int32_t>(k);
+      }
     }
     int a = 0;
     if (t_next[1] < t_next[a]) a = 1;
@@ -447,12 +485,12 @@ inline void add_glossy(const Receiver& r, const glm::vec3& e, const glm::vec3& w
 
 }  // namespace
 
-VplPlanes vpl_planes(const PosedProxies& proxies) {
+ProxyPlanes proxy_planes(const PosedProxies& proxies) {
   const std::size_t n = proxies.size();
-  if (proxies.normal.size() != n || proxies.radiance.size() != n)
-    throw std::invalid_argument("vpl_planes: " + std::to_string(n) + " positions, " + std::to_string(proxies.normal.size()) +
+  if (proxies.normal.size() != n || (proxies.radiance.size() != n && !proxies.radiance.empty()))
+    throw std::invalid_argument("proxy_planes: " + std::to_string(n) + " positions, " + std::to_string(proxies.normal.size()) +
                                 " normals and " + std::to_string(proxies.radiance.size()) + " radiances");
-  VplPlanes v;
+  ProxyPlanes v;
   v.size = n;
   std::vector<float>* planes[9] = {&v.px, &v.py, &v.pz, &v.nx, &v.ny, &v.nz, &v.lr, &v.lg, &v.lb};
   const std::vector<glm::vec3>* from[3] = {&proxies.position, &proxies.normal, &proxies.radiance};
@@ -460,6 +498,7 @@ VplPlanes vpl_planes(const PosedProxies& proxies) {
     std::vector<float>& plane = *planes[k];
     plane.assign(n + kVplLanes, 0.0f);
     const std::vector<glm::vec3>& src = *from[k / 3];
+    if (src.empty()) continue;  // not lit yet
     for (std::size_t i = 0; i < n; ++i) plane[i] = src[i][k % 3];
   }
   return v;
@@ -472,7 +511,7 @@ namespace {
 // vector to the VPL, cos_r cos_v = (nr . w)(-n_i . w) / d^2: no square root, one division. Compiled
 // for several instruction sets; -ffp-contract=off for this file keeps every version's bits those
 // of the baseline.
-__attribute__((target_clones("avx512f", "avx2", "default"))) glm::vec3 near_diffuse(const VplPlanes& v, std::uint32_t b,
+__attribute__((target_clones("avx512f", "avx2", "default"))) glm::vec3 near_diffuse(const ProxyPlanes& v, std::uint32_t b,
                                                                                     std::uint32_t e, glm::vec3 p, glm::vec3 nr,
                                                                                     float area, float reg) {
   float sr[kVplLanes] = {}, sg[kVplLanes] = {}, sb[kVplLanes] = {};
@@ -503,7 +542,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) glm::vec3 near_diff
 }  // namespace
 
 void gather_voxel(const VoxelGrid& grid, const PosedProxies& proxies, std::int32_t voxel, const Receiver& r,
-                  float near_range, float weight, Gathered& out, const VplPlanes* planes) {
+                  float near_range, float weight, Gathered& out, const ProxyPlanes* planes) {
   const auto k = static_cast<std::size_t>(voxel);
   const std::uint32_t b = grid.start[k], e = grid.start[k + 1];
   if (b == e) return;

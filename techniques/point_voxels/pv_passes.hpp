@@ -63,7 +63,7 @@ struct Posed {
 struct Voxels {
   PosedProxies proxies;  // sorted by voxel (eq. 1)
   VoxelGrid grid;
-  VplPlanes planes;  // kVpls only: the lit proxies as planes, for gathering
+  ProxyPlanes planes;  // the proxies as planes (lit in kVpls), for marching and gathering
   std::vector<std::uint32_t> sample;    // per sorted proxy: its index in sampling order (Posed)
   std::vector<std::uint32_t> ray_seed;  // per sorted proxy: Posed::ray_seed of that index
   double density = 0.0;

@@ -236,8 +236,8 @@ std::shared_ptr<const Voxels> read_voxels(vk::Context& dev, const DeviceVoxels& 
       for (int m = 0; m < 4; ++m) v->grid.sh[k][m] = glm::vec3(c[3 * m], c[3 * m + 1], c[3 * m + 2]);
       v->grid.centroid[k] = glm::vec3(c[12], c[13], c[14]);
     }
-    v->planes = vpl_planes(P);
   }
+  v->planes = proxy_planes(P);
   return v;
 }
 

@@ -369,6 +369,36 @@ bool nearest_hit(const scene::PosedScene& posed, const glm::vec3& o, const glm::
 
 }  // namespace
 
+// Marching with the proxy planes (a cell's discs tested in lanes) finds exactly the voxel of
+// marching disc by disc: the same arithmetic per disc. Rays from inside and outside a room of
+// proxies, in every direction, grazing ones included, with near and far ranges that cut hits off.
+TEST(SparseMarching, ProxyPlanesFindTheVoxelsOfDiscByDisc) {
+  scene::Scene s;
+  add_object(s, box({-1.0f, 0.0f, -1.0f}, {1.0f, 2.0f, 1.0f}, true));
+  add_object(s, box({-0.3f, 0.0f, -0.3f}, {0.3f, 0.8f, 0.3f}, false));
+  const auto posed = scene::evaluate(s, 0.0);
+  PosedProxies p = pose_proxies(s, posed, sample_point_proxies(posed, 5000.0), 1.5);
+  const VoxelGrid g = build_voxel_grid(p, glm::ivec3(5, 4, 3));
+  const ProxyPlanes planes = proxy_planes(p);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  int hits = 0, misses = 0;
+  for (int k = 0; k < 20000; ++k) {
+    const glm::vec3 o = k % 4 == 0 ? glm::vec3(3.0f * u(rng), 1.0f + 3.0f * u(rng), 3.0f * u(rng))
+                                   : glm::vec3(0.95f * u(rng), 1.0f + 0.95f * u(rng), 0.95f * u(rng));
+    glm::vec3 d = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
+    if (k % 5 == 0) d = glm::normalize(glm::vec3(d.x, 1e-7f * d.y, d.z));  // nearly parallel to floor and ceiling
+    const float t_min = k % 3 == 0 ? 0.0f : 0.3f * (u(rng) + 1.0f), t_max = k % 7 == 0 ? 0.5f : 1e30f;
+    const std::int32_t one = march_ray(g, p, o, d, t_min, t_max);
+    ASSERT_EQ(march_ray(g, p, o, d, t_min, t_max, &planes), one) << "ray " << k;
+    (one >= 0 ? hits : misses) += 1;
+  }
+  EXPECT_GT(hits, 5000);
+  EXPECT_GT(misses, 1000);
+  const ProxyPlanes other = proxy_planes(PosedProxies{});
+  EXPECT_THROW(march_ray(g, p, glm::vec3(0.0f, 1.0f, 0.0f), glm::vec3(0.0f, 1.0f, 0.0f), 0.0f, 1e30f, &other), std::invalid_argument);
+}
+
 // Section 3.1: a closed 2 m room with a block on the floor; from points on the floor, 4096 marched
 // rays against 20000 proxies find every voxel that a brute-force ray caster sees over 8192 other
 // directions in more than 0.5 % of them (a voxel seen through a sliver may be missed by any finite
@@ -636,7 +666,7 @@ TEST(Gathering, Eq7WeightsTheGlossyTermTowardsTheReflectionVector) {
 // VPLs and, for the last voxel, into the planes' padding), random diffuse receivers, some facing
 // away, some sitting on a VPL (d = 0). Glossy receivers take the one-at-a-time path whatever is
 // given; far voxels are the SH case either way.
-TEST(Gathering, VplPlanesSumTheNearVplsAsOneAtATime) {
+TEST(Gathering, ProxyPlanesSumTheNearVplsAsOneAtATime) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   PosedProxies p;
@@ -650,7 +680,7 @@ TEST(Gathering, VplPlanesSumTheNearVplsAsOneAtATime) {
   p.patch_area = 0.004f;
   VoxelGrid grid = build_voxel_grid(p, glm::ivec3(3, 2, 2));
   accumulate_voxel_sh(grid, p);
-  const VplPlanes planes = vpl_planes(p);
+  const ProxyPlanes planes = proxy_planes(p);
   ASSERT_EQ(planes.size, p.size());
   int compared = 0;
   for (int k = 0; k < 200; ++k) {
