@@ -236,7 +236,7 @@ float ray_disc(const glm::vec3& o, const glm::vec3& d, const glm::vec3& c, const
 namespace {
 
 // Whether o + t d, t in [t_min, t_max], hits any of the discs [b, e) of `v` (radius r): ray_disc's
-// arithmetic, operation for operation, kVplLanes discs at a time (lanes past e count no hit).
+// arithmetic, operation for operation, kProxyLanes discs at a time (lanes past e count no hit).
 // Compiled for several instruction sets; -ffp-contract=off for this file keeps every version's
 // bits those of the baseline, so each disc's answer is ray_disc's.
 __attribute__((target_clones("avx512f", "avx2", "default"))) bool any_disc_hit(const ProxyPlanes& v, std::uint32_t b,
@@ -245,10 +245,10 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) bool any_disc_hit(c
   const float *px = v.px.data(), *py = v.py.data(), *pz = v.pz.data();
   const float *nx = v.nx.data(), *ny = v.ny.data(), *nz = v.nz.data();
   const float r2 = r * r;
-  for (std::uint32_t i = b; i < e; i += kVplLanes) {
+  for (std::uint32_t i = b; i < e; i += kProxyLanes) {
     const int left = static_cast<int>(e - i);
     int hits = 0;
-    for (std::size_t l = 0; l < kVplLanes; ++l) {
+    for (std::size_t l = 0; l < kProxyLanes; ++l) {
       const std::size_t j = i + l;
       const float dn = d.x * nx[j] + d.y * ny[j] + d.z * nz[j];
       const float t = ((px[j] - o.x) * nx[j] + (py[j] - o.y) * ny[j] + (pz[j] - o.z) * nz[j]) / dn;
@@ -496,7 +496,7 @@ ProxyPlanes proxy_planes(const PosedProxies& proxies) {
   const std::vector<glm::vec3>* from[3] = {&proxies.position, &proxies.normal, &proxies.radiance};
   for (int k = 0; k < 9; ++k) {
     std::vector<float>& plane = *planes[k];
-    plane.assign(n + kVplLanes, 0.0f);
+    plane.assign(n + kProxyLanes, 0.0f);
     const std::vector<glm::vec3>& src = *from[k / 3];
     if (src.empty()) continue;  // not lit yet
     for (std::size_t i = 0; i < n; ++i) plane[i] = src[i][k % 3];
@@ -507,20 +507,20 @@ ProxyPlanes proxy_planes(const PosedProxies& proxies) {
 namespace {
 
 // Eq. 6's near case for a diffuse receiver at p with normal nr: sum over VPLs [b, e) of
-// L_i A cos_v cos_r / (d^2 + A / pi), kVplLanes VPLs at a time, lanes past e counting 0. With w the
+// L_i A cos_v cos_r / (d^2 + A / pi), kProxyLanes VPLs at a time, lanes past e counting 0. With w the
 // vector to the VPL, cos_r cos_v = (nr . w)(-n_i . w) / d^2: no square root, one division. Compiled
 // for several instruction sets; -ffp-contract=off for this file keeps every version's bits those
 // of the baseline.
 __attribute__((target_clones("avx512f", "avx2", "default"))) glm::vec3 near_diffuse(const ProxyPlanes& v, std::uint32_t b,
                                                                                     std::uint32_t e, glm::vec3 p, glm::vec3 nr,
                                                                                     float area, float reg) {
-  float sr[kVplLanes] = {}, sg[kVplLanes] = {}, sb[kVplLanes] = {};
+  float sr[kProxyLanes] = {}, sg[kProxyLanes] = {}, sb[kProxyLanes] = {};
   const float *px = v.px.data(), *py = v.py.data(), *pz = v.pz.data();
   const float *nx = v.nx.data(), *ny = v.ny.data(), *nz = v.nz.data();
   const float *lr = v.lr.data(), *lg = v.lg.data(), *lb = v.lb.data();
-  for (std::uint32_t i = b; i < e; i += kVplLanes) {
+  for (std::uint32_t i = b; i < e; i += kProxyLanes) {
     const int left = static_cast<int>(e - i);
-    for (std::size_t l = 0; l < kVplLanes; ++l) {
+    for (std::size_t l = 0; l < kProxyLanes; ++l) {
       const std::size_t j = i + l;
       const float wx = px[j] - p.x, wy = py[j] - p.y, wz = pz[j] - p.z;
       const float d2 = wx * wx + wy * wy + wz * wz;
@@ -535,7 +535,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) glm::vec3 near_diff
     }
   }
   glm::vec3 sum(0.0f);
-  for (std::size_t l = 0; l < kVplLanes; ++l) sum += glm::vec3(sr[l], sg[l], sb[l]);
+  for (std::size_t l = 0; l < kProxyLanes; ++l) sum += glm::vec3(sr[l], sg[l], sb[l]);
   return sum;
 }
 

@@ -62,6 +62,16 @@ struct PosedProxies {
 PosedProxies pose_proxies(const scene::Scene& scene, const scene::PosedScene& posed, const ProxySampling& s,
                           double disc_scale);
 
+// The proxies' positions, normals and radiance (zero before they are lit) as float planes in their
+// order, with kProxyLanes zeros after the last one so that a voxel's last lanes read inside the planes.
+constexpr std::size_t kProxyLanes = 16;
+struct ProxyPlanes {
+  std::vector<float> px, py, pz, nx, ny, nz, lr, lg, lb;
+  std::size_t size = 0;  // proxies (the planes hold size + kProxyLanes floats)
+  std::size_t bytes() const { return 9 * px.size() * sizeof(float); }
+};
+ProxyPlanes proxy_planes(const PosedProxies& proxies);
+
 // --- Section 3.1, eqs. 1-3: voxels ----------------------------------------------------------------
 struct VoxelGrid {
   glm::vec3 lo{0.0f}, cell{1.0f};  // world-space origin and cell size
@@ -97,9 +107,8 @@ void accumulate_voxel_sh(VoxelGrid& grid, const PosedProxies& proxies);
 // --- Section 3.1: sparse ray marching ---------------------------------------------------------------
 // The first voxel along the ray o + t d (t in [t_min, t_max]) whose proxies' discs the ray hits,
 // marching the grid cell by cell (3D DDA), or -1 when the ray leaves the grid unblocked.
-// With `planes` (proxy_planes of the same proxies), a cell's discs are tested kVplLanes at a time,
+// With `planes` (proxy_planes of the same proxies), a cell's discs are tested kProxyLanes at a time,
 // each by ray_disc's arithmetic: the same voxel.
-struct ProxyPlanes;
 std::int32_t march_ray(const VoxelGrid& grid, const PosedProxies& proxies, const glm::vec3& o, const glm::vec3& d,
                        float t_min, float t_max, const ProxyPlanes* planes = nullptr);
 // Ray-disc intersection: t of the hit of o + t d with the disc (centre c, unit normal n, radius r),
@@ -165,19 +174,10 @@ struct Gathered {
 // irradiance it gives is L A cos_v cos_r / (d^2 + A / pi), exact on the disc's axis and bounded as
 // d -> 0 (the usual VPL singularity).
 // With `planes` (proxy_planes of the same proxies), a diffuse receiver's near VPLs are summed
-// kVplLanes at a time in partial sums per lane, and cos_v cos_r / d^2 without the square root: the
+// kProxyLanes at a time in partial sums per lane, and cos_v cos_r / d^2 without the square root: the
 // same sum in another order of float operations (equal within rounding to the one VPL at a time).
 void gather_voxel(const VoxelGrid& grid, const PosedProxies& proxies, std::int32_t voxel, const Receiver& r,
                   float near_range, float weight, Gathered& out, const ProxyPlanes* planes = nullptr);
-// The proxies' positions, normals and radiance (zero before they are lit) as float planes in their
-// order, with kVplLanes zeros after the last one so that a voxel's last lanes read inside the planes.
-constexpr std::size_t kVplLanes = 16;
-struct ProxyPlanes {
-  std::vector<float> px, py, pz, nx, ny, nz, lr, lg, lb;
-  std::size_t size = 0;  // proxies (the planes hold size + kVplLanes floats)
-  std::size_t bytes() const { return 9 * px.size() * sizeof(float); }
-};
-ProxyPlanes proxy_planes(const PosedProxies& proxies);
 
 // --- Depth maps of the lights (Figure 2a) -----------------------------------------------------------
 // A cube depth map around a local light: six 90-degree faces of size x size texels holding the
