@@ -555,8 +555,8 @@ void gather_voxel(const VoxelGrid& grid, const PosedProxies& proxies, std::int32
     const float area = proxies.patch_area, reg = area / kPi;
     if (planes != nullptr && !glossy) {
       if (planes->size != proxies.size())
-        throw std::invalid_argument("gather_voxel: VPL planes of " + std::to_string(planes->size) + " VPLs for " +
-                                    std::to_string(proxies.size()) + " proxies");
+        throw std::invalid_argument("gather_voxel: proxy planes of " + std::to_string(planes->size) + " proxies for " +
+                                    std::to_string(proxies.size()));
       out.irradiance += weight * near_diffuse(*planes, b, e, r.position, r.normal, area, reg);
       return;
     }
