@@ -363,7 +363,7 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
     }
   });
   accumulate_voxel_sh(v->grid, P);
-  v->planes = proxy_planes(P);
+  set_radiance(v->planes, P);  // positions and normals came with the copy of kVoxels
   auto& rec = ctx.record();
   rec.counters["vpls"] = static_cast<double>(n);
   rec.counters["env_rays"] = static_cast<double>(n) * k_rays;

@@ -504,6 +504,18 @@ ProxyPlanes proxy_planes(const PosedProxies& proxies) {
   return v;
 }
 
+void set_radiance(ProxyPlanes& planes, const PosedProxies& proxies) {
+  const std::size_t n = proxies.size();
+  if (planes.size != n || proxies.radiance.size() != n)
+    throw std::invalid_argument("set_radiance: " + std::to_string(proxies.radiance.size()) + " radiances for planes of " +
+                                std::to_string(planes.size) + " proxies");
+  for (std::size_t i = 0; i < n; ++i) {
+    planes.lr[i] = proxies.radiance[i].x;
+    planes.lg[i] = proxies.radiance[i].y;
+    planes.lb[i] = proxies.radiance[i].z;
+  }
+}
+
 namespace {
 
 // Eq. 6's near case for a diffuse receiver at p with normal nr: sum over VPLs [b, e) of

@@ -71,6 +71,9 @@ struct ProxyPlanes {
   std::size_t bytes() const { return 9 * px.size() * sizeof(float); }
 };
 ProxyPlanes proxy_planes(const PosedProxies& proxies);
+// Writes the radiance planes of `planes` (made from the same proxies) from proxies.radiance, once the
+// proxies are lit.
+void set_radiance(ProxyPlanes& planes, const PosedProxies& proxies);
 
 // --- Section 3.1, eqs. 1-3: voxels ----------------------------------------------------------------
 struct VoxelGrid {

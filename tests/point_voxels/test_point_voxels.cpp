@@ -682,6 +682,16 @@ TEST(Gathering, ProxyPlanesSumTheNearVplsAsOneAtATime) {
   accumulate_voxel_sh(grid, p);
   const ProxyPlanes planes = proxy_planes(p);
   ASSERT_EQ(planes.size, p.size());
+  // Planes made before the proxies were lit, then given their radiance: the same planes.
+  PosedProxies unlit = p;
+  unlit.radiance.clear();
+  ProxyPlanes lit_later = proxy_planes(unlit);
+  EXPECT_EQ(lit_later.lr, std::vector<float>(p.size() + kProxyLanes, 0.0f));
+  set_radiance(lit_later, p);
+  for (const auto& [a, b] : {std::pair{&lit_later.lr, &planes.lr}, {&lit_later.lg, &planes.lg}, {&lit_later.lb, &planes.lb},
+                             {&lit_later.px, &planes.px}, {&lit_later.nz, &planes.nz}})
+    EXPECT_EQ(*a, *b);
+  EXPECT_THROW(set_radiance(lit_later, unlit), std::invalid_argument);
   int compared = 0;
   for (int k = 0; k < 200; ++k) {
     Receiver r;
