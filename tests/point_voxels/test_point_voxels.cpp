@@ -695,7 +695,7 @@ TEST(Gathering, ProxyPlanesSumTheNearVplsAsOneAtATime) {
   int compared = 0;
   for (int k = 0; k < 200; ++k) {
     Receiver r;
-    r.position = k % 10 == 0 ? p.position[static_cast<std::size_t>(k)] : glm::vec3(1.5f * u(rng), u(rng), u(rng));
+    r.position = k % 10 == 0 ? p.position[static_cast<std::size_t>(k) % p.size()] : glm::vec3(1.5f * u(rng), u(rng), u(rng));
     r.normal = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 0.1f));
     r.glossy = k % 7 == 0 ? 0.5f : 0.0f;
     r.ns = 20.0f;
