@@ -165,6 +165,7 @@ bool exp_batch_supports(sh::ExpMethod m);
 void exp_batch(KernelIsa isa, const BatchExp& e, const float* f, float* g, std::size_t count, std::size_t first,
                sh::ExpStats& stats);
 
+struct ShadeTransfer;
 struct BatchShade {
   int order = 0;
   const ProductPlan* plan = nullptr;
@@ -185,9 +186,32 @@ struct BatchShade {
     float* out = nullptr;  // null, or g_i written at out + i order^2 (the unshadowed vector where no tap)
   };
   const Taps* taps = nullptr;
+  // With taps: taps->coarse holds the coarse samples' transfer rows (ShadeTransfer, 3 order^2 floats
+  // each) instead of their visibility, and a receiver is shaded as y(N) . sum_t w_t R_t; taps->out
+  // must be null (no g_i is formed).
+  const ShadeTransfer* transfer = nullptr;
   // The plan of `order` with the given arrays (ProductPlan::get is cached).
   static BatchShade make(int order, const float* L, const float* hcoef, const float* gwin, const float* g);
 };
+// Paper 000 eq. 10's first term with the eq. 11 interpolation (section 4.2) carried past the SH
+// product. (H(N) * g) . L_c is linear in g and H(N)_a = hcoef_a y_a(N), so it equals y(N) . R_c(g) with
+//   R_c,a(g) = hcoef_a sum_b A_c[a][b] gwin_b g_b,   A_c[a][b] = sum_k C_abk L_c,k,
+// C the truncated triple-product tensor that ProductPlan walks. A pixel that interpolates g from
+// coarse samples G_t can therefore interpolate R(G_t) and take one dot product:
+//   sum_t w_t (H(N) * (gwin G_t)) . L_c = y(N) . sum_t w_t R_c(G_t),
+// the same value as BatchShade's SH product per pixel in exact arithmetic, for one matrix-vector
+// product per coarse sample instead of an SH product per display pixel.
+struct ShadeTransfer {
+  int order = 0;
+  std::vector<float> at;          // n^2 rows of 3 n^2: row b holds dR/dg_b (channel-major R_c,a)
+  std::vector<float> unshadowed;  // 3 n^2: R of the unshadowed vector (sqrt(4 pi), 0, ...)
+  // From b's plan, L, hcoef and gwin (A summed in double).
+  static ShadeTransfer make(const BatchShade& b);
+};
+// r[s] = R(g[s]) for `count` visibility vectors (n^2 floats each) into rows of 3 n^2 floats. An
+// all-zero vector (a coarse pixel without a receiver) gives a zero row without arithmetic.
+void transfer_rows(KernelIsa isa, const ShadeTransfer& t, const float* g, std::size_t count, float* r);
+
 // out[i - begin] = (H(N_i) * g_i) . L per channel, for receivers [begin, end).
 void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out);
 

@@ -289,9 +289,102 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
   for (std::size_t l = 0; l < cnt; ++l) out[l] = glm::vec3(lane[0][l], lane[1][l], lane[2][l]);
 }
 
+// The same shading through ShadeTransfer: receiver i's row sum_t w_t R_t (3 n^2 floats) from the
+// eq. 11 taps, or the unshadowed row where it has none, then out = y(N_i) . row per channel. The
+// rows are summed W floats at a time per receiver and turned into lanes W x W at a time.
+template <class V>
+void shade_transfer_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t cnt, glm::vec3* out) {
+  using F = typename V::F;
+  constexpr int W = V::W;
+  constexpr int kMaxRow = (3 * sh::kMaxCoeffs + W - 1) / W * W;
+  const int n = b.order, n2 = n * n, m = 3 * n2, mp = (m + W - 1) / W * W;
+  const BatchShade::Taps& tp = *b.taps;
+  alignas(64) float lane[3][W];
+  alignas(64) float Y[sh::kMaxCoeffs * W], rows[W * kMaxRow], T[kMaxRow * W];
+  for (int l = 0; l < W; ++l) {
+    const std::size_t i = begin + (static_cast<std::size_t>(l) < cnt ? l : cnt - 1);
+    lane[0][l] = rec.nx[i];
+    lane[1][l] = rec.ny[i];
+    lane[2][l] = rec.nz[i];
+    float* row = rows + l * mp;
+    const std::int32_t pixel = tp.pixel[i];
+    if (tp.index[pixel][0] < 0) {
+      std::copy(b.transfer->unshadowed.begin(), b.transfer->unshadowed.end(), row);
+    } else {
+      const std::array<std::int32_t, 4>& idx = tp.index[pixel];
+      const std::array<float, 4>& wt = tp.weight[pixel];
+      const float* src[4];
+      int taps = 0;
+      for (; taps < 4 && idx[taps] >= 0; ++taps) src[taps] = tp.coarse + static_cast<std::size_t>(idx[taps]) * m;
+      // As in shade_block: a vector of the row at a time, summed in a register over the taps.
+      int k = 0;
+      for (; k + W <= m; k += W) {
+        F acc = V::mul(V::set(wt[0]), V::load(src[0] + k));
+        for (int t = 1; t < taps; ++t) acc = V::fma(V::set(wt[t]), V::load(src[t] + k), acc);
+        V::store(row + k, acc);
+      }
+      for (; k < m; ++k) {
+        float acc = wt[0] * src[0][k];
+        for (int t = 1; t < taps; ++t) acc += wt[t] * src[t][k];
+        row[k] = acc;
+      }
+    }
+    std::fill(row + m, row + mp, 0.0f);
+  }
+  for (int j = 0; j < mp; j += W) V::transpose(rows + j, static_cast<std::size_t>(mp), T + j * W);
+  basis_soa<V>(n, V::load(lane[0]), V::load(lane[1]), V::load(lane[2]), Y);
+  for (int c = 0; c < 3; ++c) {
+    // Two partial sums: one would chain every coefficient on the multiply-add latency.
+    const float* Tc = T + c * n2 * W;
+    F e0 = V::set(0.0f), e1 = V::set(0.0f);
+    int a = 0;
+    for (; a + 2 <= n2; a += 2) {
+      e0 = V::fma(V::load(Y + a * W), V::load(Tc + a * W), e0);
+      e1 = V::fma(V::load(Y + (a + 1) * W), V::load(Tc + (a + 1) * W), e1);
+    }
+    if (a < n2) e0 = V::fma(V::load(Y + a * W), V::load(Tc + a * W), e0);
+    V::store(lane[c], V::add(e0, e1));
+  }
+  for (std::size_t l = 0; l < cnt; ++l) out[l] = glm::vec3(lane[0][l], lane[1][l], lane[2][l]);
+}
+
 inline void shade_dispatch(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out) {
   constexpr std::size_t W = Vec::W;
+  if (b.transfer) {
+    for (std::size_t i = begin; i < end; i += W) shade_transfer_block<Vec>(b, rec, i, end - i < W ? end - i : W, out + (i - begin));
+    return;
+  }
   for (std::size_t i = begin; i < end; i += W) shade_block<Vec>(b, rec, i, end - i < W ? end - i : W, out + (i - begin));
+}
+
+// ShadeTransfer's rows: r[s] = sum_b g[s]_b at[b], W floats of the row at a time.
+inline void transfer_rows_dispatch(const ShadeTransfer& t, const float* g, std::size_t count, float* r) {
+  using V = Vec;
+  using F = typename V::F;
+  constexpr int W = V::W;
+  const int n2 = t.order * t.order, m = 3 * n2;
+  const float* at = t.at.data();
+  for (std::size_t s = 0; s < count; ++s) {
+    const float* gs = g + s * n2;
+    float* rs = r + s * m;
+    bool zero = true;
+    for (int b = 0; b < n2; ++b) zero &= gs[b] == 0.0f;
+    if (zero) {
+      std::fill(rs, rs + m, 0.0f);
+      continue;
+    }
+    int j = 0;
+    for (; j + W <= m; j += W) {
+      F acc = V::mul(V::set(gs[0]), V::load(at + j));
+      for (int b = 1; b < n2; ++b) acc = V::fma(V::set(gs[b]), V::load(at + b * m + j), acc);
+      V::store(rs + j, acc);
+    }
+    for (; j < m; ++j) {
+      float acc = gs[0] * at[j];
+      for (int b = 1; b < n2; ++b) acc += gs[b] * at[b * m + j];
+      rs[j] = acc;
+    }
+  }
 }
 
 // Product-space accumulation (eq. 6) for V::W receivers at once: acc = 1, then acc = acc * g[i] for

@@ -109,6 +109,8 @@ struct Vec {
   static F set(float x) { return x; }
   static F load(const float* p) { return *p; }
   static void store(float* p, F x) { *p = x; }
+  // out[k W + l] = in[l stride + k] for a W x W block (here 1 x 1).
+  static void transpose(const float* in, std::size_t, float* out) { out[0] = in[0]; }
   static F add(F a, F b) { return a + b; }
   static F sub(F a, F b) { return a - b; }
   static F mul(F a, F b) { return a * b; }
@@ -196,6 +198,26 @@ struct Vec {
   static F set(float x) { return _mm256_set1_ps(x); }
   static F load(const float* p) { return _mm256_loadu_ps(p); }
   static void store(float* p, F x) { _mm256_storeu_ps(p, x); }
+  // out[k W + l] = in[l stride + k], 8 x 8: pairs of rows interleaved, then 4 x 4 within each 128-bit
+  // lane (u[4g + q] holds rows 4g..4g+3 of column 4L + q in lane L), then the lanes exchanged.
+  static void transpose(const float* in, std::size_t stride, float* out) {
+    F r[8], t[8], u[8];
+    for (int i = 0; i < 8; ++i) r[i] = load(in + i * stride);
+    for (int i = 0; i < 8; i += 2) {
+      t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);
+      t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);
+    }
+    for (int g = 0; g < 2; ++g) {
+      u[4 * g + 0] = _mm256_shuffle_ps(t[4 * g], t[4 * g + 2], _MM_SHUFFLE(1, 0, 1, 0));
+      u[4 * g + 1] = _mm256_shuffle_ps(t[4 * g], t[4 * g + 2], _MM_SHUFFLE(3, 2, 3, 2));
+      u[4 * g + 2] = _mm256_shuffle_ps(t[4 * g + 1], t[4 * g + 3], _MM_SHUFFLE(1, 0, 1, 0));
+      u[4 * g + 3] = _mm256_shuffle_ps(t[4 * g + 1], t[4 * g + 3], _MM_SHUFFLE(3, 2, 3, 2));
+    }
+    for (int q = 0; q < 4; ++q) {
+      store(out + q * 8, _mm256_permute2f128_ps(u[q], u[4 + q], 0x20));
+      store(out + (4 + q) * 8, _mm256_permute2f128_ps(u[q], u[4 + q], 0x31));
+    }
+  }
   static F add(F a, F b) { return _mm256_add_ps(a, b); }
   static F sub(F a, F b) { return _mm256_sub_ps(a, b); }
   static F mul(F a, F b) { return _mm256_mul_ps(a, b); }
@@ -248,6 +270,30 @@ struct Vec {
   static F set(float x) { return _mm512_set1_ps(x); }
   static F load(const float* p) { return _mm512_loadu_ps(p); }
   static void store(float* p, F x) { _mm512_storeu_ps(p, x); }
+  // out[k W + l] = in[l stride + k], 16 x 16: as the AVX2 version up to u (u[4g + q] holds rows
+  // 4g..4g+3 of column 4L + q in 128-bit lane L), then a 4 x 4 transpose of 128-bit lanes per q.
+  static void transpose(const float* in, std::size_t stride, float* out) {
+    F r[16], t[16], u[16];
+    for (int i = 0; i < 16; ++i) r[i] = load(in + i * stride);
+    for (int i = 0; i < 16; i += 2) {
+      t[i] = _mm512_unpacklo_ps(r[i], r[i + 1]);
+      t[i + 1] = _mm512_unpackhi_ps(r[i], r[i + 1]);
+    }
+    for (int g = 0; g < 4; ++g) {
+      u[4 * g + 0] = _mm512_shuffle_ps(t[4 * g], t[4 * g + 2], _MM_SHUFFLE(1, 0, 1, 0));
+      u[4 * g + 1] = _mm512_shuffle_ps(t[4 * g], t[4 * g + 2], _MM_SHUFFLE(3, 2, 3, 2));
+      u[4 * g + 2] = _mm512_shuffle_ps(t[4 * g + 1], t[4 * g + 3], _MM_SHUFFLE(1, 0, 1, 0));
+      u[4 * g + 3] = _mm512_shuffle_ps(t[4 * g + 1], t[4 * g + 3], _MM_SHUFFLE(3, 2, 3, 2));
+    }
+    for (int q = 0; q < 4; ++q) {
+      const F va = _mm512_shuffle_f32x4(u[q], u[4 + q], 0x88), vb = _mm512_shuffle_f32x4(u[q], u[4 + q], 0xdd);
+      const F vc = _mm512_shuffle_f32x4(u[8 + q], u[12 + q], 0x88), vd = _mm512_shuffle_f32x4(u[8 + q], u[12 + q], 0xdd);
+      store(out + q * 16, _mm512_shuffle_f32x4(va, vc, 0x88));
+      store(out + (4 + q) * 16, _mm512_shuffle_f32x4(vb, vd, 0x88));
+      store(out + (8 + q) * 16, _mm512_shuffle_f32x4(va, vc, 0xdd));
+      store(out + (12 + q) * 16, _mm512_shuffle_f32x4(vb, vd, 0xdd));
+    }
+  }
   static F add(F a, F b) { return _mm512_add_ps(a, b); }
   static F sub(F a, F b) { return _mm512_sub_ps(a, b); }
   static F mul(F a, F b) { return _mm512_mul_ps(a, b); }
@@ -443,6 +489,12 @@ void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std
     throw std::invalid_argument("shade_batch: incomplete shading inputs");
   if (b.taps && (!b.taps->pixel || !b.taps->index || !b.taps->weight || !b.taps->coarse))
     throw std::invalid_argument("shade_batch: incomplete interpolation taps");
+  if (b.transfer && (!b.taps || b.taps->out))
+    throw std::invalid_argument("shade_batch: transfer rows need interpolation taps and give no visibility to write out");
+  if (b.transfer && (b.transfer->order != b.order || b.transfer->at.size() != static_cast<std::size_t>(3 * b.order * b.order * b.order * b.order) ||
+                     b.transfer->unshadowed.size() != static_cast<std::size_t>(3 * b.order * b.order)))
+    throw std::invalid_argument("shade_batch: transfer rows of order " + std::to_string(b.transfer->order) + " for order " +
+                                std::to_string(b.order));
   if (end > rec.size() || begin > end) throw std::invalid_argument("shade_batch: receiver range outside the receivers");
   if (begin == end) return;
   if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("shade_batch: this CPU cannot run ") + to_string(isa));
@@ -451,6 +503,51 @@ void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std
     case KernelIsa::Scalar: kscalar::shade_dispatch(b, rec, begin, end, out); return;
     case KernelIsa::Avx2: kavx2::shade_dispatch(b, rec, begin, end, out); return;
     case KernelIsa::Avx512: kavx512::shade_dispatch(b, rec, begin, end, out); return;
+  }
+}
+
+ShadeTransfer ShadeTransfer::make(const BatchShade& b) {
+  if (!b.plan || b.plan->order != b.order || !b.L || !b.hcoef || !b.gwin)
+    throw std::invalid_argument("ShadeTransfer: incomplete shading inputs");
+  const ProductPlan& p = *b.plan;
+  const int n2 = b.order * b.order, m = 3 * n2;
+  // A_c[a][b] = sum_k C_abk L_c,k from the plan's terms: out_k += v (f_j g_l + f_l g_j) for j < l,
+  // v f_j g_j on the diagonal, with f = H(N) (index a) and g the windowed visibility (index b).
+  std::vector<double> A(static_cast<std::size_t>(3) * n2 * n2, 0.0);
+  const auto add = [&](int a, int bb, double v, int k) {
+    for (int c = 0; c < 3; ++c) A[(static_cast<std::size_t>(c) * n2 + a) * n2 + bb] += v * b.L[c * n2 + k];
+  };
+  for (int k = 0; k < n2; ++k) {
+    for (int t = p.pr_begin[k]; t < p.pr_offdiag_end[k]; ++t) {
+      add(p.pr_j[t], p.pr_k[t], p.pr_v[t], k);
+      add(p.pr_k[t], p.pr_j[t], p.pr_v[t], k);
+    }
+    for (int t = p.pr_offdiag_end[k]; t < p.pr_begin[k + 1]; ++t) add(p.pr_j[t], p.pr_j[t], p.pr_v[t], k);
+  }
+  ShadeTransfer t;
+  t.order = b.order;
+  t.at.assign(static_cast<std::size_t>(n2) * m, 0.0f);
+  t.unshadowed.assign(m, 0.0f);
+  for (int bb = 0; bb < n2; ++bb)
+    for (int c = 0; c < 3; ++c)
+      for (int a = 0; a < n2; ++a) {
+        const double v = static_cast<double>(b.hcoef[a]) * A[(static_cast<std::size_t>(c) * n2 + a) * n2 + bb] * b.gwin[bb];
+        t.at[static_cast<std::size_t>(bb) * m + c * n2 + a] = static_cast<float>(v);
+        if (bb == 0) t.unshadowed[c * n2 + a] = static_cast<float>(sh::kSqrt4Pi * v);
+      }
+  return t;
+}
+
+void transfer_rows(KernelIsa isa, const ShadeTransfer& t, const float* g, std::size_t count, float* r) {
+  if (t.order < 1 || t.order > kMaxAccOrder || t.at.size() != static_cast<std::size_t>(3 * t.order * t.order * t.order * t.order))
+    throw std::invalid_argument("transfer_rows: malformed transfer of order " + std::to_string(t.order));
+  if (count == 0) return;
+  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("transfer_rows: this CPU cannot run ") + to_string(isa));
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: kscalar::transfer_rows_dispatch(t, g, count, r); return;
+    case KernelIsa::Avx2: kavx2::transfer_rows_dispatch(t, g, count, r); return;
+    case KernelIsa::Avx512: kavx512::transfer_rows_dispatch(t, g, count, r); return;
   }
 }
 

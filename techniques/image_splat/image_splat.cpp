@@ -69,6 +69,11 @@ std::vector<ParamDesc> param_descs() {
   d.push_back(common::params::table_resolution());
   d.push_back(common::params::log_threshold());
   d.push_back(ParamDesc::choice("upsample", "bilateral", {"bilateral", "bilinear"}, "upsampling to display resolution (section 4.2, eq. 11)"));
+  d.push_back(ParamDesc::choice("shade_interpolation", "transfer", {"transfer", "visibility"},
+                                "what the eq. 11 taps interpolate for the direct shading without spherical lights: each "
+                                "coarse sample's transfer row (O_p times the light and clamped cosine, one dot product per "
+                                "pixel) or O_p itself, shaded with an SH product per pixel as section 4.2 writes it (the same "
+                                "value; the CPU backend, Vulkan interpolates O_p)"));
   d.push_back(ParamDesc::choice("fallback", "robust", {"robust", "shaded", "none"},
                                 "display pixels no coarse sample matches: shade from the full proxy list, interpolate "
                                 "shaded coarse results, or keep eq. 11's value"));
@@ -124,6 +129,7 @@ Settings read_settings(const render::ParamSet& p) {
   s.log_threshold = p.get_float("log_threshold");
   s.upsample.mode = parse_upsample_mode(p.get_enum("upsample"));
   s.fallback = parse_upsample_fallback(p.get_enum("fallback"));
+  s.shade_interpolation = p.get_enum("shade_interpolation") == "transfer" ? ShadeInterpolation::Transfer : ShadeInterpolation::Visibility;
   s.upsample.epsilon_rel = p.get_float("bilateral_epsilon");
   s.upsample.normal_power = p.get_int("normal_power");
   s.upsample.miss_threshold = p.get_float("miss_threshold");
@@ -685,14 +691,28 @@ common::DeviceKernelRegistry<DeviceKernels>& device_kernels() {
 
 void register_device_kernels(const std::string& backend, DeviceKernels kernels) { device_kernels().add(backend, std::move(kernels)); }
 
-DirectKernels cpu_direct_kernels() {
+DirectKernels cpu_direct_kernels(render::FramePool* pool) {
   DirectKernels kern;
-  kern.surface = [](const DirectShader& shader, const render::GBuffer& fine, const Upsampled& up, glm::vec3* e) {
+  kern.surface = [pool](const DirectShader& shader, const render::GBuffer& fine, const Upsampled& up, glm::vec3* e) {
     // Surface pixels in blocks, shaded with O_p interpolated by the eq. 11 weights (section 4.2)
     // inside the kernel.
     const bool shadowed = !up.coarse_visibility.empty();
     const bool lit = shader.shades_lights();
     const std::size_t n2 = static_cast<std::size_t>(shader.order) * shader.order;
+    // Without spherical lights nothing reads O_p per pixel: the coarse samples' transfer rows
+    // (common::ShadeTransfer) are interpolated instead and each pixel takes one dot product, unless
+    // the SH product per pixel is asked for.
+    const bool transfer = shadowed && !lit && shader.interpolate == ShadeInterpolation::Transfer;
+    common::ShadeTransfer tr;
+    std::vector<float> rows;
+    if (transfer) {
+      tr = common::ShadeTransfer::make(shader.batch(nullptr));
+      const std::size_t samples = up.coarse_visibility.size() / n2, m = 3 * n2;
+      rows = pool ? pool->take_for_overwrite<float>(samples * m) : std::vector<float>(samples * m);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, samples, 1024), [&](const tbb::blocked_range<std::size_t>& br) {
+        common::transfer_rows(shader.isa, tr, up.coarse_visibility.data() + br.begin() * n2, br.size(), rows.data() + br.begin() * m);
+      });
+    }
     // Each thread's block buffers, kept across its blocks.
     struct Scratch {
       common::ReceiverSoA soa;
@@ -723,13 +743,18 @@ DirectKernels cpu_direct_kernels() {
       taps.pixel = up.surface.data() + br.begin();
       taps.index = up.w.index.data();
       taps.weight = up.w.weight.data();
-      taps.coarse = up.coarse_visibility.data();
+      taps.coarse = transfer ? rows.data() : up.coarse_visibility.data();
+      if (transfer) {
+        clamped += shader.shade(soa, 0, br.size(), taps, &tr, e + br.begin());
+        return;
+      }
       if (lit) {
         sc.g.resize(br.size() * n2);
         taps.out = sc.g.data();
       }
-      clamped += shader.shade(soa, 0, br.size(), taps, e + br.begin());
+      clamped += shader.shade(soa, 0, br.size(), taps, nullptr, e + br.begin());
     });
+    if (pool) pool->give(std::move(rows));
     return clamped.load();
   };
   kern.receivers = [](const DirectShader& shader, const common::ReceiverSoA& rec, const float* g, glm::vec3* out) {
@@ -763,7 +788,8 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   if (ctx.has(kRobust)) rm = ctx.get<std::shared_ptr<const RobustMisses>>(kRobust);
   const bool shadowed = !up.coarse_visibility.empty() || up.device_visibility;
   const int n = s.order;
-  const DirectShader shader = make_direct_shader(env_light(st, ctx.scene, n, s.window_h), n, s.window_h, lt, ctx.posed.lights, s.isa);
+  DirectShader shader = make_direct_shader(env_light(st, ctx.scene, n, s.window_h), n, s.window_h, lt, ctx.posed.lights, s.isa);
+  shader.interpolate = s.shade_interpolation;
 
   // Surface pixels with the eq. 11 interpolation of O_p; the robust misses are shaded apart below.
   // Eq. 10 times the receiver's albedo is the outgoing radiance, written straight to the image:
@@ -845,43 +871,65 @@ void pass_shade_indirect(const Settings& s, FrameContext& ctx) {
   std::shared_ptr<const RobustMisses> rm;
   if (ctx.has(kRobust)) rm = ctx.get<std::shared_ptr<const RobustMisses>>(kRobust);
   const std::size_t np = fine.object.size();
+  const bool robust_indirect = rm && !rm->indirect.empty();
+  // The upsampled field is read in place; only the shaded fallback changes it, in a copy.
+  const bool has_field = up.indirect.size() == np * 3;
   std::vector<float> v;
-  if (up.indirect.size() == np * 3) {
-    v = ctx.pool().take_for_overwrite<float>(np * 3);
-    std::copy(up.indirect.begin(), up.indirect.end(), v.begin());
-  } else {
-    v = ctx.pool().take(np * 3, 0.0f);
-  }
+  const float* field = has_field ? up.indirect.data() : nullptr;
   std::size_t robust = 0, interpolated = 0;
-  if (rm && !rm->indirect.empty()) {
-    for (std::size_t k = 0; k < rm->pixel.size(); ++k)
-      for (int c = 0; c < 3; ++c) v[static_cast<std::size_t>(rm->pixel[k]) * 3 + c] = rm->indirect[3 * k + c];
-    robust = rm->pixel.size();
-  } else if (s.fallback == UpsampleFallback::Shaded && up.w.misses > 0) {
+  if (!robust_indirect && s.fallback == UpsampleFallback::Shaded && up.w.misses > 0) {
     // The indirect field is shaded already (I_p . H(N_p) per receiver): bilinear over the coarse receivers.
+    if (has_field) {
+      v = ctx.pool().take_for_overwrite<float>(np * 3);
+      std::copy(up.indirect.begin(), up.indirect.end(), v.begin());
+    } else {
+      v = ctx.pool().take(np * 3, 0.0f);
+    }
     const auto& r = *ctx.get<std::shared_ptr<const ReceiverBuffer>>(kReceivers);
     const auto& ind = *ctx.get<std::shared_ptr<const Field>>(kIndirectNorm);
     const auto& coarse = ctx.get<render::GBuffer>(render::kReceiverGBuffer);
     const std::vector<float> in = to_pixels(r, ind.v.data(), 3, ctx.pool());
     upsample_apply_bilinear(up.w, plane(coarse), plane(fine), in.data(), 3, v.data(), &up.w.miss);
     for (std::size_t i = 0; i < np; ++i) interpolated += up.w.miss[i] && fine.hit(i);
+    field = v.data();
   }
-  Image img = ctx.pool().image(fine.width, fine.height);
-  long long negative = 0;
-  for (std::size_t i = 0; i < np; ++i) {
-    if (!fine.hit(i)) continue;
-    const glm::vec3 e(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
-    negative += e.x < 0.0f || e.y < 0.0f || e.z < 0.0f;
-    // Eq. 10's second term, I_p . H(N_p), times the receiver's albedo; SH ringing clamped at 0.
-    img.rgb[i] = glm::max(e, glm::vec3(0.0f)) * fine.albedo[i];
+  // Eq. 10's second term, I_p . H(N_p), times the receiver's albedo; SH ringing clamped at 0.
+  const auto shade = [&](const glm::vec3& e, std::size_t i) { return glm::max(e, glm::vec3(0.0f)) * fine.albedo[i]; };
+  const auto negative = [](const glm::vec3& e) { return e.x < 0.0f || e.y < 0.0f || e.z < 0.0f; };
+  Image img = ctx.pool().image_for_overwrite(fine.width, fine.height);
+  std::atomic<long long> clamped{0};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 1 << 14), [&](const tbb::blocked_range<std::size_t>& br) {
+    long long neg = 0;
+    for (std::size_t i = br.begin(); i != br.end(); ++i) {
+      if (!fine.hit(i) || !field) {
+        img.rgb[i] = glm::vec3(0.0f);
+        continue;
+      }
+      const glm::vec3 e(field[3 * i], field[3 * i + 1], field[3 * i + 2]);
+      neg += negative(e);
+      img.rgb[i] = shade(e, i);
+    }
+    clamped += neg;
+  });
+  long long neg = clamped.load();
+  if (robust_indirect) {
+    // The robust misses' own indirect light over the interpolated one (each miss hits a surface).
+    for (std::size_t k = 0; k < rm->pixel.size(); ++k) {
+      const std::size_t p = static_cast<std::size_t>(rm->pixel[k]);
+      const glm::vec3 e(rm->indirect[3 * k], rm->indirect[3 * k + 1], rm->indirect[3 * k + 2]);
+      if (field) neg -= negative(glm::vec3(field[3 * p], field[3 * p + 1], field[3 * p + 2]));
+      neg += negative(e);
+      img.rgb[p] = shade(e, p);
+    }
+    robust = rm->pixel.size();
   }
   auto& rec = ctx.record();
   rec.counters["pixels"] = static_cast<double>(np);
   rec.counters["robust_pixels"] = static_cast<double>(robust);
   rec.counters["interpolated_pixels"] = static_cast<double>(interpolated);
-  rec.counters["pixels_clamped"] = static_cast<double>(negative);
+  rec.counters["pixels_clamped"] = static_cast<double>(neg);
   rec.bytes = img.rgb.size() * sizeof(glm::vec3);
-  ctx.pool().give(std::move(v));
+  if (!v.empty()) ctx.pool().give(std::move(v));
   ctx.put<Image>(render::kIndirect, std::move(img));
 }
 
@@ -1088,7 +1136,7 @@ class ImageSplat final : public render::Technique {
     }
     g.add({"shade_direct", {render::kGBuffer, render::kReceiverGBuffer, kUpsampled}, opt_direct, {render::kDirect},
            "psi_p's first term O_p . L~(N_p) (eq. 10) and spherical lights, times the albedo",
-           with_kernels([st, s](FrameContext& c) { pass_shade_direct(*st, s, c, cpu_direct_kernels()); }, dev_shade_direct)});
+           with_kernels([st, s](FrameContext& c) { pass_shade_direct(*st, s, c, cpu_direct_kernels(&c.pool())); }, dev_shade_direct)});
     g.add({"shade_indirect", {render::kGBuffer, render::kReceiverGBuffer, kUpsampled, kIndirectNorm}, opt_indirect, {render::kIndirect},
            "psi_p's second term I_p . H(N_p) (eq. 10), times the albedo", cpu([s](FrameContext& c) { pass_shade_indirect(s, c); })});
     render::add_compose_pass(g);

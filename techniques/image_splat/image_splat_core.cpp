@@ -278,11 +278,13 @@ long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::si
 }
 
 long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::size_t end, const common::BatchShade::Taps& taps,
-                              glm::vec3* out) const {
+                              const common::ShadeTransfer* transfer, glm::vec3* out) const {
   if (shades_lights() && !taps.out)
     throw std::logic_error("image_splat: spherical lights with interpolated visibility need it written out");
+  if (shades_lights() && transfer) throw std::logic_error("image_splat: spherical lights read O_p, which transfer rows do not carry");
   common::BatchShade bs = batch(nullptr);
   bs.taps = &taps;
+  bs.transfer = transfer;
   common::shade_batch(isa, bs, rec, begin, end, out);
   return common::add_lights_and_clamp(lights_table.get(), lights, order, gwin.data(), rec, begin, end, taps.out, true, out);
 }

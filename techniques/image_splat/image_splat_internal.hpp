@@ -51,6 +51,9 @@ inline constexpr int kClampRampRows = 4;
 enum class Coverage { Derived, Environment, Paper, Off };
 const char* to_string(Coverage c);
 enum class ExpMode { HYB, OL, PSStar, PS, Exact };
+// What the direct shading interpolates with the eq. 11 weights: transfer rows (common::ShadeTransfer)
+// or O_p (section 4.2 as written). The same value in exact arithmetic.
+enum class ShadeInterpolation { Transfer, Visibility };
 
 // The technique's parameters, read and cross-checked once per frame (read_settings throws
 // std::invalid_argument naming the parameters).
@@ -74,6 +77,7 @@ struct Settings {
   double log_threshold = 0.02;
   UpsampleOptions upsample;
   UpsampleFallback fallback = UpsampleFallback::Robust;
+  ShadeInterpolation shade_interpolation = ShadeInterpolation::Transfer;
   int tile_size = 16;
   bool device_binning = false;  // binning = device: a backend's compute pass bins (DeviceKernels::bin_proxies)
   bool raster_splats = false;   // splatting = raster: a backend rasterises the splats (DeviceKernels::splat_log, splat_indirect)
@@ -182,6 +186,7 @@ float indirect_normalisation(float o0, float omega);
 // Without O (no proxies) the receivers are unshadowed.
 struct DirectShader {
   int order = 0;
+  ShadeInterpolation interpolate = ShadeInterpolation::Transfer;  // for DirectKernels::surface on the CPU
   std::vector<float> L;      // 3 x n^2, channel-major (windowed when window_h > 0)
   std::vector<float> hcoef;  // n^2: H(N)_lm = hcoef y_lm(N)
   std::vector<float> gwin;   // n^2: window on the visibility
@@ -195,8 +200,10 @@ struct DirectShader {
   // The same with the visibility interpolated from a coarse field in the kernel (BatchShade::Taps).
   // The spherical lights read it per receiver: when shades_lights(), taps.out must hold n^2 floats
   // per receiver of rec (the kernel writes them, the lights read them).
+  // transfer: taps.coarse holds transfer rows of this shader (common::ShadeTransfer) instead of O_p;
+  // only without spherical lights (they read O_p per receiver).
   long long shade(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const common::BatchShade::Taps& taps,
-                  glm::vec3* out) const;
+                  const common::ShadeTransfer* transfer, glm::vec3* out) const;
   bool shades_lights() const { return common::shades_lights(lights_table.get(), lights); }
   // SHEXP's batch-shading constants over this shader's floats (g: visibility, n^2 per receiver).
   common::BatchShade batch(const float* g) const;
@@ -244,7 +251,8 @@ struct DirectKernels {
   // Whether `surface` gathers O_p from the device when Upsampled::device_visibility is set.
   bool reads_device_visibility = false;
 };
-DirectKernels cpu_direct_kernels();
+// pool: where per-frame scratch (the transfer rows) comes from; null: allocated per call.
+DirectKernels cpu_direct_kernels(render::FramePool* pool = nullptr);
 
 // For fallback = robust: the misses shaded from the full proxy list.
 struct RobustMisses {

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -261,6 +262,36 @@ TEST(ImageSplatRender, EveryModeGivesFiniteNonNegativeImages) {
     const render::FrameResult r = render_frame(sc, m, 40, 30, t.get(), 0.5);
     check_image(r.final_image, name + "final");
     EXPECT_GT(check_image(r.indirect, name + "indirect"), 0.0f) << name;
+  }
+}
+
+// shade_interpolation: interpolating transfer rows and interpolating O_p then taking the SH product
+// per pixel are the same sum reassociated (common::ShadeTransfer), so the direct images agree to float
+// rounding: kReassociationTol of the brightest pixel (sums of 16-48 O(1) float terms, about 1e-6 each,
+// with room for the clamp at 0). Both paths must have run: the transfer path rounds differently, so
+// some pixels differ in their last bits (bit-identical images would mean the parameter was ignored).
+TEST(ImageSplatRender, TransferRowsShadeAsTheInterpolatedVisibility) {
+  constexpr double kReassociationTol = 2e-5;
+  techniques::register_all();
+  for (const char* scene_name : {"spheres", "character"}) {
+    const scene::Scene sc = scene::make_builtin(scene_name);
+    const render::FrameResult a = render_frame(sc, {"indirect=false", "shade_interpolation=transfer"}, 96, 72);
+    const render::FrameResult b = render_frame(sc, {"indirect=false", "shade_interpolation=visibility"}, 96, 72);
+    ASSERT_EQ(a.direct.rgb.size(), b.direct.rgb.size());
+    float peak = 0.0f;
+    for (const auto& c : b.direct.rgb) peak = std::max({peak, c.x, c.y, c.z});
+    ASSERT_GT(peak, 0.0f) << scene_name;
+    double worst = 0.0;
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < a.direct.rgb.size(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        const double d = std::abs(static_cast<double>(a.direct.rgb[i][c]) - b.direct.rgb[i][c]);
+        worst = std::max(worst, d);
+        differ += d > 0.0;
+      }
+    EXPECT_LE(worst, kReassociationTol * peak) << scene_name;
+    EXPECT_GT(differ, 0u) << scene_name << ": identical images, so one path was not taken";
+    std::printf("[transfer] %-9s worst difference %.3g of the brightest pixel, %zu channels differ\n", scene_name, worst / peak, differ);
   }
 }
 

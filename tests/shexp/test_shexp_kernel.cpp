@@ -413,6 +413,81 @@ TEST_P(ShexpBatch, InterpolatedVisibilityShadesAsTheInterpolationWrittenOut) {
     EXPECT_GT(with_taps, kReceivers / 2);
   }
 }
+// ShadeTransfer: interpolating the coarse samples' transfer rows and taking y(N) . row must give the
+// triple integral of H(N), the windowed interpolated visibility and L, as the SH product per receiver
+// does (paper 000 eq. 10 with eq. 11's interpolation). The reference is that triple integral in double
+// (sh::TripleProduct) of the interpolation written out; the kernel sums in float a map A_c made in
+// double and rounded once, then two float dot products of n^2 and 3 n^2 terms (O(1) values): kBatchRelTol
+// of 1 + |value|, as for the product. Orders 3-6 and 8 put 3 n^2 = 27 ... 192 against 8 and 16 lanes
+// (whole blocks and tails); a receiver without a tap shades as an unshadowed one.
+TEST_P(ShexpBatch, TransferRowsShadeAsTheTripleIntegralOfTheInterpolation) {
+  const KernelIsa isa = GetParam();
+  for (int order : {3, 4, 5, 6, 8}) {
+    const int n2 = order * order;
+    constexpr int kReceivers = 41, kPixels = 60, kCoarse = 30;
+    RandomSetup s = random_setup(order, kReceivers, 1, 4);
+    std::mt19937 rng(23 + order);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f), w01(0.05f, 1.0f);
+    std::uniform_int_distribution<int> pick(0, kCoarse - 1), ntaps(0, 4), px(0, kPixels - 1);
+    std::vector<float> coarse(kCoarse * n2), L(3 * n2), gwin, hcoef;
+    for (auto& v : coarse) v = u(rng);
+    std::fill(coarse.begin() + 5 * n2, coarse.begin() + 6 * n2, 0.0f);  // a coarse pixel without a receiver
+    for (auto& v : L) v = u(rng);
+    shading_factors(order, hcoef, gwin);
+    std::vector<std::array<std::int32_t, 4>> index(kPixels);
+    std::vector<std::array<float, 4>> weight(kPixels);
+    for (int p = 0; p < kPixels; ++p) {
+      const int t = p < 3 ? p : ntaps(rng);
+      for (int k = 0; k < 4; ++k) {
+        index[p][k] = k < t ? pick(rng) : -1;
+        weight[p][k] = k < t ? w01(rng) : 0.0f;
+      }
+    }
+    std::vector<std::int32_t> pixel(kReceivers);
+    for (int i = 0; i < kReceivers; ++i) pixel[i] = i < 3 ? i : px(rng);
+    BatchShade b = BatchShade::make(order, L.data(), hcoef.data(), gwin.data(), nullptr);
+    const ShadeTransfer tr = ShadeTransfer::make(b);
+    std::vector<float> rows(kCoarse * 3 * n2, std::numeric_limits<float>::quiet_NaN());
+    transfer_rows(isa, tr, coarse.data(), kCoarse, rows.data());
+    for (int k = 0; k < 3 * n2; ++k) EXPECT_EQ(rows[5 * 3 * n2 + k], 0.0f) << "a zero visibility vector has a zero row";
+    BatchShade::Taps taps;
+    taps.pixel = pixel.data();
+    taps.index = index.data();
+    taps.weight = weight.data();
+    taps.coarse = rows.data();
+    b.taps = &taps;
+    b.transfer = &tr;
+    std::vector<glm::vec3> got(kReceivers);
+    shade_batch(isa, b, s.rec, 0, kReceivers, got.data());
+    const sh::TripleProduct& tp = sh::TripleProduct::get(order);
+    int with_taps = 0;
+    for (int i = 0; i < kReceivers; ++i) {
+      const auto& idx = index[pixel[i]];
+      with_taps += idx[0] >= 0;
+      std::array<double, sh::kMaxCoeffs> H{}, gd{}, Lc{};
+      sh::irradiance_weight(order, sh::Vec3<double>{s.rec.nx[i], s.rec.ny[i], s.rec.nz[i]}, H.data());
+      for (int k = 0; k < n2; ++k) {
+        double v = idx[0] < 0 ? (k == 0 ? sh::kSqrt4Pi : 0.0) : 0.0;
+        for (int t = 0; t < 4 && idx[t] >= 0; ++t) v += static_cast<double>(weight[pixel[i]][t]) * coarse[idx[t] * n2 + k];
+        gd[k] = v * gwin[k];
+      }
+      for (int c = 0; c < 3; ++c) {
+        for (int k = 0; k < n2; ++k) Lc[k] = L[c * n2 + k];
+        const double expect = tp.triple_integral(H.data(), gd.data(), Lc.data());
+        EXPECT_NEAR(got[i][c], expect, kBatchRelTol * (1.0 + std::abs(expect)))
+            << "order " << order << " receiver " << i << " channel " << c << " " << to_string(isa);
+      }
+    }
+    EXPECT_GT(with_taps, kReceivers / 2);
+    // Transfer rows give no visibility to hand out, and need taps.
+    std::vector<float> out_g(kReceivers * n2);
+    taps.out = out_g.data();
+    EXPECT_THROW(shade_batch(isa, b, s.rec, 0, kReceivers, got.data()), std::invalid_argument);
+    taps.out = nullptr;
+    b.taps = nullptr;
+    EXPECT_THROW(shade_batch(isa, b, s.rec, 0, kReceivers, got.data()), std::invalid_argument);
+  }
+}
 INSTANTIATE_TEST_SUITE_P(Isa, ShexpBatch, kEveryIsa, isa_param_name);
 
 // --- single sphere over a plane (eq. 34) -----------------------------------------------------------
