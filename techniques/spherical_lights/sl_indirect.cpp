@@ -89,6 +89,13 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
   std::array<float, sh::kMaxCoeffs> y{};
   const std::array<float, sh::kMaxCoeffs> hn = brdf_vector(order, n);
   std::array<float, kMaxAccOrder> wrot{};
+  // The ZH rotation factors sqrt(4 pi / (2l + 1)), rounded as the loop below used them: a division
+  // and a square root per band and SL otherwise.
+  static const auto zh_factor = [] {
+    std::array<float, sh::kMaxOrder> f{};
+    for (int l = 0; l < sh::kMaxOrder; ++l) f[l] = static_cast<float>(sh::zh_rotation_factor(l));
+    return f;
+  }();
 
   for (std::size_t k = 0; k < m; ++k) {
     const int slk = list.sl[k];
@@ -115,7 +122,7 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
     const float* L = lc.v.data() + static_cast<std::size_t>(slk) * 3 * n2;
     glm::vec3 acc(0.0f);
     for (int l = 0; l < order; ++l) {
-      const float wl = wrot[l] * static_cast<float>(sh::zh_rotation_factor(l));
+      const float wl = wrot[l] * zh_factor[l];
       for (int mm = -l; mm <= l; ++mm) {
         const int i = sh::index(l, mm);
         acc += wl * y[i] * glm::vec3(L[i], L[n2 + i], L[2 * n2 + i]);
