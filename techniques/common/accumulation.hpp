@@ -247,6 +247,8 @@ struct LightLobeTable {
   double max_fit_error = 0.0;
   // Lobe of a light of angular radius theta at angle f from the normal (k multiplied back by the solid angle).
   void lookup(float theta, float f, float& psi_out, float* k_out) const;
+  // The same bilinear lookup with k per unit solid angle, as stored.
+  void lookup_unit(float theta, float f, float& psi_out, float* k_out) const;
   std::size_t bytes() const { return (psi.size() + k.size()) * sizeof(float); }
 };
 // window_h > 0 windows the light's projection (section 7) before the product with H.
@@ -269,9 +271,17 @@ inline constexpr double kLightThetaFloor = 1e-3;
 inline bool shades_lights(const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights) {
   return table && !lights.empty();
 }
-long long add_lights_and_clamp(const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights, int order,
-                               const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
-                               bool zero_normal_empty, glm::vec3* out);
+// The lights are evaluated by lights_batch with `isa`.
+long long add_lights_and_clamp(KernelIsa isa, const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights,
+                               int order, const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end,
+                               const float* g, bool zero_normal_empty, glm::vec3* out);
+// The spherical lights' term alone, across receivers: out[i - begin] += sum over lights of
+// (L_H . (gwin g_i)) radiance, L_H as light_lh_world builds it (the fitted lobe of the table, turned to
+// the receiver's frame) but with the angles by shaders/common/shade.comp's polynomials (asin, acos,
+// sin, cos: accum_math.glsl), so that both backends evaluate the same functions. g null: unshadowed.
+// table.order must be `order`.
+void lights_batch(KernelIsa isa, const LightLobeTable& table, const std::vector<scene::SphericalLight>& lights, int order,
+                  const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g, glm::vec3* out);
 
 // ---------------------------------------------------------------------------------------------
 // The diffuse shading of receivers on the GPU (shaders/common/shade.comp): what shade_batch followed

@@ -226,6 +226,35 @@ inline void basis_soa(int n, typename V::F sx, typename V::F sy, typename V::F s
   }
 }
 
+// Paper 000 eq. 11 for receiver i: row = sum_t w_t coarse[idx_t], `stride` floats per coarse sample,
+// W floats at a time summed in a register over the taps (a sum kept in memory would chain every
+// tap's load to the last one's store), the rest one at a time. False (row untouched) where the
+// receiver's pixel has no tap.
+template <class V>
+inline bool interpolate_taps(const BatchShade::Taps& tp, std::size_t i, int stride, float* row) {
+  using F = typename V::F;
+  constexpr int W = V::W;
+  const std::int32_t pixel = tp.pixel[i];
+  const std::array<std::int32_t, 4>& idx = tp.index[pixel];
+  if (idx[0] < 0) return false;
+  const std::array<float, 4>& wt = tp.weight[pixel];
+  const float* src[4];
+  int taps = 0;
+  for (; taps < 4 && idx[taps] >= 0; ++taps) src[taps] = tp.coarse + static_cast<std::size_t>(idx[taps]) * stride;
+  int k = 0;
+  for (; k + W <= stride; k += W) {
+    F acc = V::mul(V::set(wt[0]), V::load(src[0] + k));
+    for (int t = 1; t < taps; ++t) acc = V::fma(V::set(wt[t]), V::load(src[t] + k), acc);
+    V::store(row + k, acc);
+  }
+  for (; k < stride; ++k) {
+    float acc = wt[0] * src[0][k];
+    for (int t = 1; t < taps; ++t) acc += wt[t] * src[t][k];
+    row[k] = acc;
+  }
+  return true;
+}
+
 // Diffuse shading E/pi = (H(N) * g) . L per colour channel (paper 004 eq. 9 and section 7) for
 // receivers [begin, end): H(N) is the clamped cosine turned to N (hcoef_l y_lm(N)), g optionally
 // windowed per band; one SH product per receiver serves the three channels.
@@ -234,8 +263,10 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
   using F = typename V::F;
   constexpr int W = V::W;
   const int n = b.order, n2 = n * n;
+  constexpr int kMaxRow = (sh::kMaxCoeffs + W - 1) / W * W;
+  const int n2p = (n2 + W - 1) / W * W;
   alignas(64) float lane[3][W];
-  alignas(64) float H[sh::kMaxCoeffs * W], g[sh::kMaxCoeffs * W], HG[sh::kMaxCoeffs * W];
+  alignas(64) float H[sh::kMaxCoeffs * W], g[kMaxRow * W], HG[sh::kMaxCoeffs * W], rows[W * kMaxRow];
   for (int l = 0; l < W; ++l) {
     const std::size_t i = begin + (static_cast<std::size_t>(l) < cnt ? l : cnt - 1);
     lane[0][l] = rec.nx[i];
@@ -243,37 +274,19 @@ void shade_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin,
     lane[2][l] = rec.nz[i];
     // The receiver's vector: interpolated from the eq. 11 taps, g_i, or the unshadowed vector (a
     // pixel without a tap, or no g given).
-    alignas(64) float row[sh::kMaxCoeffs];
-    const float* gi = row;
-    const std::int32_t pixel = b.taps ? b.taps->pixel[i] : -1;
-    if (b.taps && b.taps->index[pixel][0] >= 0) {
-      const std::array<std::int32_t, 4>& idx = b.taps->index[pixel];
-      const std::array<float, 4>& wt = b.taps->weight[pixel];
-      const float* src[4];
-      int taps = 0;
-      for (; taps < 4 && idx[taps] >= 0; ++taps) src[taps] = b.taps->coarse + static_cast<std::size_t>(idx[taps]) * n2;
-      // W coefficients at a time, summed in a register over the taps (a sum kept in memory would
-      // chain every tap's load to the last one's store); the rest one at a time.
-      int k = 0;
-      for (; k + W <= n2; k += W) {
-        F acc = V::mul(V::set(wt[0]), V::load(src[0] + k));
-        for (int t = 1; t < taps; ++t) acc = V::fma(V::set(wt[t]), V::load(src[t] + k), acc);
-        V::store(row + k, acc);
-      }
-      for (; k < n2; ++k) {
-        float acc = wt[0] * src[0][k];
-        for (int t = 1; t < taps; ++t) acc += wt[t] * src[t][k];
-        row[k] = acc;
-      }
-    } else if (b.g && !b.taps) {
-      gi = b.g + i * n2;
-    } else {
+    float* row = rows + l * n2p;
+    const bool tapped = b.taps && interpolate_taps<V>(*b.taps, i, n2, row);
+    if (!tapped && b.g && !b.taps) {
+      std::copy(b.g + i * n2, b.g + (i + 1) * n2, row);
+    } else if (!tapped) {
       row[0] = static_cast<float>(sh::kSqrt4Pi);
       std::fill(row + 1, row + n2, 0.0f);
     }
-    for (int k = 0; k < n2; ++k) g[k * W + l] = gi[k];
-    if (b.taps && b.taps->out) std::copy(gi, gi + n2, b.taps->out + i * n2);
+    std::fill(row + n2, row + n2p, 0.0f);
+    if (b.taps && b.taps->out) std::copy(row, row + n2, b.taps->out + i * n2);
   }
+  // Into the lanes W x W at a time (a copy one float at a time was most of the kernel's time).
+  for (int j = 0; j < n2p; j += W) V::transpose(rows + j, static_cast<std::size_t>(n2p), g + j * W);
   basis_soa<V>(n, V::load(lane[0]), V::load(lane[1]), V::load(lane[2]), H);
   for (int k = 0; k < n2; ++k) {
     V::store(H + k * W, V::mul(V::load(H + k * W), V::set(b.hcoef[k])));
@@ -307,28 +320,7 @@ void shade_transfer_block(const BatchShade& b, const ReceiverSoA& rec, std::size
     lane[1][l] = rec.ny[i];
     lane[2][l] = rec.nz[i];
     float* row = rows + l * mp;
-    const std::int32_t pixel = tp.pixel[i];
-    if (tp.index[pixel][0] < 0) {
-      std::copy(b.transfer->unshadowed.begin(), b.transfer->unshadowed.end(), row);
-    } else {
-      const std::array<std::int32_t, 4>& idx = tp.index[pixel];
-      const std::array<float, 4>& wt = tp.weight[pixel];
-      const float* src[4];
-      int taps = 0;
-      for (; taps < 4 && idx[taps] >= 0; ++taps) src[taps] = tp.coarse + static_cast<std::size_t>(idx[taps]) * m;
-      // As in shade_block: a vector of the row at a time, summed in a register over the taps.
-      int k = 0;
-      for (; k + W <= m; k += W) {
-        F acc = V::mul(V::set(wt[0]), V::load(src[0] + k));
-        for (int t = 1; t < taps; ++t) acc = V::fma(V::set(wt[t]), V::load(src[t] + k), acc);
-        V::store(row + k, acc);
-      }
-      for (; k < m; ++k) {
-        float acc = wt[0] * src[0][k];
-        for (int t = 1; t < taps; ++t) acc += wt[t] * src[t][k];
-        row[k] = acc;
-      }
-    }
+    if (!interpolate_taps<V>(tp, i, m, row)) std::copy(b.transfer->unshadowed.begin(), b.transfer->unshadowed.end(), row);
     std::fill(row + m, row + mp, 0.0f);
   }
   for (int j = 0; j < mp; j += W) V::transpose(rows + j, static_cast<std::size_t>(mp), T + j * W);
@@ -355,6 +347,117 @@ inline void shade_dispatch(const BatchShade& b, const ReceiverSoA& rec, std::siz
     return;
   }
   for (std::size_t i = begin; i < end; i += W) shade_block<Vec>(b, rec, i, end - i < W ? end - i : W, out + (i - begin));
+}
+
+// sin and cos of a in [0, pi/2] by their Taylor polynomials to degree 13 and 14 (truncation below
+// 6e-9 on that range): shaders/include/accum_math.glsl's accum_sincos_quarter.
+template <class V>
+inline void sincos_quarter(typename V::F a, typename V::F& s, typename V::F& c) {
+  using F = typename V::F;
+  const F a2 = V::mul(a, a);
+  F ps = V::set(static_cast<float>(1.0 / 6227020800.0));
+  for (const double k : {-1.0 / 39916800.0, 1.0 / 362880.0, -1.0 / 5040.0, 1.0 / 120.0, -1.0 / 6.0, 1.0})
+    ps = V::fma(ps, a2, V::set(static_cast<float>(k)));
+  s = V::mul(a, ps);
+  F pc = V::set(static_cast<float>(-1.0 / 87178291200.0));
+  for (const double k : {1.0 / 479001600.0, -1.0 / 3628800.0, 1.0 / 40320.0, -1.0 / 720.0, 1.0 / 24.0, -0.5, 1.0})
+    pc = V::fma(pc, a2, V::set(static_cast<float>(k)));
+  c = pc;
+}
+
+// Paper 004 section 7's spherical lights for up to W receivers: lights_batch's block. Per light and
+// lane the steps of light_lh_world (angular radius, angle to the normal, the table's lobe, its axis
+// turned into the receiver's frame) with shade.comp's polynomials for asin, acos, sin and cos; the
+// table itself is read per lane (LightLobeTable::lookup_unit).
+template <class V>
+void lights_block(const LightLobeTable& t, const std::vector<scene::SphericalLight>& lights, const float* gwin,
+                  const ReceiverSoA& rec, std::size_t begin, std::size_t cnt, const float* g, glm::vec3* out) {
+  using F = typename V::F;
+  constexpr int W = V::W;
+  constexpr int kMaxRow = (sh::kMaxCoeffs + W - 1) / W * W;
+  const int n = t.order, n2 = n * n, n2p = (n2 + W - 1) / W * W;
+  const float half_pi = static_cast<float>(sh::kPi / 2), pi = static_cast<float>(sh::kPi);
+  alignas(64) float lane[6][W], th[W], fa[W], psi[W], kk[kMaxAccOrder][W], e[3][W];
+  alignas(64) float rows[W * kMaxRow], GW[kMaxRow * W], Y[sh::kMaxCoeffs * W];
+  for (int l = 0; l < W; ++l) {
+    const std::size_t i = begin + (static_cast<std::size_t>(l) < cnt ? l : cnt - 1);
+    const float* src[6] = {rec.px.data(), rec.py.data(), rec.pz.data(), rec.nx.data(), rec.ny.data(), rec.nz.data()};
+    for (int a = 0; a < 6; ++a) lane[a][l] = src[a][i];
+    float* row = rows + l * n2p;
+    for (int k = 0; k < n2; ++k) row[k] = (g ? g[i * n2 + k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f)) * gwin[k];
+    std::fill(row + n2, row + n2p, 0.0f);
+  }
+  for (int j = 0; j < n2p; j += W) V::transpose(rows + j, static_cast<std::size_t>(n2p), GW + j * W);
+  const F px = V::load(lane[0]), py = V::load(lane[1]), pz = V::load(lane[2]);
+  const F nx = V::load(lane[3]), ny = V::load(lane[4]), nz = V::load(lane[5]);
+  const F zero = V::set(0.0f), one = V::set(1.0f), tiny = V::set(1e-30f);
+  const auto vabs = [&](F x) { return V::max(x, V::sub(zero, x)); };
+  F acc[3] = {zero, zero, zero};
+  for (const scene::SphericalLight& light : lights) {
+    if (!(light.radius > 0.0f)) continue;  // light_lh_world: degenerate, no term
+    const F R = V::set(light.radius);
+    const F dx = V::sub(V::set(light.position.x), px), dy = V::sub(V::set(light.position.y), py),
+            dz = V::sub(V::set(light.position.z), pz);
+    const F dist = V::sqrt(V::fma(dx, dx, V::fma(dy, dy, V::mul(dz, dz))));
+    const auto valid = V::lt(zero, dist);  // a receiver at the light's centre gets no term
+    const F sd = V::max(dist, tiny);
+    const F ux = V::div(dx, sd), uy = V::div(dy, sd), uz = V::div(dz, sd);
+    const F theta = V::select(V::lt(R, dist), asin01<V>(V::min(V::div(R, sd), one)), V::set(half_pi));
+    const F cf = V::min(V::max(V::fma(ux, nx, V::fma(uy, ny, V::mul(uz, nz))), V::set(-1.0f)), one);
+    const F a = asin01<V>(V::min(vabs(cf), one));
+    const F f = V::select(V::ge(cf, zero), V::sub(V::set(half_pi), a), V::add(V::set(half_pi), a));
+    V::store(th, theta);
+    V::store(fa, f);
+    for (int l = 0; l < W; ++l) {
+      float k[kMaxAccOrder];
+      t.lookup_unit(th[l], fa[l], psi[l], k);
+      for (int b = 0; b < n; ++b) kk[b][l] = k[b];
+    }
+    // k is stored per unit solid angle of the light: times 4 pi sin^2(theta / 2).
+    F sh2, ch2;
+    sincos_quarter<V>(V::mul(V::set(0.5f), V::max(theta, V::set(static_cast<float>(kLightThetaFloor)))), sh2, ch2);
+    const F omega = V::mul(V::set(static_cast<float>(4.0 * sh::kPi)), V::mul(sh2, sh2));
+    // Canonical frame: N = z, light in the xz plane on the +x side; the lobe axis at psi from z.
+    F tx = V::fnma(cf, nx, ux), ty = V::fnma(cf, ny, uy), tz = V::fnma(cf, nz, uz);
+    const F tl = V::sqrt(V::fma(tx, tx, V::fma(ty, ty, V::mul(tz, tz))));
+    const auto along = V::ge(V::set(1e-6f), tl);
+    const F itl = V::div(one, V::max(tl, tiny));
+    // Light on the normal: the lobe is on the normal too (psi = 0 or pi), any tangent will do:
+    // N x (1, 0, 0) = (0, Nz, -Ny) where |Nx| < 0.9, else N x (0, 1, 0) = (-Nz, 0, Nx).
+    const auto use_x = V::lt(vabs(nx), V::set(0.9f));
+    const F fx = V::select(use_x, zero, V::sub(zero, nz)), fy = V::select(use_x, nz, zero), fz = V::select(use_x, V::sub(zero, ny), nx);
+    const F ifl = V::div(one, V::max(V::sqrt(V::fma(fx, fx, V::fma(fy, fy, V::mul(fz, fz)))), tiny));
+    tx = V::select(along, V::mul(fx, ifl), V::mul(tx, itl));
+    ty = V::select(along, V::mul(fy, ifl), V::mul(ty, itl));
+    tz = V::select(along, V::mul(fz, ifl), V::mul(tz, itl));
+    // (sin psi, cos psi) for psi in [0, pi], reflected about pi/2 (accum_sincos_half).
+    const F ps = V::load(psi);
+    const auto low = V::ge(V::set(half_pi), ps);
+    const F r = V::min(V::max(V::select(low, ps, V::sub(V::set(pi), ps)), zero), V::set(half_pi));
+    F sp, cp;
+    sincos_quarter<V>(r, sp, cp);
+    cp = V::select(low, cp, V::sub(zero, cp));
+    basis_soa<V>(n, V::fma(cp, nx, V::mul(sp, tx)), V::fma(cp, ny, V::mul(sp, ty)), V::fma(cp, nz, V::mul(sp, tz)), Y);
+    // (k_l Omega y_lm(axis)) . (gwin g) per band.
+    F d = zero;
+    for (int b = 0; b < n; ++b) {
+      F band = zero;
+      for (int m = b * b; m < (b + 1) * (b + 1); ++m) band = V::fma(V::load(Y + m * W), V::load(GW + m * W), band);
+      d = V::fma(V::mul(V::load(kk[b]), omega), band, d);
+    }
+    d = V::select(valid, d, zero);
+    acc[0] = V::fma(d, V::set(light.radiance.x), acc[0]);
+    acc[1] = V::fma(d, V::set(light.radiance.y), acc[1]);
+    acc[2] = V::fma(d, V::set(light.radiance.z), acc[2]);
+  }
+  for (int c = 0; c < 3; ++c) V::store(e[c], acc[c]);
+  for (std::size_t l = 0; l < cnt; ++l) out[l] += glm::vec3(e[0][l], e[1][l], e[2][l]);
+}
+
+inline void lights_dispatch(const LightLobeTable& t, const std::vector<scene::SphericalLight>& lights, const float* gwin,
+                            const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g, glm::vec3* out) {
+  constexpr std::size_t W = Vec::W;
+  for (std::size_t i = begin; i < end; i += W) lights_block<Vec>(t, lights, gwin, rec, i, end - i < W ? end - i : W, g, out + (i - begin));
 }
 
 // ShadeTransfer's rows: r[s] = sum_b g[s]_b at[b], W floats of the row at a time.

@@ -506,6 +506,23 @@ void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std
   }
 }
 
+void lights_batch(KernelIsa isa, const LightLobeTable& table, const std::vector<scene::SphericalLight>& lights, int order,
+                  const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g, glm::vec3* out) {
+  if (table.order != order || order < 1 || order > kMaxAccOrder)
+    throw std::invalid_argument("lights_batch: light table of order " + std::to_string(table.order) + " for shading order " +
+                                std::to_string(order));
+  if (!gwin) throw std::invalid_argument("lights_batch: no visibility window");
+  if (end > rec.size() || begin > end) throw std::invalid_argument("lights_batch: receiver range outside the receivers");
+  if (begin == end || lights.empty()) return;
+  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("lights_batch: this CPU cannot run ") + to_string(isa));
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: kscalar::lights_dispatch(table, lights, gwin, rec, begin, end, g, out); return;
+    case KernelIsa::Avx2: kavx2::lights_dispatch(table, lights, gwin, rec, begin, end, g, out); return;
+    case KernelIsa::Avx512: kavx512::lights_dispatch(table, lights, gwin, rec, begin, end, g, out); return;
+  }
+}
+
 ShadeTransfer ShadeTransfer::make(const BatchShade& b) {
   if (!b.plan || b.plan->order != b.order || !b.L || !b.hcoef || !b.gwin)
     throw std::invalid_argument("ShadeTransfer: incomplete shading inputs");

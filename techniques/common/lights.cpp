@@ -117,6 +117,12 @@ LightLobeTable make_light_lobe_table(int order, int rows_theta, int rows_f, doub
 }
 
 void LightLobeTable::lookup(float theta, float f, float& psi_out, float* k_out) const {
+  lookup_unit(theta, f, psi_out, k_out);
+  const float omega = static_cast<float>(solid_angle(std::max(static_cast<double>(theta), kLightThetaFloor)));
+  for (int l = 0; l < order; ++l) k_out[l] *= omega;
+}
+
+void LightLobeTable::lookup_unit(float theta, float f, float& psi_out, float* k_out) const {
   auto coord = [](float x, float range, int rows, int& k0, float& w) {
     float u = x / range * static_cast<float>(rows - 1);
     if (!(u > 0.0f)) u = 0.0f;
@@ -137,8 +143,6 @@ void LightLobeTable::lookup(float theta, float f, float& psi_out, float* k_out) 
     psi_out += w[c] * psi[cells[c]];
     for (int l = 0; l < order; ++l) k_out[l] += w[c] * k[cells[c] * order + l];
   }
-  const float omega = static_cast<float>(solid_angle(std::max(static_cast<double>(theta), kLightThetaFloor)));
-  for (int l = 0; l < order; ++l) k_out[l] *= omega;
 }
 
 bool light_lh_world(const LightLobeTable& t, const glm::vec3& p, const glm::vec3& n, const glm::vec3& c, float radius,
@@ -169,29 +173,17 @@ bool light_lh_world(const LightLobeTable& t, const glm::vec3& p, const glm::vec3
   return true;
 }
 
-long long add_lights_and_clamp(const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights, int order,
-                               const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end, const float* g,
-                               bool zero_normal_empty, glm::vec3* out) {
-  const int n2 = order * order;
-  const bool shade_lights = shades_lights(table, lights);
-  std::array<float, sh::kMaxCoeffs> gw{}, LH{};
+long long add_lights_and_clamp(KernelIsa isa, const LightLobeTable* table, const std::vector<scene::SphericalLight>& lights,
+                               int order, const float* gwin, const ReceiverSoA& rec, std::size_t begin, std::size_t end,
+                               const float* g, bool zero_normal_empty, glm::vec3* out) {
+  if (shades_lights(table, lights)) lights_batch(isa, *table, lights, order, gwin, rec, begin, end, g, out);
   long long clamped = 0;
   for (std::size_t i = begin; i < end; ++i) {
     if (zero_normal_empty && rec.nx[i] == 0.0f && rec.ny[i] == 0.0f && rec.nz[i] == 0.0f) {
       out[i - begin] = glm::vec3(0.0f);
       continue;
     }
-    glm::vec3 e = out[i - begin];
-    if (shade_lights) {
-      for (int k = 0; k < n2; ++k) gw[k] = (g ? g[i * n2 + k] : (k == 0 ? static_cast<float>(sh::kSqrt4Pi) : 0.0f)) * gwin[k];
-      const glm::vec3 p(rec.px[i], rec.py[i], rec.pz[i]), N(rec.nx[i], rec.ny[i], rec.nz[i]);
-      for (const auto& light : lights)
-        if (light_lh_world(*table, p, N, light.position, light.radius, LH.data())) {
-          float d = 0.0f;
-          for (int k = 0; k < n2; ++k) d += LH[k] * gw[k];
-          e += d * light.radiance;
-        }
-    }
+    const glm::vec3 e = out[i - begin];
     // Truncated SH can ring below zero in deep shadow; outgoing radiance cannot.
     if (e.x < 0.0f || e.y < 0.0f || e.z < 0.0f) ++clamped;
     out[i - begin] = glm::max(e, glm::vec3(0.0f));

@@ -274,7 +274,7 @@ long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::si
   const common::BatchShade bs = batch(g);
   // Eq. 10's first term: (H(N) * O) . L per channel = O . L~(N) by the triple-product identity.
   common::shade_batch(isa, bs, rec, begin, end, out);
-  return common::add_lights_and_clamp(lights_table.get(), lights, order, gwin.data(), rec, begin, end, g, true, out);
+  return common::add_lights_and_clamp(isa, lights_table.get(), lights, order, gwin.data(), rec, begin, end, g, true, out);
 }
 
 long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::size_t end, const common::BatchShade::Taps& taps,
@@ -286,7 +286,7 @@ long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::si
   bs.taps = &taps;
   bs.transfer = transfer;
   common::shade_batch(isa, bs, rec, begin, end, out);
-  return common::add_lights_and_clamp(lights_table.get(), lights, order, gwin.data(), rec, begin, end, taps.out, true, out);
+  return common::add_lights_and_clamp(isa, lights_table.get(), lights, order, gwin.data(), rec, begin, end, taps.out, true, out);
 }
 
 std::vector<glm::vec3> irradiance_sh(const std::vector<glm::vec3>& env_sh, int order) {

@@ -518,7 +518,7 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, const common::S
     std::atomic<long long> cl{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.soa.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
       shade_batch(s.isa, bs, r.soa, br.begin(), br.end(), shade.data() + br.begin());
-      cl += add_lights_and_clamp(lt.get(), ctx.posed.lights, n, gwin.data(), r.soa, br.begin(), br.end(), bs.g, false,
+      cl += add_lights_and_clamp(s.isa, lt.get(), ctx.posed.lights, n, gwin.data(), r.soa, br.begin(), br.end(), bs.g, false,
                                  shade.data() + br.begin());
     });
     clamped = cl.load();

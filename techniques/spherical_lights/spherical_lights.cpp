@@ -537,7 +537,7 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, Stage stage, co
     std::atomic<long long> cl{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rec.size(), 256), [&](const tbb::blocked_range<std::size_t>& br) {
       shade_batch(s.isa, bs, rec, br.begin(), br.end(), out->value.data() + br.begin());
-      cl += add_lights_and_clamp(lt.get(), ctx.posed.lights, n, gwin.data(), rec, br.begin(), br.end(), bs.g, false,
+      cl += add_lights_and_clamp(s.isa, lt.get(), ctx.posed.lights, n, gwin.data(), rec, br.begin(), br.end(), bs.g, false,
                                  out->value.data() + br.begin());
     });
     clamped = cl.load();

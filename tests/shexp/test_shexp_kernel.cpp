@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <random>
 #include <vector>
@@ -872,6 +873,103 @@ TEST(ShexpLights, SingleLobeFitAndRotationMatchTheExactLH) {
     // Fit error of the cell plus bilinear interpolation over coarse (24 x 48) cells.
     EXPECT_LT(std::sqrt(err) / peak, t.max_fit_error + 0.05) << c.x;
   }
+}
+
+// lights_batch evaluates every light's lobe across receivers with shade.comp's polynomials for asin,
+// acos, sin and cos; the reference is light_lh_world (std:: functions, the solid angle in double) per
+// receiver and light, dotted with gwin g_i and summed in double. Random receivers, visibilities and
+// lights with the special cases of light_lh_world (a light on the normal, a receiver inside a light,
+// at its centre, behind the horizon, a zero radius, a zero normal), orders 3, 4 and 6 against 8 and
+// 16 lanes, with and without visibility. The angles differ by the polynomials' error (<= 2e-8) and
+// float roundings (about 1e-7 rad, more for f through acos where cos f nears 1: the error grows as
+// 1 / sin f); through the table's bilinear lookup and the lobe's rotation that moves a term by up to
+// ~1e-5 of its size (measured 1.05e-5): kLightsRelTol of the receiver's sum of |term| |radiance| (a
+// term near the horizon is a difference of large SH coefficients), floored at 1e-3 of the largest.
+TEST_P(ShexpBatch, LightsBatchMatchesTheLobeOfEveryLightPerReceiver) {
+  constexpr double kLightsRelTol = 5e-5, kOnNormalRelTol = 1e-3, kOppositeRelTol = 0.1;
+  const KernelIsa isa = GetParam();
+  std::mt19937 rng(20261206);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f), u01(0.0f, 1.0f);
+  const auto unit = [&] {
+    for (;;) {
+      const glm::vec3 v(u(rng), u(rng), u(rng));
+      if (glm::dot(v, v) > 1e-3f && glm::dot(v, v) <= 1.0f) return glm::normalize(v);
+    }
+  };
+  double worst = 0.0;
+  for (int order : {3, 4, 6}) {
+    const int n2 = order * order;
+    const LightLobeTable lt = make_light_lobe_table(order, 48, 96, 2.0 * order);
+    std::vector<scene::SphericalLight> lights(5);
+    for (auto& l : lights) {
+      l.position = 2.0f * glm::vec3(u(rng), u(rng), u(rng));
+      l.radius = 0.05f + 0.4f * u01(rng);
+      l.radiance = 50.0f * glm::vec3(u01(rng), u01(rng), u01(rng));
+    }
+    lights[4].radius = 0.0f;  // degenerate: no term
+    constexpr std::size_t kCount = 301;  // ends inside a block of 8 and of 16
+    ReceiverSoA soa;
+    soa.resize(kCount);
+    for (std::size_t i = 0; i < kCount; ++i) {
+      glm::vec3 p = 2.0f * glm::vec3(u(rng), u(rng), u(rng)), N = unit();
+      if (i % 37 == 1) N = glm::normalize(lights[0].position - p);                  // light on the normal
+      if (i % 37 == 2) N = -glm::normalize(lights[2].position - p);                 // light right below
+      if (i % 37 == 3) p = lights[1].position + 0.5f * lights[1].radius * unit();  // inside the light
+      if (i % 37 == 4) p = lights[3].position;                                       // at its centre
+      if (i % 37 == 5) N = glm::vec3(0.0f);                                          // no surface
+      soa.set(i, p, N);
+    }
+    std::vector<float> vis(kCount * n2), gwin(n2);
+    for (std::size_t i = 0; i < kCount; ++i) {
+      vis[i * n2] = static_cast<float>(sh::kSqrt4Pi) * (0.3f + 0.7f * u01(rng));
+      for (int k = 1; k < n2; ++k) vis[i * n2 + k] = 0.3f * u(rng);
+    }
+    for (auto& w : gwin) w = 0.5f + 0.5f * u01(rng);
+    for (const bool with_vis : {true, false}) {
+      const float* g = with_vis ? vis.data() : nullptr;
+      std::vector<glm::vec3> got(kCount, glm::vec3(0.0f));
+      lights_batch(isa, lt, lights, order, gwin.data(), soa, 0, kCount, g, got.data());
+      double peak = 0.0;
+      std::vector<glm::dvec3> want(kCount), scale(kCount);
+      for (std::size_t i = 0; i < kCount; ++i) {
+        const glm::vec3 p(soa.px[i], soa.py[i], soa.pz[i]), N(soa.nx[i], soa.ny[i], soa.nz[i]);
+        for (const auto& light : lights) {
+          std::array<float, sh::kMaxCoeffs> lh{};
+          if (!light_lh_world(lt, p, N, light.position, light.radius, lh.data())) continue;
+          double d = 0.0, mag = 0.0;
+          for (int k = 0; k < n2; ++k) {
+            const double gk = (g ? g[i * n2 + k] : (k == 0 ? sh::kSqrt4Pi : 0.0)) * gwin[k];
+            d += lh[k] * gk;
+            mag += std::abs(lh[k] * gk);
+          }
+          want[i] += d * glm::dvec3(light.radiance);
+          scale[i] += mag * glm::dvec3(light.radiance);
+        }
+        peak = std::max({peak, scale[i].x, scale[i].y, scale[i].z});
+      }
+      ASSERT_GT(peak, 0.0);
+      for (std::size_t i = 0; i < kCount; ++i)
+        for (int c = 0; c < 3; ++c) {
+          const double err = std::abs(got[i][c] - want[i][c]) / std::max(scale[i][c], 1e-3 * peak);
+          // A light exactly opposite the normal sits on the table's last column in f (f = pi), whose
+          // fit is degenerate (the lobe of a light wholly below the horizon is SH ringing, its axis
+          // psi jumps between neighbouring cells): there the lobe depends on the last bits of cos f
+          // in either implementation, and only the size of the term is checked.
+          // A light on the normal (f = 0) is found through acos near 1, where a rounding of cos f by
+          // 6e-8 moves f by ~1e-4 rad (f ~ sqrt(2 (1 - cos f))): a few thousandths of a table cell,
+          // about 1e-4 of the term (measured 1.4e-4 at order 6).
+          const bool opposite = i % 37 == 2, on_normal = i % 37 == 1;
+          if (!opposite && !on_normal) worst = std::max(worst, err);
+          EXPECT_LE(err, opposite ? kOppositeRelTol : on_normal ? kOnNormalRelTol : kLightsRelTol)
+              << "order " << order << " receiver " << i << " channel " << c << " got " << got[i][c] << " want " << want[i][c]
+              << (with_vis ? "" : " unshadowed") << " " << to_string(isa);
+        }
+    }
+    std::vector<glm::vec3> out(kCount);
+    const LightLobeTable other = make_light_lobe_table(order == 3 ? 4 : 3, 8, 8, 0.0);
+    EXPECT_THROW(lights_batch(isa, other, lights, order, gwin.data(), soa, 0, kCount, nullptr, out.data()), std::invalid_argument);
+  }
+  std::printf("[lights] %s: worst difference %.3g of the receiver's term sizes\n", to_string(isa), worst);
 }
 
 // Unshadowed, a sphere light wholly above the receiver's horizon gives E / pi = L sin^2(theta) cos(f)

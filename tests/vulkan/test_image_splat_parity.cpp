@@ -50,11 +50,12 @@ constexpr double kMissMeasureRelTol = 1e-4;
 constexpr double kUpsampleRelTol = 1e-4;
 // shade_direct: SHEXP's shade tolerance (kShadeRelTol in test_shexp_parity.cpp: one SH product and a
 // dot product per channel, unfused on lavapipe) on visibility interpolated from <= 4 taps (a few
-// roundings more), plus the spherical lights (cornell): the GPU evaluates asin, acos and sin by fixed
-// polynomials where the CPU calls std::asin / std::acos / double sin, and the lobe axis through the
-// basis recurrence where the CPU calls sh::eval_basis; each moves the light's table coordinates or
-// the lobe by a few float ulps, and L_H varies smoothly across table cells. Observed on lavapipe:
-// <= 4.9e-6 (cornell, with its light), <= 8.4e-7 elsewhere.
+// roundings more), and without spherical lights the CPU's transfer rows (the same sum reassociated:
+// common::ShadeTransfer), plus the spherical lights (cornell): both backends evaluate asin, acos, sin
+// and cos by the same polynomials and the lobe axis through the basis recurrence, in their own order
+// of float operations (fused or not); each moves the light's table coordinates or the lobe by a few
+// float ulps, and L_H varies smoothly across table cells. Observed on lavapipe: <= 3.0e-6 (cornell,
+// with its light; 4.9e-6 when the CPU called std::asin / std::acos / double sin), <= 1.2e-6 elsewhere.
 constexpr double kShadeDirectRelTol = 2e-4;
 // Pixels whose clamped-at-0 decision may differ: those whose most negative channel is within float
 // noise of 0, a small fraction of the surface.

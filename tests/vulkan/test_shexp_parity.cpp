@@ -189,7 +189,7 @@ TEST_F(ShexpParity, ShadingWithSphericalLightsMatchesTheCpuOnRandomInput) {
       const sx::BatchShade bs = sx::BatchShade::make(order, L.data(), hcoef.data(), gwin.data(), with_vis ? vis.data() : nullptr);
       std::vector<glm::vec3> cpu(count), gpu(count);
       sx::shade_batch(sx::KernelIsa::Scalar, bs, soa, 0, count, cpu.data());
-      const long long cpu_clamped = sx::add_lights_and_clamp(&lt, lights, order, gwin.data(), soa, 0, count, bs.g, true, cpu.data());
+      const long long cpu_clamped = sx::add_lights_and_clamp(sx::best_kernel_isa(), &lt, lights, order, gwin.data(), soa, 0, count, bs.g, true, cpu.data());
       result.passes.push_back(render::PassRecord{"shade@vulkan"});
       const long long gpu_clamped = techniques::common::vulkan_shade(ctx, sx::GpuShade{&bs, &lt, &lights, true, nullptr}, soa, gpu.data());
       std::vector<float> a, b;
