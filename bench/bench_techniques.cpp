@@ -46,10 +46,20 @@ std::map<Key, Times>& times() {
   return t;
 }
 
-// A technique at its defaults (assignment empty) or with one parameter set: "name=value".
+// A technique at its defaults (assignment empty) or with parameters set: "name=value", several
+// joined by '+' ("receiver_scale=4+indirect=false").
 struct Variant {
   std::string technique, assignment;
   std::string label() const { return assignment.empty() ? technique : technique + "[" + assignment + "]"; }
+  void apply(render::ParamSet& p) const {
+    std::size_t start = 0;
+    while (start < assignment.size()) {
+      const std::size_t plus = assignment.find('+', start);
+      const std::size_t end = plus == std::string::npos ? assignment.size() : plus;
+      p.set_assignment(assignment.substr(start, end - start));
+      start = end + 1;
+    }
+  }
 };
 
 void BM_Technique(benchmark::State& state, const std::string& scene_name, const std::string& backend, const Variant& variant,
@@ -72,7 +82,7 @@ void BM_Technique(benchmark::State& state, const std::string& scene_name, const 
   // One technique object for all frames: it keeps its cross-frame state.
   const std::unique_ptr<render::Technique> tech = render::create_technique(technique);
   render::ParamSet params = render::default_params(*tech);
-  if (!variant.assignment.empty()) params.set_assignment(variant.assignment);
+  variant.apply(params);
   render::RenderRequest req;
   req.width = req.height = side;
   req.time = 0.0;
@@ -217,7 +227,7 @@ int main(int argc, char** argv) {
       Variant var{tech, item.substr(colon + 1)};
       try {
         render::ParamSet p = render::default_params(*render::create_technique(tech));
-        p.set_assignment(var.assignment);
+        var.apply(p);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "--variants: %s: %s\n", item.c_str(), e.what());
         return 2;

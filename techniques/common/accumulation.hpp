@@ -186,9 +186,9 @@ struct BatchShade {
     float* out = nullptr;  // null, or g_i written at out + i order^2 (the unshadowed vector where no tap)
   };
   const Taps* taps = nullptr;
-  // With taps: taps->coarse holds the coarse samples' transfer rows (ShadeTransfer, 3 order^2 floats
+  // With taps: taps->coarse holds the coarse samples' transfer rows (ShadeTransfer::stride() floats
   // each) instead of their visibility, and a receiver is shaded as y(N) . sum_t w_t R_t; taps->out
-  // must be null (no g_i is formed).
+  // receives g_i only from rows that carry the visibility (ShadeTransfer::carries_visibility).
   const ShadeTransfer* transfer = nullptr;
   // The plan of `order` with the given arrays (ProductPlan::get is cached).
   static BatchShade make(int order, const float* L, const float* hcoef, const float* gwin, const float* g);
@@ -201,15 +201,20 @@ struct BatchShade {
 //   sum_t w_t (H(N) * (gwin G_t)) . L_c = y(N) . sum_t w_t R_c(G_t),
 // the same value as BatchShade's SH product per pixel in exact arithmetic, for one matrix-vector
 // product per coarse sample instead of an SH product per display pixel.
+// A reader that needs g_i itself per receiver as well (the spherical lights) takes rows that carry
+// it: [R(g) | g], interpolated together, so that one interpolation serves both.
 struct ShadeTransfer {
   int order = 0;
+  bool carries_visibility = false;
   std::vector<float> at;          // n^2 rows of 3 n^2: row b holds dR/dg_b (channel-major R_c,a)
-  std::vector<float> unshadowed;  // 3 n^2: R of the unshadowed vector (sqrt(4 pi), 0, ...)
+  std::vector<float> unshadowed;  // stride(): the row of the unshadowed vector (sqrt(4 pi), 0, ...)
+  int stride() const { return (carries_visibility ? 4 : 3) * order * order; }
   // From b's plan, L, hcoef and gwin (A summed in double).
-  static ShadeTransfer make(const BatchShade& b);
+  static ShadeTransfer make(const BatchShade& b, bool carries_visibility = false);
 };
-// r[s] = R(g[s]) for `count` visibility vectors (n^2 floats each) into rows of 3 n^2 floats. An
-// all-zero vector (a coarse pixel without a receiver) gives a zero row without arithmetic.
+// r[s] = the row of g[s] (R(g[s]), then g[s] where the rows carry it) for `count` visibility vectors
+// (n^2 floats each), stride() floats each. An all-zero vector (a coarse pixel without a receiver)
+// gives a zero row without arithmetic.
 void transfer_rows(KernelIsa isa, const ShadeTransfer& t, const float* g, std::size_t count, float* r);
 
 // out[i - begin] = (H(N_i) * g_i) . L per channel, for receivers [begin, end).

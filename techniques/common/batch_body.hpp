@@ -309,8 +309,8 @@ template <class V>
 void shade_transfer_block(const BatchShade& b, const ReceiverSoA& rec, std::size_t begin, std::size_t cnt, glm::vec3* out) {
   using F = typename V::F;
   constexpr int W = V::W;
-  constexpr int kMaxRow = (3 * sh::kMaxCoeffs + W - 1) / W * W;
-  const int n = b.order, n2 = n * n, m = 3 * n2, mp = (m + W - 1) / W * W;
+  constexpr int kMaxRow = (4 * sh::kMaxCoeffs + W - 1) / W * W;
+  const int n = b.order, n2 = n * n, m = b.transfer->stride(), mp = (m + W - 1) / W * W, mr = (3 * n2 + W - 1) / W * W;
   const BatchShade::Taps& tp = *b.taps;
   alignas(64) float lane[3][W];
   alignas(64) float Y[sh::kMaxCoeffs * W], rows[W * kMaxRow], T[kMaxRow * W];
@@ -322,8 +322,10 @@ void shade_transfer_block(const BatchShade& b, const ReceiverSoA& rec, std::size
     float* row = rows + l * mp;
     if (!interpolate_taps<V>(tp, i, m, row)) std::copy(b.transfer->unshadowed.begin(), b.transfer->unshadowed.end(), row);
     std::fill(row + m, row + mp, 0.0f);
+    if (tp.out) std::copy(row + 3 * n2, row + 4 * n2, tp.out + i * n2);  // rows that carry g_i
   }
-  for (int j = 0; j < mp; j += W) V::transpose(rows + j, static_cast<std::size_t>(mp), T + j * W);
+  // The R part into the lanes (the carried g_i, if any, is read per receiver).
+  for (int j = 0; j < mr; j += W) V::transpose(rows + j, static_cast<std::size_t>(mp), T + j * W);
   basis_soa<V>(n, V::load(lane[0]), V::load(lane[1]), V::load(lane[2]), Y);
   for (int c = 0; c < 3; ++c) {
     // Two partial sums: one would chain every coefficient on the multiply-add latency.
@@ -365,10 +367,23 @@ inline void sincos_quarter(typename V::F a, typename V::F& s, typename V::F& c) 
   c = pc;
 }
 
+// LightLobeTable::lookup_unit's coordinate of x in [0, range] over `rows` samples, in lanes: the
+// cell's first row (as a float) and the weight of the next, the last cell interpolating to its end.
+template <class V>
+inline void table_coord(typename V::F x, float range, int rows, typename V::F& k0, typename V::F& w) {
+  using F = typename V::F;
+  const F last = V::set(static_cast<float>(rows - 1));
+  F u = V::mul(V::div(x, V::set(range)), last);
+  u = V::select(V::lt(V::set(0.0f), u), u, V::set(0.0f));  // NaN and negatives to 0, as !(u > 0)
+  u = V::min(u, last);
+  k0 = V::min(V::to_float(V::trunc(u)), V::set(static_cast<float>(rows - 2)));
+  w = V::sub(u, k0);
+}
+
 // Paper 004 section 7's spherical lights for up to W receivers: lights_batch's block. Per light and
 // lane the steps of light_lh_world (angular radius, angle to the normal, the table's lobe, its axis
-// turned into the receiver's frame) with shade.comp's polynomials for asin, acos, sin and cos; the
-// table itself is read per lane (LightLobeTable::lookup_unit).
+// turned into the receiver's frame) with shade.comp's polynomials for asin, acos, sin and cos and the
+// table's bilinear lookup gathered.
 template <class V>
 void lights_block(const LightLobeTable& t, const std::vector<scene::SphericalLight>& lights, const float* gwin,
                   const ReceiverSoA& rec, std::size_t begin, std::size_t cnt, const float* g, glm::vec3* out) {
@@ -377,7 +392,7 @@ void lights_block(const LightLobeTable& t, const std::vector<scene::SphericalLig
   constexpr int kMaxRow = (sh::kMaxCoeffs + W - 1) / W * W;
   const int n = t.order, n2 = n * n, n2p = (n2 + W - 1) / W * W;
   const float half_pi = static_cast<float>(sh::kPi / 2), pi = static_cast<float>(sh::kPi);
-  alignas(64) float lane[6][W], th[W], fa[W], psi[W], kk[kMaxAccOrder][W], e[3][W];
+  alignas(64) float lane[6][W], psi[W], kk[kMaxAccOrder][W], e[3][W];
   alignas(64) float rows[W * kMaxRow], GW[kMaxRow * W], Y[sh::kMaxCoeffs * W];
   for (int l = 0; l < W; ++l) {
     const std::size_t i = begin + (static_cast<std::size_t>(l) < cnt ? l : cnt - 1);
@@ -406,13 +421,26 @@ void lights_block(const LightLobeTable& t, const std::vector<scene::SphericalLig
     const F cf = V::min(V::max(V::fma(ux, nx, V::fma(uy, ny, V::mul(uz, nz))), V::set(-1.0f)), one);
     const F a = asin01<V>(V::min(vabs(cf), one));
     const F f = V::select(V::ge(cf, zero), V::sub(V::set(half_pi), a), V::add(V::set(half_pi), a));
-    V::store(th, theta);
-    V::store(fa, f);
-    for (int l = 0; l < W; ++l) {
-      float k[kMaxAccOrder];
-      t.lookup_unit(th[l], fa[l], psi[l], k);
-      for (int b = 0; b < n; ++b) kk[b][l] = k[b];
+    // LightLobeTable::lookup_unit in lanes: the bilinear cell of (theta, f) and its four corners'
+    // psi and k_l gathered (cell indices below 2^24, exact in float).
+    F wi, wj, ci, cj;
+    table_coord<V>(theta, half_pi, t.rows_theta, ci, wi);
+    table_coord<V>(f, pi, t.rows_f, cj, wj);
+    const F rf = V::set(static_cast<float>(t.rows_f));
+    const F c00 = V::fma(ci, rf, cj), c10 = V::add(c00, rf);
+    const F cell[4] = {c00, V::add(c00, one), c10, V::add(c10, one)};
+    const F wq[4] = {V::mul(V::sub(one, wi), V::sub(one, wj)), V::mul(V::sub(one, wi), wj), V::mul(wi, V::sub(one, wj)), V::mul(wi, wj)};
+    F psi_v = zero, kv[kMaxAccOrder];
+    for (int b = 0; b < n; ++b) kv[b] = zero;
+    const F order_f = V::set(static_cast<float>(n));
+    for (int q = 0; q < 4; ++q) {
+      psi_v = V::fma(wq[q], V::gather(t.psi.data(), V::trunc(cell[q])), psi_v);
+      const F kbase = V::mul(cell[q], order_f);
+      for (int b = 0; b < n; ++b)
+        kv[b] = V::fma(wq[q], V::gather(t.k.data(), V::trunc(V::add(kbase, V::set(static_cast<float>(b))))), kv[b]);
     }
+    V::store(psi, psi_v);
+    for (int b = 0; b < n; ++b) V::store(kk[b], kv[b]);
     // k is stored per unit solid angle of the light: times 4 pi sin^2(theta / 2).
     F sh2, ch2;
     sincos_quarter<V>(V::mul(V::set(0.5f), V::max(theta, V::set(static_cast<float>(kLightThetaFloor)))), sh2, ch2);
@@ -465,17 +493,18 @@ inline void transfer_rows_dispatch(const ShadeTransfer& t, const float* g, std::
   using V = Vec;
   using F = typename V::F;
   constexpr int W = V::W;
-  const int n2 = t.order * t.order, m = 3 * n2;
+  const int n2 = t.order * t.order, m = 3 * n2, stride = t.stride();
   const float* at = t.at.data();
   for (std::size_t s = 0; s < count; ++s) {
     const float* gs = g + s * n2;
-    float* rs = r + s * m;
+    float* rs = r + s * stride;
     bool zero = true;
     for (int b = 0; b < n2; ++b) zero &= gs[b] == 0.0f;
     if (zero) {
-      std::fill(rs, rs + m, 0.0f);
+      std::fill(rs, rs + stride, 0.0f);
       continue;
     }
+    if (t.carries_visibility) std::copy(gs, gs + n2, rs + m);
     int j = 0;
     for (; j + W <= m; j += W) {
       F acc = V::mul(V::set(gs[0]), V::load(at + j));

@@ -126,6 +126,8 @@ struct Vec {
   static I trunc(F x) { return x > -2e9f && x < 2e9f ? static_cast<int>(x) : 0; }
   static F to_float(I i) { return static_cast<float>(i); }
   static I iclamp(I i, int lo, int hi) { return i < lo ? lo : (i > hi ? hi : i); }
+  // base[i] per lane (i a valid index).
+  static F gather(const float* base, I i) { return base[i]; }
   static F rsqrt(F a) { return 1.0f / std::sqrt(a); }
   static bool all(M m) { return m; }
   static bool any(M m) { return m; }
@@ -233,6 +235,7 @@ struct Vec {
   static I trunc(F x) { return _mm256_cvttps_epi32(x); }  // NaN -> INT_MIN, clamped below
   static F to_float(I i) { return _mm256_cvtepi32_ps(i); }
   static I iclamp(I i, int lo, int hi) { return _mm256_min_epi32(_mm256_max_epi32(i, _mm256_set1_epi32(lo)), _mm256_set1_epi32(hi)); }
+  static F gather(const float* base, I i) { return _mm256_i32gather_ps(base, i, 4); }
   // rsqrt (12 bits) and one Newton step y (1.5 - 0.5 x y^2): ~23 bits. rsqrt(0) = inf stays inf.
   static F rsqrt(F x) {
     const F y = _mm256_rsqrt_ps(x);
@@ -309,6 +312,7 @@ struct Vec {
   static I trunc(F x) { return _mm512_cvttps_epi32(x); }  // NaN -> INT_MIN, clamped below
   static F to_float(I i) { return _mm512_cvtepi32_ps(i); }
   static I iclamp(I i, int lo, int hi) { return _mm512_min_epi32(_mm512_max_epi32(i, _mm512_set1_epi32(lo)), _mm512_set1_epi32(hi)); }
+  static F gather(const float* base, I i) { return _mm512_i32gather_ps(i, base, 4); }
   // rsqrt14 (14 bits) and one Newton step: ~28 bits, below float rounding.
   static F rsqrt(F x) {
     const F y = _mm512_rsqrt14_ps(x);
@@ -489,10 +493,10 @@ void shade_batch(KernelIsa isa, const BatchShade& b, const ReceiverSoA& rec, std
     throw std::invalid_argument("shade_batch: incomplete shading inputs");
   if (b.taps && (!b.taps->pixel || !b.taps->index || !b.taps->weight || !b.taps->coarse))
     throw std::invalid_argument("shade_batch: incomplete interpolation taps");
-  if (b.transfer && (!b.taps || b.taps->out))
-    throw std::invalid_argument("shade_batch: transfer rows need interpolation taps and give no visibility to write out");
+  if (b.transfer && (!b.taps || (b.taps->out && !b.transfer->carries_visibility)))
+    throw std::invalid_argument("shade_batch: transfer rows need interpolation taps, and rows that carry the visibility to write it out");
   if (b.transfer && (b.transfer->order != b.order || b.transfer->at.size() != static_cast<std::size_t>(3 * b.order * b.order * b.order * b.order) ||
-                     b.transfer->unshadowed.size() != static_cast<std::size_t>(3 * b.order * b.order)))
+                     b.transfer->unshadowed.size() != static_cast<std::size_t>(b.transfer->stride())))
     throw std::invalid_argument("shade_batch: transfer rows of order " + std::to_string(b.transfer->order) + " for order " +
                                 std::to_string(b.order));
   if (end > rec.size() || begin > end) throw std::invalid_argument("shade_batch: receiver range outside the receivers");
@@ -523,7 +527,7 @@ void lights_batch(KernelIsa isa, const LightLobeTable& table, const std::vector<
   }
 }
 
-ShadeTransfer ShadeTransfer::make(const BatchShade& b) {
+ShadeTransfer ShadeTransfer::make(const BatchShade& b, bool carries_visibility) {
   if (!b.plan || b.plan->order != b.order || !b.L || !b.hcoef || !b.gwin)
     throw std::invalid_argument("ShadeTransfer: incomplete shading inputs");
   const ProductPlan& p = *b.plan;
@@ -543,8 +547,10 @@ ShadeTransfer ShadeTransfer::make(const BatchShade& b) {
   }
   ShadeTransfer t;
   t.order = b.order;
+  t.carries_visibility = carries_visibility;
   t.at.assign(static_cast<std::size_t>(n2) * m, 0.0f);
-  t.unshadowed.assign(m, 0.0f);
+  t.unshadowed.assign(t.stride(), 0.0f);
+  if (carries_visibility) t.unshadowed[m] = static_cast<float>(sh::kSqrt4Pi);
   for (int bb = 0; bb < n2; ++bb)
     for (int c = 0; c < 3; ++c)
       for (int a = 0; a < n2; ++a) {

@@ -69,11 +69,13 @@ std::vector<ParamDesc> param_descs() {
   d.push_back(common::params::table_resolution());
   d.push_back(common::params::log_threshold());
   d.push_back(ParamDesc::choice("upsample", "bilateral", {"bilateral", "bilinear"}, "upsampling to display resolution (section 4.2, eq. 11)"));
-  d.push_back(ParamDesc::choice("shade_interpolation", "transfer", {"transfer", "visibility"},
-                                "what the eq. 11 taps interpolate for the direct shading without spherical lights: each "
-                                "coarse sample's transfer row (O_p times the light and clamped cosine, one dot product per "
-                                "pixel) or O_p itself, shaded with an SH product per pixel as section 4.2 writes it (the same "
-                                "value; the CPU backend, Vulkan interpolates O_p)"));
+  d.push_back(ParamDesc::choice("shade_interpolation", "auto", {"auto", "transfer", "visibility"},
+                                "what the eq. 11 taps interpolate for the direct shading: each coarse sample's transfer row "
+                                "(O_p times the light and clamped cosine, one dot product per pixel; with O_p alongside for "
+                                "the spherical lights) or O_p itself, shaded with an SH product per pixel as section 4.2 "
+                                "writes it (the same value; the CPU backend, Vulkan interpolates O_p); auto: transfer rows "
+                                "where each coarse sample serves 16 display pixels or more (receiver_scale >= 4), which "
+                                "repays its rows, else O_p"));
   d.push_back(ParamDesc::choice("fallback", "robust", {"robust", "shaded", "none"},
                                 "display pixels no coarse sample matches: shade from the full proxy list, interpolate "
                                 "shaded coarse results, or keep eq. 11's value"));
@@ -129,7 +131,11 @@ Settings read_settings(const render::ParamSet& p) {
   s.log_threshold = p.get_float("log_threshold");
   s.upsample.mode = parse_upsample_mode(p.get_enum("upsample"));
   s.fallback = parse_upsample_fallback(p.get_enum("fallback"));
-  s.shade_interpolation = p.get_enum("shade_interpolation") == "transfer" ? ShadeInterpolation::Transfer : ShadeInterpolation::Visibility;
+  const std::string& si = p.get_enum("shade_interpolation");
+  s.shade_interpolation = si == "transfer"     ? ShadeInterpolation::Transfer
+                          : si == "visibility" ? ShadeInterpolation::Visibility
+                          : s.receiver_scale >= kTransferMinScale ? ShadeInterpolation::Transfer
+                                                                  : ShadeInterpolation::Visibility;
   s.upsample.epsilon_rel = p.get_float("bilateral_epsilon");
   s.upsample.normal_power = p.get_int("normal_power");
   s.upsample.miss_threshold = p.get_float("miss_threshold");
@@ -699,15 +705,15 @@ DirectKernels cpu_direct_kernels(render::FramePool* pool) {
     const bool shadowed = !up.coarse_visibility.empty();
     const bool lit = shader.shades_lights();
     const std::size_t n2 = static_cast<std::size_t>(shader.order) * shader.order;
-    // Without spherical lights nothing reads O_p per pixel: the coarse samples' transfer rows
-    // (common::ShadeTransfer) are interpolated instead and each pixel takes one dot product, unless
-    // the SH product per pixel is asked for.
-    const bool transfer = shadowed && !lit && shader.interpolate == ShadeInterpolation::Transfer;
+    // The coarse samples' transfer rows (common::ShadeTransfer) are interpolated instead of O_p and
+    // each pixel takes one dot product, unless the SH product per pixel is asked for. With spherical
+    // lights, which read O_p per pixel, the rows carry it.
+    const bool transfer = shadowed && shader.interpolate == ShadeInterpolation::Transfer;
     common::ShadeTransfer tr;
     std::vector<float> rows;
     if (transfer) {
-      tr = common::ShadeTransfer::make(shader.batch(nullptr));
-      const std::size_t samples = up.coarse_visibility.size() / n2, m = 3 * n2;
+      tr = common::ShadeTransfer::make(shader.batch(nullptr), lit);
+      const std::size_t samples = up.coarse_visibility.size() / n2, m = static_cast<std::size_t>(tr.stride());
       rows = pool ? pool->take_for_overwrite<float>(samples * m) : std::vector<float>(samples * m);
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, samples, 1024), [&](const tbb::blocked_range<std::size_t>& br) {
         common::transfer_rows(shader.isa, tr, up.coarse_visibility.data() + br.begin() * n2, br.size(), rows.data() + br.begin() * m);
@@ -744,15 +750,11 @@ DirectKernels cpu_direct_kernels(render::FramePool* pool) {
       taps.index = up.w.index.data();
       taps.weight = up.w.weight.data();
       taps.coarse = transfer ? rows.data() : up.coarse_visibility.data();
-      if (transfer) {
-        clamped += shader.shade(soa, 0, br.size(), taps, &tr, e + br.begin());
-        return;
-      }
       if (lit) {
         sc.g.resize(br.size() * n2);
         taps.out = sc.g.data();
       }
-      clamped += shader.shade(soa, 0, br.size(), taps, nullptr, e + br.begin());
+      clamped += shader.shade(soa, 0, br.size(), taps, transfer ? &tr : nullptr, e + br.begin());
     });
     if (pool) pool->give(std::move(rows));
     return clamped.load();

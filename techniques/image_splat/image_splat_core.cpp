@@ -281,7 +281,8 @@ long long DirectShader::shade(const ReceiverSoA& rec, std::size_t begin, std::si
                               const common::ShadeTransfer* transfer, glm::vec3* out) const {
   if (shades_lights() && !taps.out)
     throw std::logic_error("image_splat: spherical lights with interpolated visibility need it written out");
-  if (shades_lights() && transfer) throw std::logic_error("image_splat: spherical lights read O_p, which transfer rows do not carry");
+  if (shades_lights() && transfer && !transfer->carries_visibility)
+    throw std::logic_error("image_splat: spherical lights read O_p, which these transfer rows do not carry");
   common::BatchShade bs = batch(nullptr);
   bs.taps = &taps;
   bs.transfer = transfer;

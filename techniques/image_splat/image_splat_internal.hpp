@@ -54,6 +54,11 @@ enum class ExpMode { HYB, OL, PSStar, PS, Exact };
 // What the direct shading interpolates with the eq. 11 weights: transfer rows (common::ShadeTransfer)
 // or O_p (section 4.2 as written). The same value in exact arithmetic.
 enum class ShadeInterpolation { Transfer, Visibility };
+// shade_interpolation=auto takes transfer rows from this receiver_scale on: each coarse sample's row
+// (a (3 n^2) x n^2 matrix-vector product, 3 or 4 n^2 floats stored) then serves 16 display pixels or
+// more. Measured at 1024x1024 (bench/README.md, "image_splat's direct shading through transfer
+// rows"): no faster than O_p at scale 2, faster from scale 4 on, on character and cornell.
+inline constexpr int kTransferMinScale = 4;
 
 // The technique's parameters, read and cross-checked once per frame (read_settings throws
 // std::invalid_argument naming the parameters).
@@ -201,7 +206,7 @@ struct DirectShader {
   // The spherical lights read it per receiver: when shades_lights(), taps.out must hold n^2 floats
   // per receiver of rec (the kernel writes them, the lights read them).
   // transfer: taps.coarse holds transfer rows of this shader (common::ShadeTransfer) instead of O_p;
-  // only without spherical lights (they read O_p per receiver).
+  // with spherical lights (they read O_p per receiver) rows that carry it.
   long long shade(const common::ReceiverSoA& rec, std::size_t begin, std::size_t end, const common::BatchShade::Taps& taps,
                   const common::ShadeTransfer* transfer, glm::vec3* out) const;
   bool shades_lights() const { return common::shades_lights(lights_table.get(), lights); }

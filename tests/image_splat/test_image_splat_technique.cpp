@@ -265,15 +265,16 @@ TEST(ImageSplatRender, EveryModeGivesFiniteNonNegativeImages) {
   }
 }
 
-// shade_interpolation: interpolating transfer rows and interpolating O_p then taking the SH product
-// per pixel are the same sum reassociated (common::ShadeTransfer), so the direct images agree to float
+// shade_interpolation: interpolating transfer rows (with O_p alongside for the spherical lights) and
+// interpolating O_p then taking the SH product per pixel are the same sum reassociated
+// (common::ShadeTransfer), so the direct images agree to float
 // rounding: kReassociationTol of the brightest pixel (sums of 16-48 O(1) float terms, about 1e-6 each,
 // with room for the clamp at 0). Both paths must have run: the transfer path rounds differently, so
 // some pixels differ in their last bits (bit-identical images would mean the parameter was ignored).
 TEST(ImageSplatRender, TransferRowsShadeAsTheInterpolatedVisibility) {
   constexpr double kReassociationTol = 2e-5;
   techniques::register_all();
-  for (const char* scene_name : {"spheres", "character"}) {
+  for (const char* scene_name : {"spheres", "character", "cornell"}) {  // cornell: a spherical light
     const scene::Scene sc = scene::make_builtin(scene_name);
     const render::FrameResult a = render_frame(sc, {"indirect=false", "shade_interpolation=transfer"}, 96, 72);
     const render::FrameResult b = render_frame(sc, {"indirect=false", "shade_interpolation=visibility"}, 96, 72);

@@ -480,9 +480,32 @@ TEST_P(ShexpBatch, TransferRowsShadeAsTheTripleIntegralOfTheInterpolation) {
       }
     }
     EXPECT_GT(with_taps, kReceivers / 2);
-    // Transfer rows give no visibility to hand out, and need taps.
-    std::vector<float> out_g(kReceivers * n2);
+    // Rows that carry the visibility shade the same (the R part is the same sums; which of its floats
+    // fall in a vector or in the scalar tail moves with the longer row) and hand out the interpolated
+    // g_i (the unshadowed vector where no tap): both within kBatchRelTol.
+    const ShadeTransfer carry = ShadeTransfer::make(b, true);
+    ASSERT_EQ(carry.stride(), 4 * n2);
+    std::vector<float> rows4(kCoarse * 4 * n2, std::numeric_limits<float>::quiet_NaN());
+    transfer_rows(isa, carry, coarse.data(), kCoarse, rows4.data());
+    std::vector<float> out_g(kReceivers * n2, std::numeric_limits<float>::quiet_NaN());
+    taps.coarse = rows4.data();
     taps.out = out_g.data();
+    b.transfer = &carry;
+    std::vector<glm::vec3> got4(kReceivers);
+    shade_batch(isa, b, s.rec, 0, kReceivers, got4.data());
+    for (int i = 0; i < kReceivers; ++i) {
+      for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(got4[i][c], got[i][c], kBatchRelTol * (1.0 + std::abs(got[i][c]))) << "order " << order << " receiver " << i;
+      const auto& idx = index[pixel[i]];
+      for (int k = 0; k < n2; ++k) {
+        double v = idx[0] < 0 ? (k == 0 ? sh::kSqrt4Pi : 0.0) : 0.0;
+        for (int t = 0; t < 4 && idx[t] >= 0; ++t) v += static_cast<double>(weight[pixel[i]][t]) * coarse[idx[t] * n2 + k];
+        EXPECT_NEAR(out_g[i * n2 + k], v, kBatchRelTol * (1.0 + std::abs(v))) << "order " << order << " receiver " << i << " k " << k;
+      }
+    }
+    // Rows without the visibility cannot hand it out; transfer rows need taps.
+    taps.coarse = rows.data();
+    b.transfer = &tr;
     EXPECT_THROW(shade_batch(isa, b, s.rec, 0, kReceivers, got.data()), std::invalid_argument);
     taps.out = nullptr;
     b.taps = nullptr;
