@@ -302,6 +302,40 @@ void shading_factors(int order, std::vector<float>& hcoef, std::vector<float>& g
       gwin[sh::index(l, m)] = static_cast<float>(sh::window_factor(l, 2.0 * order));
     }
 }
+
+// A coarse field of random visibility vectors, a random light and the eq. 11 taps of display pixels
+// into it: pixels 0-2 have no tap, one and two taps, the others 0-4 taps of weight in [0.05, 1];
+// receivers 0-2 sit on pixels 0-2, the others on random pixels.
+struct RandomTaps {
+  std::vector<float> coarse, L, gwin, hcoef;
+  std::vector<std::array<std::int32_t, 4>> index;
+  std::vector<std::array<float, 4>> weight;
+  std::vector<std::int32_t> pixel;
+};
+RandomTaps random_taps(int order, unsigned seed, int receivers, int pixels, int coarse) {
+  const int n2 = order * order;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f), w01(0.05f, 1.0f);
+  std::uniform_int_distribution<int> pick(0, coarse - 1), ntaps(0, 4), px(0, pixels - 1);
+  RandomTaps r;
+  r.coarse.resize(static_cast<std::size_t>(coarse) * n2);
+  r.L.resize(3 * static_cast<std::size_t>(n2));
+  for (auto& v : r.coarse) v = u(rng);
+  for (auto& v : r.L) v = u(rng);
+  shading_factors(order, r.hcoef, r.gwin);
+  r.index.resize(pixels);
+  r.weight.resize(pixels);
+  for (int p = 0; p < pixels; ++p) {
+    const int t = p < 3 ? p : ntaps(rng);
+    for (int k = 0; k < 4; ++k) {
+      r.index[p][k] = k < t ? pick(rng) : -1;
+      r.weight[p][k] = k < t ? w01(rng) : 0.0f;
+    }
+  }
+  r.pixel.resize(receivers);
+  for (int i = 0; i < receivers; ++i) r.pixel[i] = i < 3 ? i : px(rng);
+  return r;
+}
 }  // namespace
 
 TEST_P(ShexpBatch, ShadingIsTheTripleIntegralOfLightCosineAndVisibility) {
@@ -347,24 +381,8 @@ TEST_P(ShexpBatch, InterpolatedVisibilityShadesAsTheInterpolationWrittenOut) {
     const int n2 = order * order;
     constexpr int kReceivers = 41, kPixels = 60, kCoarse = 30;
     RandomSetup s = random_setup(order, kReceivers, 1, 4);
-    std::mt19937 rng(11 + order);
-    std::uniform_real_distribution<float> u(-1.0f, 1.0f), w01(0.05f, 1.0f);
-    std::uniform_int_distribution<int> pick(0, kCoarse - 1), ntaps(0, 4), px(0, kPixels - 1);
-    std::vector<float> coarse(kCoarse * n2), L(3 * n2), gwin, hcoef;
-    for (auto& v : coarse) v = u(rng);
-    for (auto& v : L) v = u(rng);
-    shading_factors(order, hcoef, gwin);
-    std::vector<std::array<std::int32_t, 4>> index(kPixels);
-    std::vector<std::array<float, 4>> weight(kPixels);
-    for (int p = 0; p < kPixels; ++p) {
-      const int t = p < 3 ? p : ntaps(rng);  // pixels 0-2: no tap, one, two
-      for (int k = 0; k < 4; ++k) {
-        index[p][k] = k < t ? pick(rng) : -1;
-        weight[p][k] = k < t ? w01(rng) : 0.0f;
-      }
-    }
-    std::vector<std::int32_t> pixel(kReceivers);
-    for (int i = 0; i < kReceivers; ++i) pixel[i] = i < 3 ? i : px(rng);
+    RandomTaps rt = random_taps(order, 11 + order, kReceivers, kPixels, kCoarse);
+    const auto& [coarse, L, gwin, hcoef, index, weight, pixel] = rt;
     // The interpolation written out, and which receivers have no tap.
     std::vector<float> g(kReceivers * n2);
     std::vector<bool> untapped(kReceivers);
@@ -427,25 +445,9 @@ TEST_P(ShexpBatch, TransferRowsShadeAsTheTripleIntegralOfTheInterpolation) {
     const int n2 = order * order;
     constexpr int kReceivers = 41, kPixels = 60, kCoarse = 30;
     RandomSetup s = random_setup(order, kReceivers, 1, 4);
-    std::mt19937 rng(23 + order);
-    std::uniform_real_distribution<float> u(-1.0f, 1.0f), w01(0.05f, 1.0f);
-    std::uniform_int_distribution<int> pick(0, kCoarse - 1), ntaps(0, 4), px(0, kPixels - 1);
-    std::vector<float> coarse(kCoarse * n2), L(3 * n2), gwin, hcoef;
-    for (auto& v : coarse) v = u(rng);
-    std::fill(coarse.begin() + 5 * n2, coarse.begin() + 6 * n2, 0.0f);  // a coarse pixel without a receiver
-    for (auto& v : L) v = u(rng);
-    shading_factors(order, hcoef, gwin);
-    std::vector<std::array<std::int32_t, 4>> index(kPixels);
-    std::vector<std::array<float, 4>> weight(kPixels);
-    for (int p = 0; p < kPixels; ++p) {
-      const int t = p < 3 ? p : ntaps(rng);
-      for (int k = 0; k < 4; ++k) {
-        index[p][k] = k < t ? pick(rng) : -1;
-        weight[p][k] = k < t ? w01(rng) : 0.0f;
-      }
-    }
-    std::vector<std::int32_t> pixel(kReceivers);
-    for (int i = 0; i < kReceivers; ++i) pixel[i] = i < 3 ? i : px(rng);
+    RandomTaps rt = random_taps(order, 23 + order, kReceivers, kPixels, kCoarse);
+    std::fill(rt.coarse.begin() + 5 * n2, rt.coarse.begin() + 6 * n2, 0.0f);  // a coarse pixel without a receiver
+    const auto& [coarse, L, gwin, hcoef, index, weight, pixel] = rt;
     BatchShade b = BatchShade::make(order, L.data(), hcoef.data(), gwin.data(), nullptr);
     const ShadeTransfer tr = ShadeTransfer::make(b);
     std::vector<float> rows(kCoarse * 3 * n2, std::numeric_limits<float>::quiet_NaN());
