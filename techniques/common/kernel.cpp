@@ -275,26 +275,29 @@ struct Vec {
   static void store(float* p, F x) { _mm512_storeu_ps(p, x); }
   // out[k W + l] = in[l stride + k], 16 x 16: as the AVX2 version up to u (u[4g + q] holds rows
   // 4g..4g+3 of column 4L + q in 128-bit lane L), then a 4 x 4 transpose of 128-bit lanes per q.
+  // The zero-masked forms of the shuffles (all lanes kept, the same instructions): GCC 12 reports the
+  // plain forms' undefined source vector as used uninitialised at -O1.
   static void transpose(const float* in, std::size_t stride, float* out) {
+    constexpr __mmask16 all = 0xFFFF;
     F r[16], t[16], u[16];
     for (int i = 0; i < 16; ++i) r[i] = load(in + i * stride);
     for (int i = 0; i < 16; i += 2) {
-      t[i] = _mm512_unpacklo_ps(r[i], r[i + 1]);
-      t[i + 1] = _mm512_unpackhi_ps(r[i], r[i + 1]);
+      t[i] = _mm512_maskz_unpacklo_ps(all, r[i], r[i + 1]);
+      t[i + 1] = _mm512_maskz_unpackhi_ps(all, r[i], r[i + 1]);
     }
     for (int g = 0; g < 4; ++g) {
-      u[4 * g + 0] = _mm512_shuffle_ps(t[4 * g], t[4 * g + 2], _MM_SHUFFLE(1, 0, 1, 0));
-      u[4 * g + 1] = _mm512_shuffle_ps(t[4 * g], t[4 * g + 2], _MM_SHUFFLE(3, 2, 3, 2));
-      u[4 * g + 2] = _mm512_shuffle_ps(t[4 * g + 1], t[4 * g + 3], _MM_SHUFFLE(1, 0, 1, 0));
-      u[4 * g + 3] = _mm512_shuffle_ps(t[4 * g + 1], t[4 * g + 3], _MM_SHUFFLE(3, 2, 3, 2));
+      u[4 * g + 0] = _mm512_maskz_shuffle_ps(all, t[4 * g], t[4 * g + 2], _MM_SHUFFLE(1, 0, 1, 0));
+      u[4 * g + 1] = _mm512_maskz_shuffle_ps(all, t[4 * g], t[4 * g + 2], _MM_SHUFFLE(3, 2, 3, 2));
+      u[4 * g + 2] = _mm512_maskz_shuffle_ps(all, t[4 * g + 1], t[4 * g + 3], _MM_SHUFFLE(1, 0, 1, 0));
+      u[4 * g + 3] = _mm512_maskz_shuffle_ps(all, t[4 * g + 1], t[4 * g + 3], _MM_SHUFFLE(3, 2, 3, 2));
     }
     for (int q = 0; q < 4; ++q) {
-      const F va = _mm512_shuffle_f32x4(u[q], u[4 + q], 0x88), vb = _mm512_shuffle_f32x4(u[q], u[4 + q], 0xdd);
-      const F vc = _mm512_shuffle_f32x4(u[8 + q], u[12 + q], 0x88), vd = _mm512_shuffle_f32x4(u[8 + q], u[12 + q], 0xdd);
-      store(out + q * 16, _mm512_shuffle_f32x4(va, vc, 0x88));
-      store(out + (4 + q) * 16, _mm512_shuffle_f32x4(vb, vd, 0x88));
-      store(out + (8 + q) * 16, _mm512_shuffle_f32x4(va, vc, 0xdd));
-      store(out + (12 + q) * 16, _mm512_shuffle_f32x4(vb, vd, 0xdd));
+      const F va = _mm512_maskz_shuffle_f32x4(all, u[q], u[4 + q], 0x88), vb = _mm512_maskz_shuffle_f32x4(all, u[q], u[4 + q], 0xdd);
+      const F vc = _mm512_maskz_shuffle_f32x4(all, u[8 + q], u[12 + q], 0x88), vd = _mm512_maskz_shuffle_f32x4(all, u[8 + q], u[12 + q], 0xdd);
+      store(out + q * 16, _mm512_maskz_shuffle_f32x4(all, va, vc, 0x88));
+      store(out + (4 + q) * 16, _mm512_maskz_shuffle_f32x4(all, vb, vd, 0x88));
+      store(out + (8 + q) * 16, _mm512_maskz_shuffle_f32x4(all, va, vc, 0xdd));
+      store(out + (12 + q) * 16, _mm512_maskz_shuffle_f32x4(all, vb, vd, 0xdd));
     }
   }
   static F add(F a, F b) { return _mm512_add_ps(a, b); }
@@ -312,7 +315,7 @@ struct Vec {
   static I trunc(F x) { return _mm512_cvttps_epi32(x); }  // NaN -> INT_MIN, clamped below
   static F to_float(I i) { return _mm512_cvtepi32_ps(i); }
   static I iclamp(I i, int lo, int hi) { return _mm512_min_epi32(_mm512_max_epi32(i, _mm512_set1_epi32(lo)), _mm512_set1_epi32(hi)); }
-  static F gather(const float* base, I i) { return _mm512_i32gather_ps(i, base, 4); }
+  static F gather(const float* base, I i) { return _mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, i, base, 4); }
   // rsqrt14 (14 bits) and one Newton step: ~28 bits, below float rounding.
   static F rsqrt(F x) {
     const F y = _mm512_rsqrt14_ps(x);
