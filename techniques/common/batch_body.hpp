@@ -392,7 +392,7 @@ void lights_block(const LightLobeTable& t, const std::vector<scene::SphericalLig
   constexpr int kMaxRow = (sh::kMaxCoeffs + W - 1) / W * W;
   const int n = t.order, n2 = n * n, n2p = (n2 + W - 1) / W * W;
   const float half_pi = static_cast<float>(sh::kPi / 2), pi = static_cast<float>(sh::kPi);
-  alignas(64) float lane[6][W], psi[W], kk[kMaxAccOrder][W], e[3][W];
+  alignas(64) float lane[6][W], e[3][W];
   alignas(64) float rows[W * kMaxRow], GW[kMaxRow * W], Y[sh::kMaxCoeffs * W];
   for (int l = 0; l < W; ++l) {
     const std::size_t i = begin + (static_cast<std::size_t>(l) < cnt ? l : cnt - 1);
@@ -439,8 +439,6 @@ void lights_block(const LightLobeTable& t, const std::vector<scene::SphericalLig
       for (int b = 0; b < n; ++b)
         kv[b] = V::fma(wq[q], V::gather(t.k.data(), V::trunc(V::add(kbase, V::set(static_cast<float>(b))))), kv[b]);
     }
-    V::store(psi, psi_v);
-    for (int b = 0; b < n; ++b) V::store(kk[b], kv[b]);
     // k is stored per unit solid angle of the light: times 4 pi sin^2(theta / 2).
     F sh2, ch2;
     sincos_quarter<V>(V::mul(V::set(0.5f), V::max(theta, V::set(static_cast<float>(kLightThetaFloor)))), sh2, ch2);
@@ -459,9 +457,8 @@ void lights_block(const LightLobeTable& t, const std::vector<scene::SphericalLig
     ty = V::select(along, V::mul(fy, ifl), V::mul(ty, itl));
     tz = V::select(along, V::mul(fz, ifl), V::mul(tz, itl));
     // (sin psi, cos psi) for psi in [0, pi], reflected about pi/2 (accum_sincos_half).
-    const F ps = V::load(psi);
-    const auto low = V::ge(V::set(half_pi), ps);
-    const F r = V::min(V::max(V::select(low, ps, V::sub(V::set(pi), ps)), zero), V::set(half_pi));
+    const auto low = V::ge(V::set(half_pi), psi_v);
+    const F r = V::min(V::max(V::select(low, psi_v, V::sub(V::set(pi), psi_v)), zero), V::set(half_pi));
     F sp, cp;
     sincos_quarter<V>(r, sp, cp);
     cp = V::select(low, cp, V::sub(zero, cp));
@@ -471,7 +468,7 @@ void lights_block(const LightLobeTable& t, const std::vector<scene::SphericalLig
     for (int b = 0; b < n; ++b) {
       F band = zero;
       for (int m = b * b; m < (b + 1) * (b + 1); ++m) band = V::fma(V::load(Y + m * W), V::load(GW + m * W), band);
-      d = V::fma(V::mul(V::load(kk[b]), omega), band, d);
+      d = V::fma(V::mul(kv[b], omega), band, d);
     }
     d = V::select(valid, d, zero);
     acc[0] = V::fma(d, V::set(light.radiance.x), acc[0]);
