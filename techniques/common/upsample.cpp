@@ -138,8 +138,8 @@ bool is_hit(float z) { return z < std::numeric_limits<float>::infinity(); }
 
 // b^e for e >= 0 by squaring (std::pow per sample would dominate the pass); 0^0 = 1, so
 // normal_power 0 switches the normal weight off.
-double ipow(double b, int e) {
-  double r = 1.0;
+float ipow(float b, int e) {
+  float r = 1.0f;
   while (e > 0) {
     if (e & 1) r *= b;
     b *= b;
@@ -165,7 +165,14 @@ struct Block {
   int n = 0;
   std::array<std::int32_t, 4> idx{};
   std::array<double, 4> w{};  // bilinear weights w_b, all > 0
+  std::array<float, 4> wf{};  // the same as eq. 11 takes them: the float product of the float axis weights
 };
+
+// The eq. 11 kernel works in float, as the Vulkan shader does: its weights are stored as float,
+// and float halves the vector work of the double it used before (bench_gbuffer's
+// BM_Upsample/<scene>/weights). The axis weights in float: 1 - f and f, each rounded once.
+float left_weight(double f) { return static_cast<float>(1.0 - f); }
+float right_weight(double f) { return static_cast<float>(f); }
 
 // The bilinear footprints of every display column and row: they depend on X or Y alone, so a pass
 // over the display works them out once per column and row instead of once per pixel. The columns'
@@ -174,14 +181,18 @@ struct Block {
 struct Footprints {
   std::vector<std::int32_t> x_i0, x_i1;
   std::vector<double> x_f;
+  std::vector<float> x_left, x_right;  // left_weight and right_weight of x_f, for the float kernel
   std::vector<Axis> y;
-  Footprints(const PlaneView& c, const PlaneView& f) : x_i0(f.width), x_i1(f.width), x_f(f.width), y(f.height) {
+  Footprints(const PlaneView& c, const PlaneView& f)
+      : x_i0(f.width), x_i1(f.width), x_f(f.width), x_left(f.width), x_right(f.width), y(f.height) {
     const double ratio = static_cast<double>(f.scale) / static_cast<double>(c.scale);
     for (int X = 0; X < f.width; ++X) {
       const Axis a = axis((X + 0.5) * ratio - 0.5, c.width);
       x_i0[X] = a.i0;
       x_i1[X] = a.i1;
       x_f[X] = a.f;
+      x_left[X] = left_weight(a.f);
+      x_right[X] = right_weight(a.f);
     }
     for (int Y = 0; Y < f.height; ++Y) y[Y] = axis((Y + 0.5) * ratio - 0.5, c.height);
   }
@@ -222,6 +233,7 @@ struct ExpandedRow {
 Block bilinear_block(const PlaneView& c, const Axis& ax, const Axis& ay) {
   const int xs[2] = {ax.i0, ax.i1}, ys[2] = {ay.i0, ay.i1};
   const double wx[2] = {1.0 - ax.f, ax.f}, wy[2] = {1.0 - ay.f, ay.f};
+  const float fx[2] = {left_weight(ax.f), right_weight(ax.f)}, fy[2] = {left_weight(ay.f), right_weight(ay.f)};
   Block b;
   for (int j = 0; j < 2; ++j)
     for (int i = 0; i < 2; ++i) {
@@ -229,6 +241,7 @@ Block bilinear_block(const PlaneView& c, const Axis& ax, const Axis& ay) {
       if (w > 0.0) {
         b.idx[b.n] = static_cast<std::int32_t>(ys[j] * c.width + xs[i]);
         b.w[b.n] = w;
+        b.wf[b.n] = fx[i] * fy[j];
         ++b.n;
       }
     }
@@ -277,23 +290,31 @@ Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptio
   // Eq. 11: w~_i = w_b,i w_z,i w_N,i with w_z = 1 / (eps + |z_p - z_i|), w_N = max(0, N_p . N_i)^32.
   // We use eps w_z = eps / (eps + |z_p - z_i|) in (0, 1] instead: the constant factor eps cancels
   // in the normalisation, the sum is then directly the miss measure of UpsampleOptions (1 for a
-  // perfect match), and nothing overflows for tiny eps.
-  const double eps = opt.epsilon_rel * static_cast<double>(zp);
-  const glm::dvec3 np(f.normal[p]);
-  std::array<double, 4> w{};
-  double measure = 0.0;
+  // perfect match), and nothing overflows for tiny eps. In float, each operation in the order
+  // bilateral_run takes it (that file's -ffp-contract=off keeps them apart).
+  const float eps = static_cast<float>(opt.epsilon_rel) * zp;
+  const glm::vec3 np = f.normal[p];
+  std::array<float, 4> w{};
+  float measure = 0.0f;
   for (int k = 0; k < b.n; ++k) {
     const float zi = c.depth[b.idx[k]];
     if (!is_hit(zi)) continue;  // background coarse sample: weight 0
-    const double dz = std::abs(static_cast<double>(zp) - static_cast<double>(zi));
-    const double wz = eps / (eps + dz);
-    const double wn = ipow(std::max(0.0, glm::dot(np, glm::dvec3(c.normal[b.idx[k]]))), opt.normal_power);
-    w[k] = b.w[k] * wz * wn;
+    const float wz = eps / (eps + std::abs(zp - zi));
+    const glm::vec3 ni = c.normal[b.idx[k]];
+    const float d = np.x * ni.x + np.y * ni.y + np.z * ni.z;
+    const float wn = ipow(d > 0.0f ? d : 0.0f, opt.normal_power);
+    w[k] = b.wf[k] * wz * wn;
     measure += w[k];
   }
-  if (measure > 0.0) {
-    store_normalised(b, w, out);
-    out.miss = measure < opt.miss_threshold;
+  if (measure > 0.0f) {
+    int m = 0;
+    for (int k = 0; k < b.n; ++k)
+      if (w[k] > 0.0f) {
+        out.idx[m] = b.idx[k];
+        out.w[m] = w[k] / measure;
+        ++m;
+      }
+    out.miss = measure < static_cast<float>(opt.miss_threshold);
     return out;
   }
   // Every eq. 11 weight vanished (all taps background or facing away): bilinear over the valid
@@ -305,65 +326,74 @@ Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptio
 
 // Eq. 11 for a run of at most kRun display pixels of one row (the bilateral mode): the same
 // weights, bits included, as upsample_pixel, written as passes over the run (tap weights without
-// the normal power, the power by squaring, sums and normalisation; then the packing per pixel) so
-// that all but the packing vectorise, with the coarse samples of the row's two tap rows from
-// `rows` (ExpandedRow) instead of gathered. Compiled for AVX-512, AVX2 and the baseline
-// (target_clones; -ffp-contract=off for this file keeps every version's bits those of the baseline).
+// the normal power, the power by squaring, sums and normalisation, the packing) so that they
+// vectorise, with the coarse samples of the row's two tap rows from `rows` (ExpandedRow) instead of
+// gathered. Compiled for AVX-512, AVX2 and the baseline (target_clones; -ffp-contract=off for this
+// file keeps every version's bits those of the baseline). Also checks the run's display samples
+// (sample_ok): false where one is bad, and the caller names it.
 constexpr int kRun = 64;
 
-__attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
+__attribute__((target_clones("avx512f", "avx2", "default"))) bool bilateral_run(
     const PlaneView& c, const PlaneView& f, const UpsampleOptions& opt, const Footprints& fp, const ExpandedRow* const rows[2],
     int y, int x0, int n, std::array<std::int32_t, 4>* __restrict out_idx, std::array<float, 4>* __restrict out_w,
     std::uint8_t* __restrict out_miss) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
   const Axis& ay = fp.y[y];
   const std::size_t row0 = static_cast<std::size_t>(y) * f.width;
   const int ys[2] = {ay.i0, ay.i1};
-  const double wy[2] = {1.0 - ay.f, ay.f};
+  const float wy[2] = {left_weight(ay.f), right_weight(ay.f)};
   // Tap k of pixel t at [k * n + t]: flat runs, so that every loop below is one stream.
-  alignas(64) double wbz[4 * kRun];   // w_b w_z eps, 0 for a background tap or one with w_b = 0
-  alignas(64) double base[4 * kRun];  // max(0, N_p . N_i)
-  alignas(64) double wn[4 * kRun];    // base^normal_power
+  alignas(64) float wbz[4 * kRun];   // w_b eps w_z, 0 for a background tap or one with w_b = 0
+  alignas(64) float base[4 * kRun];  // max(0, N_p . N_i)
+  alignas(64) float wn[4 * kRun];    // base^normal_power, then the eq. 11 weight
   alignas(64) std::int32_t tap[4 * kRun];
   const float* __restrict fz = f.depth + row0 + x0;
   const glm::vec3* __restrict fn = f.normal + row0 + x0;
-  const double eps_rel = opt.epsilon_rel;
+  const float eps_rel = static_cast<float>(opt.epsilon_rel);
+  // sample_ok over the run: a background depth, or a positive finite one with a finite normal.
+  int bad = 0;
+  for (int t = 0; t < n; ++t) {
+    const float z = fz[t];
+    const bool finite_n = (std::abs(fn[t].x) < kInf) & (std::abs(fn[t].y) < kInf) & (std::abs(fn[t].z) < kInf);
+    const bool ok = (z == kInf) | ((z > 0.0f) & (z < kInf) & finite_n);
+    bad |= ok ? 0 : 1;
+  }
+  if (bad) return false;
   // One tap column (left or right: a constant, so that the loop has no branch) of one tap row.
   const auto taps = [&](auto right, int k) {
     const int j = k >> 1, side = right ? 1 : 0;
     const std::int32_t crow = ys[j] * c.width;
-    const double wyj = wy[j];
+    const float wyj = wy[j];
     const ExpandedRow& er = *rows[j];
     const float* __restrict cz = er.z[side].data() + x0;
     const float* __restrict cnx = er.nx[side].data() + x0;
     const float* __restrict cny = er.ny[side].data() + x0;
     const float* __restrict cnz = er.nz[side].data() + x0;
-    const double* __restrict fx = fp.x_f.data() + x0;
+    const float* __restrict wx = (right ? fp.x_right.data() : fp.x_left.data()) + x0;
     const std::int32_t* __restrict col = (right ? fp.x_i1.data() : fp.x_i0.data()) + x0;
-    double* __restrict wbz_k = wbz + k * n;
-    double* __restrict base_k = base + k * n;
+    float* __restrict wbz_k = wbz + k * n;
+    float* __restrict base_k = base + k * n;
     std::int32_t* __restrict tap_k = tap + k * n;
     for (int t = 0; t < n; ++t) {
-      const double wb = (right ? fx[t] : 1.0 - fx[t]) * wyj;
+      const float wb = wx[t] * wyj;
       const float zp = fz[t], zi = cz[t];
-      const double eps = eps_rel * static_cast<double>(zp);
-      const double dz = std::abs(static_cast<double>(zp) - static_cast<double>(zi));
-      const double wz = eps / (eps + dz);
-      const double d = static_cast<double>(fn[t].x) * cnx[t] + static_cast<double>(fn[t].y) * cny[t] +
-                       static_cast<double>(fn[t].z) * cnz[t];
+      const float eps = eps_rel * zp;
+      const float wz = eps / (eps + std::abs(zp - zi));
+      const float d = fn[t].x * cnx[t] + fn[t].y * cny[t] + fn[t].z * cnz[t];
       tap_k[t] = crow + col[t];
-      const bool live = (wb > 0.0) & (zi < std::numeric_limits<float>::infinity());
-      wbz_k[t] = live ? wb * wz : 0.0;
-      base_k[t] = d > 0.0 ? d : 0.0;
+      const bool live = (wb > 0.0f) & (zi < kInf);
+      wbz_k[t] = live ? wb * wz : 0.0f;
+      base_k[t] = d > 0.0f ? d : 0.0f;
     }
   };
   for (int j = 0; j < 2; ++j) {
     taps(std::false_type{}, 2 * j);
     taps(std::true_type{}, 2 * j + 1);
   }
-  // ipow across the run: the exponent's bits are the same for every pixel.
+  // ipow across the run: the exponent's bits are the same for every pixel. One pass over the run
+  // per bit; the last bit needs no further square.
   const int m4 = 4 * n;
-  // One pass over the run per bit; the last bit needs no further square.
-  for (int t = 0; t < m4; ++t) wn[t] = 1.0;
+  for (int t = 0; t < m4; ++t) wn[t] = 1.0f;
   for (int e = opt.normal_power; e > 0; e >>= 1) {
     if ((e & 1) && e > 1) {
       for (int t = 0; t < m4; ++t) {
@@ -378,14 +408,15 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
   }
   // The eq. 11 weights, their sum (the miss measure) and the normalised weights, across the run.
   // A background tap's normal may be anything: its weight is 0 whatever its power.
-  alignas(64) double measure[kRun];
+  alignas(64) float measure[kRun];
   alignas(64) float wf[4 * kRun];
-  for (int t = 0; t < m4; ++t) wn[t] = wbz[t] > 0.0 ? wbz[t] * wn[t] : 0.0;
-  for (int t = 0; t < n; ++t) measure[t] = 0.0;
+  for (int t = 0; t < m4; ++t) wn[t] = wbz[t] > 0.0f ? wbz[t] * wn[t] : 0.0f;
+  for (int t = 0; t < n; ++t) measure[t] = 0.0f;
   for (int k = 0; k < 4; ++k)
     for (int t = 0; t < n; ++t) measure[t] += wn[k * n + t];
   for (int k = 0; k < 4; ++k)
-    for (int t = 0; t < n; ++t) wf[k * n + t] = static_cast<float>(wn[k * n + t] / measure[t]);  // used where measure > 0
+    for (int t = 0; t < n; ++t) wf[k * n + t] = wn[k * n + t] / measure[t];  // used where measure > 0
+  const float threshold = static_cast<float>(opt.miss_threshold);
   for (int t = 0; t < n; ++t) {
     std::array<std::int32_t, 4>& oi = out_idx[t];
     std::array<float, 4>& ow = out_w[t];
@@ -393,19 +424,19 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
     ow = {0.0f, 0.0f, 0.0f, 0.0f};
     out_miss[t] = 0;
     if (!is_hit(fz[t])) continue;  // background: nothing to shade, not a miss
-    if (measure[t] > 0.0) {
+    if (measure[t] > 0.0f) {
       // The taps with positive weight, packed to the front in tap order.
       int m = 0;
       for (int k = 0; k < 4; ++k) {
         oi[m] = tap[k * n + t];
         ow[m] = wf[k * n + t];
-        m += wn[k * n + t] > 0.0 ? 1 : 0;
+        m += wn[k * n + t] > 0.0f ? 1 : 0;
       }
       for (int k = m; k < 4; ++k) {
         oi[k] = -1;
         ow[k] = 0.0f;
       }
-      out_miss[t] = measure[t] < opt.miss_threshold ? 1 : 0;
+      out_miss[t] = measure[t] < threshold ? 1 : 0;
     } else {
       // Every eq. 11 weight vanished: upsample_pixel's bilinear fallback, rare.
       const Pixel px = upsample_pixel(c, f, opt, row0 + static_cast<std::size_t>(x0 + t), fp.column(x0 + t), ay);
@@ -414,6 +445,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void bilateral_run(
       out_miss[t] = px.miss ? 1 : 0;
     }
   }
+  return true;
 }
 
 void check_weights(const UpsampleWeights& w) {
@@ -457,8 +489,11 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
     ExpandedRow expanded[2];
     for (int y = rows.begin(); y != rows.end(); ++y) {
       const std::size_t row0 = static_cast<std::size_t>(y) * fine.width;
-      for (int x = 0; x < fine.width; ++x)
-        if (!sample_ok(fine, row0 + x)) check_sample(fine, "fine", x, y);  // throws; TBB rethrows it in the calling thread
+      // A bad display sample throws (check_sample names it); TBB rethrows it in the calling thread.
+      const auto check_row = [&] {
+        for (int x = 0; x < fine.width; ++x)
+          if (!sample_ok(fine, row0 + x)) check_sample(fine, "fine", x, y);
+      };
       if (opt.mode == UpsampleMode::Bilateral) {
         // The two coarse rows of this display row's blocks, expanded unless a slot holds them.
         const int need[2] = {fp.y[y].i0, fp.y[y].i1};
@@ -481,11 +516,13 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
         const ExpandedRow* const tap_rows[2] = {top, bottom};
         for (int x0 = 0; x0 < fine.width; x0 += kRun) {
           const std::size_t p = row0 + x0;
-          bilateral_run(coarse, fine, opt, fp, tap_rows, y, x0, std::min(kRun, fine.width - x0), &r.index[p], &r.weight[p],
-                        &r.miss[p]);
+          if (!bilateral_run(coarse, fine, opt, fp, tap_rows, y, x0, std::min(kRun, fine.width - x0), &r.index[p], &r.weight[p],
+                             &r.miss[p]))
+            check_row();
         }
         continue;
       }
+      check_row();
       for (int x = 0; x < fine.width; ++x) {
         const std::size_t p = row0 + x;
         const Pixel px = upsample_pixel(coarse, fine, opt, p, fp.column(x), fp.y[y]);

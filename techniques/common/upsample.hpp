@@ -100,7 +100,7 @@ struct UpsampleKernels {
 };
 UpsampleKernels cpu_upsample_kernels(render::FramePool* pool = nullptr);
 // upsample_weights on the GPU (shaders/common/upsample_weights.comp): the same checks and result as
-// upsample_weights, in float (the CPU works in double). `measure` (optional): per display pixel the
+// upsample_weights, in float as upsample_weights (other operation orders). `measure` (optional): per display pixel the
 // unnormalised eq. 11 weight the miss decision compared with the threshold.
 UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneView& coarse, const PlaneView& fine,
                                         const UpsampleOptions& opt, std::vector<float>* measure = nullptr);

@@ -37,7 +37,8 @@ using softgi::testing::compare_rows;
 using softgi::testing::Compared;
 using softgi::testing::kAccumulateRelTol;
 using softgi::testing::kExpRelTol;
-// upsample (eq. 11 weights): float on the GPU, double on the CPU. A weight is w_b w_z max(0, N_p.N_i)^32
+// upsample (eq. 11 weights): float on both backends, in other orders (the GPU takes w_z as
+// 1 / (1 + dz / eps) and may fuse multiply-adds). A weight is w_b w_z max(0, N_p.N_i)^32
 // renormalised over <= 4 taps; the float dot product of two unit normals is off by a few ulps of 1
 // (~2e-7), which the 32nd power (parameter normal_power's default) multiplies by 32: ~6e-6, plus ~20
 // roundings of the products and the division. Absolute on weights in [0, 1].
