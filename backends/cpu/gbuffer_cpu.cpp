@@ -7,7 +7,8 @@
 // Embree ray per sample, BVH refitted or rebuilt as objects move; 1.2x to 2.8x slower on the
 // built-in scenes, bench/README.md).
 // Both answer with the same object, triangle and barycentrics up to rounding at shared edges and
-// silhouettes, and the surface attributes are resolved from them by the one function below.
+// silhouettes, and the surface attributes are resolved from them by one function (resolve_row below,
+// its arithmetic in surface_resolve.cpp: the reference renderer's per-hit rule in vector lanes).
 // One of the two translation units that include Embree (with the reference renderer; the set-up they
 // share, rays, geometry and the surface a hit stands for, is core/src/embree/embree_setup.hpp).
 //
@@ -42,6 +43,7 @@
 
 #include "../../core/src/embree/embree_setup.hpp"
 #include "raster_visibility.hpp"
+#include "surface_resolve.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -197,25 +199,6 @@ EmbreeScene& cached_scene() {
 }
 
 
-// Fills pixel i from the hit of triangle `prim` of object `obj` at barycentrics (u, v) (the same
-// attribute rules as the reference renderer's intersect(), so both see the same surface); only the
-// planes gb holds beyond the visibility planes, which are already written.
-// `tri`: the triangle's part of the surface (embree::triangle_surface) and `uniform`: the object's
-// albedo is `albedo` everywhere (scene::constant_albedo), each worked out once per run of pixels
-// that share them.
-void shade_hit(const scene::Scene& sc, const scene::PosedObject& obj, unsigned prim, float u, float v, const vec3& dir,
-               const render::PinholeCamera& cam, const embree::TriangleSurface& tri, bool uniform, const vec3& albedo,
-               render::GBuffer& gb, std::size_t i) {
-  if (gb.planes & render::kGBufferSurface) {
-    const embree::Surface sf = embree::surface_at(tri, u, v, dir);
-    gb.position[i] = sf.p;
-    gb.normal[i] = sf.ns;
-    gb.depth[i] = cam.depth(sf.p);
-  }
-  if (gb.planes & render::kGBufferAlbedo) gb.albedo[i] = uniform ? albedo : scene::surface_albedo(sc, obj, prim, u, v);
-  if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = -dir;
-}
-
 enum class Visibility { Raster, Embree };
 
 // SOFTGI_CPU_VISIBILITY, read at every frame so that a benchmark can compare the two in one process.
@@ -287,6 +270,51 @@ void trace_visibility(render::FrameContext& ctx, const render::PinholeCamera& ca
   stats.hits = hits.load();
 }
 
+// The surface attributes of row y of gb from its visibility planes (object, primitive,
+// barycentric): runs of pixels that see one object go through resolve_surface_run (the per-hit rule
+// of shade_hit in vector lanes) and get their albedo per run; misses are set_background. Only the
+// planes gb holds are written.
+void resolve_row(const scene::Scene& sc, const scene::PosedScene& posed, const render::PinholeCamera& cam,
+                 const render::BufferRays& rays, int y, render::GBuffer& gb) {
+  const int W = gb.width;
+  const std::size_t row0 = static_cast<std::size_t>(y) * W;
+  const bool surface = (gb.planes & render::kGBufferSurface) != 0, albedo = (gb.planes & render::kGBufferAlbedo) != 0,
+             view_dir = (gb.planes & render::kGBufferViewDir) != 0;
+  for (int x = 0; x < W;) {
+    const std::size_t i = row0 + x;
+    const int oi = gb.object[i];
+    if (oi < 0) {
+      gb.set_background(i, view_dir ? rays.direction(x, y) : vec3(0.0f));
+      ++x;
+      continue;
+    }
+    int x1 = x + 1;
+    while (x1 < W && gb.object[row0 + x1] == oi) ++x1;
+    const int n = x1 - x;
+    const scene::PosedObject& obj = posed.objects[oi];
+    if (surface) {
+      const cpu_resolve::ObjectArrays arrays{obj.source->triangles.data(), obj.positions.data(),
+                                             obj.normals.size() == obj.positions.size() ? obj.normals.data() : nullptr};
+      cpu_resolve::resolve_surface_run(cam, arrays, &gb.primitive[i], &gb.barycentric[i], &rays.sx[x],
+                                       rays.sy[static_cast<std::size_t>(y)], n, &gb.position[i], &gb.normal[i],
+                                       &gb.depth[i], view_dir ? &gb.view_dir[i] : nullptr);
+    } else if (view_dir) {
+      for (int k = 0; k < n; ++k) gb.view_dir[i + k] = -rays.direction(x + k, y);
+    }
+    if (albedo) {
+      vec3 a(0.0f);
+      if (scene::constant_albedo(sc, obj, a)) {
+        std::fill_n(gb.albedo.begin() + static_cast<std::ptrdiff_t>(i), n, a);
+      } else {
+        for (int k = 0; k < n; ++k)
+          gb.albedo[i + k] = scene::surface_albedo(sc, obj, static_cast<std::size_t>(gb.primitive[i + k]),
+                                                   gb.barycentric[i + k].x, gb.barycentric[i + k].y);
+      }
+    }
+    x = x1;
+  }
+}
+
 // The one primary-visibility loop of the CPU backend: a buffer of ceil(W/s) x ceil(H/s) pixels whose
 // pixel (x, y) holds the hit of the display camera's ray through display point ((x + 0.5) s,
 // (y + 0.5) s). s = 1 is the display G-buffer; s > 1 the receiver buffer of paper 000 section 4, whose
@@ -296,7 +324,7 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
   const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, who);
   stats.visibility = visibility_from_environment();
   const int W = (ctx.width + scale - 1) / scale, H = (ctx.height + scale - 1) / scale;
-  // Every pixel is written below (a hit by shade_hit, a miss by set_background), in last frame's
+  // Every pixel is written below (a hit by resolve_row, a miss by set_background), in last frame's
   // buffers. Two phases, timed apart: visibility finds each pixel's object, triangle and
   // barycentrics (a visibility buffer); the resolve derives the surface attributes from them.
   render::GBuffer gb = render::GBuffer::for_overwrite(W, H, scale, ctx.pool(), planes);
@@ -308,44 +336,9 @@ render::GBuffer trace_buffer(render::FrameContext& ctx, int scale, unsigned plan
     stats.hits = stats.raster.hits;
   }
   const render::BufferRays rays(cam, W, H, scale);  // cam.buffer_direction and buffer_ray, per column and row
-  auto ray_dir = [&](int x, int y) { return rays.direction(x, y); };
-  const bool view_dir = (planes & render::kGBufferViewDir) != 0;
   const auto t2 = clock::now();
   tbb::parallel_for(tbb::blocked_range<int>(0, H, 4), [&](const tbb::blocked_range<int>& rows) {
-    int last = -1, last_prim = -1;
-    bool uniform = false;
-    vec3 albedo(0.0f);
-    embree::TriangleSurface tri;
-    for (int y = rows.begin(); y != rows.end(); ++y)
-      for (int x = 0; x < W; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y) * W + x;
-        const int oi = gb.object[i];
-        if (gb.planes == render::kGBufferVisibility) {  // no ray direction needed
-          if (oi < 0) gb.set_background(i, vec3(0.0f));
-          continue;
-        }
-        if (oi < 0) {
-          gb.set_background(i, view_dir ? ray_dir(x, y) : vec3(0.0f));
-          continue;
-        }
-        const int prim = gb.primitive[i];
-        if (oi != last) {
-          last = oi;
-          last_prim = -1;
-          uniform = scene::constant_albedo(ctx.scene, ctx.posed.objects[oi], albedo);
-        }
-        if (prim != last_prim && (gb.planes & render::kGBufferSurface)) {
-          last_prim = prim;
-          tri = embree::triangle_surface(ctx.posed.objects[oi], static_cast<unsigned>(prim));
-        }
-        // surface_at needs a unit ray only for view_dir and where it stands in for a degenerate
-        // triangle's normal; otherwise only the side it points to, and the normalisation (a square
-        // root and a division per pixel) is skipped.
-        const bool unit = view_dir || ((gb.planes & render::kGBufferSurface) && !tri.unit_ng);
-        const vec3 dir = unit ? ray_dir(x, y) : rays.ray(x, y);
-        shade_hit(ctx.scene, ctx.posed.objects[oi], static_cast<unsigned>(prim), gb.barycentric[i].x, gb.barycentric[i].y,
-                  dir, cam, tri, uniform, albedo, gb, i);
-      }
+    for (int y = rows.begin(); y != rows.end(); ++y) resolve_row(ctx.scene, ctx.posed, cam, rays, y, gb);
   });
   stats.resolve_seconds = std::chrono::duration<double>(clock::now() - t2).count();
   stats.rays = static_cast<long long>(W) * H;
@@ -393,6 +386,35 @@ render::GBuffer produce_gbuffer(render::FrameContext& ctx, int s, const char* pa
 }
 
 }  // namespace
+
+std::size_t cpu_resolve::surface_resolve_differences(const render::PinholeCamera& cam, const scene::Scene& sc,
+                                                     const scene::PosedScene& posed, const render::GBuffer& gb) {
+  const render::BufferRays rays(cam, gb.width, gb.height, gb.scale);
+  const bool surface = gb.has(render::kGBufferSurface), albedo = gb.has(render::kGBufferAlbedo),
+             view_dir = gb.has(render::kGBufferViewDir);
+  const auto same = [](const auto& a, const auto& b) { return std::memcmp(&a, &b, sizeof(a)) == 0; };
+  std::size_t differ = 0;
+  for (int y = 0; y < gb.height; ++y)
+    for (int x = 0; x < gb.width; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * gb.width + x;
+      const int oi = gb.object[i];
+      if (oi < 0) continue;  // set_background, the same function either way
+      const scene::PosedObject& obj = posed.objects[oi];
+      const unsigned prim = static_cast<unsigned>(gb.primitive[i]);
+      const float u = gb.barycentric[i].x, v = gb.barycentric[i].y;
+      // The reference renderer's rule, one hit at a time (embree_setup.hpp), with the ray as the
+      // resolve takes it: unit where it is written as view_dir or stands in for a degenerate normal.
+      const embree::TriangleSurface tri = embree::triangle_surface(obj, prim);
+      const vec3 dir = view_dir || !tri.unit_ng ? rays.direction(x, y) : rays.ray(x, y);
+      const embree::Surface sf = embree::surface_at(tri, u, v, dir);
+      bool ok = true;
+      if (surface) ok = ok && same(gb.position[i], sf.p) && same(gb.normal[i], sf.ns) && same(gb.depth[i], cam.depth(sf.p));
+      if (albedo) ok = ok && same(gb.albedo[i], scene::surface_albedo(sc, obj, prim, u, v));
+      if (view_dir) ok = ok && same(gb.view_dir[i], -dir);
+      differ += ok ? 0 : 1;
+    }
+  return differ;
+}
 
 void register_cpu_shared_passes() { render::register_gbuffer_pass_impls(cpu::kBackendName, produce_gbuffer); }
 
