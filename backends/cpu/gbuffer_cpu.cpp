@@ -272,8 +272,8 @@ void trace_visibility(render::FrameContext& ctx, const render::PinholeCamera& ca
 
 // The surface attributes of row y of gb from its visibility planes (object, primitive,
 // barycentric): runs of pixels that see one object go through resolve_surface_run (the per-hit rule
-// of shade_hit in vector lanes) and get their albedo per run; misses are set_background. Only the
-// planes gb holds are written.
+// of the reference renderer in vector lanes) and get their albedo per run; runs of misses get
+// GBuffer::set_background's values. Only the planes gb holds are written.
 void resolve_row(const scene::Scene& sc, const scene::PosedScene& posed, const render::PinholeCamera& cam,
                  const render::BufferRays& rays, int y, render::GBuffer& gb) {
   const int W = gb.width;
@@ -283,14 +283,27 @@ void resolve_row(const scene::Scene& sc, const scene::PosedScene& posed, const r
   for (int x = 0; x < W;) {
     const std::size_t i = row0 + x;
     const int oi = gb.object[i];
-    if (oi < 0) {
-      gb.set_background(i, view_dir ? rays.direction(x, y) : vec3(0.0f));
-      ++x;
-      continue;
-    }
     int x1 = x + 1;
     while (x1 < W && gb.object[row0 + x1] == oi) ++x1;
     const int n = x1 - x;
+    if (oi < 0) {
+      // A run of misses: GBuffer::set_background's values, one plane at a time.
+      const auto fill = [&](auto& plane, const auto& value) {
+        std::fill_n(plane.begin() + static_cast<std::ptrdiff_t>(i), n, value);
+      };
+      if (surface) {
+        fill(gb.position, vec3(0.0f));
+        fill(gb.normal, vec3(0.0f));
+        fill(gb.depth, std::numeric_limits<float>::infinity());
+      }
+      if (albedo) fill(gb.albedo, vec3(0.0f));
+      if (view_dir)
+        for (int k = 0; k < n; ++k) gb.view_dir[i + k] = rays.direction(x + k, y);
+      fill(gb.primitive, -1);
+      fill(gb.barycentric, glm::vec2(0.0f));
+      x = x1;
+      continue;
+    }
     const scene::PosedObject& obj = posed.objects[oi];
     if (surface) {
       const cpu_resolve::ObjectArrays arrays{obj.source->triangles.data(), obj.positions.data(),
@@ -398,7 +411,17 @@ std::size_t cpu_resolve::surface_resolve_differences(const render::PinholeCamera
     for (int x = 0; x < gb.width; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * gb.width + x;
       const int oi = gb.object[i];
-      if (oi < 0) continue;  // set_background, the same function either way
+      if (oi < 0) {
+        // What GBuffer::set_background writes for this pixel's ray.
+        render::GBuffer bg = render::GBuffer::background(1, 1, 1, nullptr, gb.planes);
+        bg.set_background(0, view_dir ? rays.direction(x, y) : vec3(0.0f));
+        bool ok = same(gb.primitive[i], bg.primitive[0]) && same(gb.barycentric[i], bg.barycentric[0]);
+        if (surface) ok = ok && same(gb.position[i], bg.position[0]) && same(gb.normal[i], bg.normal[0]) && same(gb.depth[i], bg.depth[0]);
+        if (albedo) ok = ok && same(gb.albedo[i], bg.albedo[0]);
+        if (view_dir) ok = ok && same(gb.view_dir[i], bg.view_dir[0]);
+        differ += ok ? 0 : 1;
+        continue;
+      }
       const scene::PosedObject& obj = posed.objects[oi];
       const unsigned prim = static_cast<unsigned>(gb.primitive[i]);
       const float u = gb.barycentric[i].x, v = gb.barycentric[i].y;

@@ -36,10 +36,11 @@ void resolve_surface_run(const render::PinholeCamera& cam, const ObjectArrays& o
                          const glm::vec2* barycentric, const float* sx, float sy, int n, glm::vec3* position,
                          glm::vec3* normal, float* depth, glm::vec3* view_dir);
 
-// For the tests: how many hit pixels of gb (a CPU G-buffer of `posed` seen by `cam` at gb.scale)
-// differ in any bit, in any plane gb holds, from the reference renderer's per-hit rule
+// For the tests: how many pixels of gb (a CPU G-buffer of `posed` seen by `cam` at gb.scale) differ
+// in any bit, in any plane gb holds, from the reference renderer's per-hit rule
 // (embree::triangle_surface, surface_at, scene::surface_albedo) applied to the pixel's visibility
-// planes one at a time. 0: the resolve is that rule. Defined in gbuffer_cpu.cpp.
+// planes one at a time, or, for a miss, from GBuffer::set_background. 0: the resolve is that rule.
+// Defined in gbuffer_cpu.cpp.
 std::size_t surface_resolve_differences(const render::PinholeCamera& cam, const scene::Scene& sc,
                                         const scene::PosedScene& posed, const render::GBuffer& gb);
 

@@ -815,11 +815,17 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
   const render::PinholeCamera cam = render::make_pinhole_camera(ctx.scene, ctx.width, ctx.height, "image_splat shade_direct");
   const render::BufferRays rays(cam, fine.width, fine.height, fine.scale);
   tbb::parallel_for(tbb::blocked_range<int>(0, fine.height, 4), [&](const tbb::blocked_range<int>& rows) {
-    for (int y = rows.begin(); y != rows.end(); ++y)
-      for (int x = 0; x < fine.width; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(fine.width) + static_cast<std::size_t>(x);
-        if (!fine.hit(i)) img.rgb[i] = background(rays.direction(x, y));
+    std::vector<glm::vec3> dirs;
+    for (int y = rows.begin(); y != rows.end(); ++y) {
+      const std::size_t row0 = static_cast<std::size_t>(y) * static_cast<std::size_t>(fine.width);
+      // Runs of background pixels, their rays worked out together.
+      for (int x = 0; x < fine.width;) {
+        int x1 = x;
+        while (x1 < fine.width && !fine.hit(row0 + static_cast<std::size_t>(x1))) ++x1;
+        render::background_run(background, cam, rays, x, y, x1 - x, &img.rgb[row0 + static_cast<std::size_t>(x)], dirs);
+        x = x1 + 1;
       }
+    }
   });
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surface, 4096), [&](const tbb::blocked_range<std::size_t>& br) {
     for (std::size_t i = br.begin(); i != br.end(); ++i) {

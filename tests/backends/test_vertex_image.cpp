@@ -2,6 +2,11 @@
 // that is linear in position exactly (up to float rounding), on every visible triangle.
 #include <gtest/gtest.h>
 
+#include <cstring>
+#include <random>
+#include <utility>
+
+#include "../../core/src/render/vertex_image_run.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/frame.hpp"
@@ -21,10 +26,10 @@ glm::vec3 linear_fn(const glm::vec3& p) {
 }
 
 struct Frame {
-  scene::Scene scene = softgi::testing::make_plane_sphere_scene();
-  scene::PosedScene posed = scene::evaluate(scene, 0.0);
+  scene::Scene scene;
+  scene::PosedScene posed;
   render::GBuffer gb;
-  Frame() {
+  explicit Frame(scene::Scene sc = softgi::testing::make_plane_sphere_scene()) : scene(std::move(sc)), posed(scene::evaluate(scene, 0.0)) {
     backends::CpuBackend backend;
     render::FrameResult result;
     render::ParamSet params;
@@ -124,4 +129,88 @@ TEST(VertexImage, DerivedPlanesGiveTheImageOfTheWholeGBuffer) {
     EXPECT_NE(std::string(e.what()).find("none is derived"), std::string::npos) << e.what();
   }
   EXPECT_THROW(render::interpolate_vertex_values(vis, f.posed, f.per_vertex(), bg), std::invalid_argument);
+}
+
+// The image is interpolated in vector lanes across runs of pixels (core/src/render/vertex_image_run.cpp):
+// every surface pixel must hold the bits of the per-pixel expression the header states,
+// (1 - b1 - b2) v[a] + b1 v[b] + b2 v[c], times the G-buffer's albedo or the derived one, with values
+// that are not linear (so that no two rules can agree by accident) and on a mesh with vertex
+// colours (albedo per pixel) as well as on uniform ones. A primitive out of range is an error that
+// names the pixel.
+TEST(VertexImage, EveryPixelIsThePerPixelExpressionToTheBit) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(0.0f, 2.0f);
+  for (const bool colours : {false, true}) {
+    SCOPED_TRACE(colours ? "vertex colours" : "uniform albedo");
+    scene::Scene sc = softgi::testing::make_plane_sphere_scene();
+    if (colours)
+      for (auto& m : sc.meshes) {
+        m.colors.clear();
+        for (std::size_t v = 0; v < m.positions.size(); ++v) m.colors.push_back({u(rng), u(rng), u(rng)});
+      }
+    const Frame f(std::move(sc));
+    std::vector<std::vector<glm::vec3>> values;
+    for (const auto& o : f.posed.objects) {
+      values.emplace_back();
+      for (std::size_t v = 0; v < o.positions.size(); ++v) values.back().push_back({u(rng), u(rng), u(rng)});
+    }
+    const render::PinholeCamera cam = render::make_pinhole_camera(f.scene, f.gb.width, f.gb.height, "test");
+    render::GBuffer vis = f.gb;
+    vis.planes = render::kGBufferVisibility;
+    vis.albedo.clear();
+    const Image plain = render::interpolate_vertex_values(f.gb, f.posed, values);
+    const Image held = render::interpolate_vertex_values(f.gb, f.posed, values, {}, Image(), true);
+    const Image derived = render::interpolate_vertex_values(vis, f.posed, values, {}, Image(), true, render::DerivedPlanes{&f.scene, &cam});
+    const auto same = [](const glm::vec3& a, const glm::vec3& b) { return std::memcmp(&a, &b, sizeof(a)) == 0; };
+    int hits = 0, differ = 0;
+    for (std::size_t i = 0; i < f.gb.object.size(); ++i) {
+      if (!f.gb.hit(i)) continue;
+      ++hits;
+      const scene::PosedObject& obj = f.posed.objects[f.gb.object[i]];
+      const glm::uvec3 t = obj.source->triangles[f.gb.primitive[i]];
+      const std::vector<glm::vec3>& v = values[f.gb.object[i]];
+      const glm::vec2 b = f.gb.barycentric[i];
+      const glm::vec3 e = (1.0f - b.x - b.y) * v[t.x] + b.x * v[t.y] + b.y * v[t.z];
+      const glm::vec3 a = scene::surface_albedo(f.scene, obj, f.gb.primitive[i], b.x, b.y);
+      differ += !same(plain.rgb[i], e) + !same(held.rgb[i], e * f.gb.albedo[i]) + !same(derived.rgb[i], e * a);
+    }
+    EXPECT_GT(hits, 1000);
+    EXPECT_EQ(differ, 0) << "values differing in some bit, of " << 3 * hits;
+    // A primitive past the end of its mesh, in the middle of a run.
+    std::size_t bad = 0;
+    while (!vis.hit(bad) || !vis.hit(bad + 1) || vis.object[bad] != vis.object[bad + 1]) ++bad;
+    vis.primitive[bad + 1] = 1 << 30;
+    try {
+      render::interpolate_vertex_values(vis, f.posed, values, {}, Image(), true, render::DerivedPlanes{&f.scene, &cam});
+      ADD_FAILURE() << "primitive out of range accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("pixel " + std::to_string(bad + 1) + " has primitive"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// The background's derived rays, a row at a time in vector lanes (detail::ray_directions), are
+// render::BufferRays::direction to the bit: every pixel of buffers at scales 1 and 3 of cameras that
+// look along and across the axes.
+TEST(VertexImage, DerivedRayDirectionsAreTheBufferRaysToTheBit) {
+  scene::Scene sc = softgi::testing::make_plane_sphere_scene();
+  std::size_t compared = 0, differ = 0;
+  for (const glm::vec3 eye : {glm::vec3(0.0f, 1.0f, 5.0f), glm::vec3(3.0f, -2.0f, 0.5f), glm::vec3(-0.3f, 7.0f, -4.0f)}) {
+    sc.camera.position = eye;
+    for (const int scale : {1, 3}) {
+      const int w = 131, h = 77;
+      const render::PinholeCamera cam = render::make_pinhole_camera(sc, w * scale, h * scale, "test");
+      const render::BufferRays rays(cam, w, h, scale);
+      std::vector<glm::vec3> dirs(w);
+      for (int y = 0; y < h; ++y) {
+        render::detail::ray_directions(cam.forward, cam.right, cam.up, rays.sx.data(), rays.sy[y], w, dirs.data());
+        for (int x = 0; x < w; ++x) {
+          const glm::vec3 want = rays.direction(x, y);
+          differ += std::memcmp(&dirs[x], &want, sizeof(want)) != 0;
+          ++compared;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(differ, 0u) << "of " << compared << " rays";
 }

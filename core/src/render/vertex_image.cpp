@@ -1,5 +1,9 @@
 #include "softgi/render/vertex_image.hpp"
 
+#include "vertex_image_run.hpp"
+
+#include <algorithm>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -52,21 +56,33 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
   out.width = gb.width;
   out.height = gb.height;
   out.rgb.resize(n);  // every pixel is written below
+  // The camera rays of the buffer's columns and rows, for background pixels whose direction is derived.
+  std::optional<BufferRays> rays;
+  if (own_dir && background) rays.emplace(*derive.camera, gb.width, gb.height, gb.scale);
   tbb::parallel_for(tbb::blocked_range<int>(0, gb.height), [&](const tbb::blocked_range<int>& rows) {
+    std::vector<glm::vec3> dirs;  // a run's derived ray directions
     int checked = -1;
     bool uniform = false;  // the checked object's albedo is the same everywhere: `albedo`
     glm::vec3 albedo(0.0f);
-    for (int y = rows.begin(); y != rows.end(); ++y)
-      for (int x = 0; x < gb.width; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y) * gb.width + x;
+    for (int y = rows.begin(); y != rows.end(); ++y) {
+      const std::size_t row0 = static_cast<std::size_t>(y) * gb.width;
+      // Runs of pixels that see one object (or none), each interpolated in vector lanes.
+      for (int x = 0; x < gb.width;) {
+        const std::size_t i = row0 + x;
         const int o = gb.object[i];
+        int x1 = x + 1;
+        while (x1 < gb.width && gb.object[row0 + x1] == o) ++x1;
+        const int run = x1 - x;
         if (o < 0) {
           if (!background) {
-            out.rgb[i] = glm::vec3(0.0f);
+            std::fill_n(out.rgb.begin() + static_cast<std::ptrdiff_t>(i), run, glm::vec3(0.0f));
+          } else if (own_dir) {
+            background_run(background, *derive.camera, *rays, x, y, run, &out.rgb[i], dirs);  // the G-buffer's rays
           } else {
             // The G-buffer's ray for this pixel (its view_dir for background pixels).
-            out.rgb[i] = background(own_dir ? derive.camera->buffer_direction(x, y, gb.scale) : gb.view_dir[i]);
+            for (int k = 0; k < run; ++k) out.rgb[i + k] = background(gb.view_dir[i + k]);
           }
+          x = x1;
           continue;
         }
         if (o != checked) {
@@ -75,23 +91,37 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
           uniform = own_albedo && scene::constant_albedo(*derive.scene, posed.objects[o], albedo);
         }
         const scene::Mesh& mesh = *posed.objects[o].source;
-        const int t = gb.primitive[i];
-        if (t < 0 || t >= static_cast<int>(mesh.triangles.size()))
-          throw std::invalid_argument("interpolate_vertex_values: pixel " + std::to_string(i) + " has primitive " +
-                                      std::to_string(t) + " outside mesh '" + mesh.name + "'");
-        const glm::uvec3 tri = mesh.triangles[t];
-        const std::vector<glm::vec3>& v = per_vertex[o];
-        const glm::vec2 b = gb.barycentric[i];
-        const glm::vec3 e = (1.0f - b.x - b.y) * v[tri.x] + b.x * v[tri.y] + b.y * v[tri.z];
-        if (!times_albedo)
-          out.rgb[i] = e;
-        else
-          out.rgb[i] = e * (uniform      ? albedo
-                            : own_albedo ? scene::surface_albedo(*derive.scene, posed.objects[o], static_cast<std::size_t>(t), b.x, b.y)
-                                         : gb.albedo[i]);
+        // Albedo per pixel from the G-buffer's plane, or derived (below) where it is not uniform.
+        const bool plane_albedo = times_albedo && !own_albedo;
+        if (!detail::interpolate_run(mesh.triangles.data(), static_cast<int>(mesh.triangles.size()), per_vertex[o].data(),
+                                     &gb.primitive[i], &gb.barycentric[i], run, plane_albedo ? &gb.albedo[i] : nullptr,
+                                     times_albedo && uniform, albedo, &out.rgb[i])) {
+          for (int k = 0; k < run; ++k) {
+            const int t = gb.primitive[i + k];
+            if (t < 0 || t >= static_cast<int>(mesh.triangles.size()))
+              throw std::invalid_argument("interpolate_vertex_values: pixel " + std::to_string(i + k) + " has primitive " +
+                                          std::to_string(t) + " outside mesh '" + mesh.name + "'");
+          }
+        }
+        if (times_albedo && own_albedo && !uniform)
+          for (int k = 0; k < run; ++k) {
+            const glm::vec2 b = gb.barycentric[i + k];
+            out.rgb[i + k] *= scene::surface_albedo(*derive.scene, posed.objects[o], static_cast<std::size_t>(gb.primitive[i + k]), b.x, b.y);
+          }
+        x = x1;
       }
+    }
   });
   return out;
+}
+
+void background_run(const BackgroundFn& background, const PinholeCamera& camera, const BufferRays& rays, int x0, int y, int n,
+                    glm::vec3* out, std::vector<glm::vec3>& scratch) {
+  if (n <= 0) return;
+  scratch.resize(static_cast<std::size_t>(n));
+  detail::ray_directions(camera.forward, camera.right, camera.up, &rays.sx[static_cast<std::size_t>(x0)],
+                         rays.sy[static_cast<std::size_t>(y)], n, scratch.data());
+  for (int k = 0; k < n; ++k) out[k] = background(scratch[static_cast<std::size_t>(k)]);
 }
 
 glm::vec3 background_radiance(const scene::Environment& env, const glm::vec3& ray_dir) { return env.radiance(ray_dir); }

@@ -66,4 +66,10 @@ glm::vec3 background_radiance(const scene::Environment& env, const glm::vec3& ra
 // background_radiance as a BackgroundFn (env must outlive it).
 BackgroundFn environment_background(const scene::Environment& env);
 
+// background(rays.direction(x, y)) for the n pixels x = x0 .. x0 + n - 1 of row y of the buffer
+// `rays` describes (camera.buffer_direction to the bit), into out[0 .. n): the rays of the run worked
+// out together in vector lanes, `scratch` holding them.
+void background_run(const BackgroundFn& background, const PinholeCamera& camera, const BufferRays& rays, int x0, int y, int n,
+                    glm::vec3* out, std::vector<glm::vec3>& scratch);
+
 }  // namespace softgi::render
