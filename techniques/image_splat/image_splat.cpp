@@ -717,8 +717,8 @@ DirectKernels cpu_direct_kernels(render::FramePool* pool) {
       const std::size_t samples = up.coarse_visibility.size() / n2, m = static_cast<std::size_t>(tr.stride());
       // The rows start on a cache line (rows_base, up to 15 floats into the vector): the kernel reads
       // each row in 64-byte vectors, and a vector's own storage is only 16-byte aligned (malloc),
-      // which would split every such load across two lines. Measured 0.7-1.0 ms of shade_direct's
-      // 11 ms on `character` at 1024x1024 (bench/README.md).
+      // which would split every such load across two lines (about 8 % of shade_direct on `character`
+      // at 1024x1024 in the quietest runs, bench/README.md).
       constexpr std::size_t kLine = 64 / sizeof(float);
       rows = pool ? pool->take_for_overwrite<float>(samples * m + kLine) : std::vector<float>(samples * m + kLine);
       const std::size_t misalign = reinterpret_cast<std::uintptr_t>(rows.data()) % 64 / sizeof(float);
