@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -154,4 +155,60 @@ TEST(EnvironmentMap, ValidateRefusesNegativeAndNonFinitePixels) {
   s.environment.map_rgb[3 * 6 + 2] = INFINITY;
   err = error_of(s);
   EXPECT_NE(err.find("pixel (2, 1) channel 2 = inf"), std::string::npos) << err;
+}
+
+// EnvironmentRadiance over an array of directions (the sky in vector lanes, scene/sky_run.cpp) gives
+// operator()'s bits for each: the sky with and without a sun, turned and not, scaled; a map; random
+// unit directions and the edge cases (the sun's centre and rim, the horizon at +0 and -0, the
+// zenith, beyond it, the nadir). Every branch is seen: sun, sky above and ground below.
+TEST(EnvironmentRadiance, ManyDirectionsAtOnceAreEachDirectionToTheBit) {
+  std::mt19937 rng(17);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  scene::Environment map;
+  map.kind = scene::Environment::Kind::Map;
+  map.map_width = 4;
+  map.map_height = 2;
+  for (int i = 0; i < 4 * 2 * 3; ++i) map.map_rgb.push_back(0.1f * static_cast<float>(i));
+  map.rotation_y = 0.4f;
+  std::vector<scene::Environment> envs;
+  for (const float sun_radius : {0.05f, 0.0f, 0.3f})
+    for (const float rotation : {0.0f, 0.7f, -2.0f}) {
+      scene::Environment e;
+      e.sun_radius = sun_radius;
+      e.rotation_y = rotation;
+      e.intensity = 1.3f;
+      envs.push_back(e);
+    }
+  envs.push_back(map);
+  for (const scene::Environment& env : envs) {
+    SCOPED_TRACE("sun radius " + std::to_string(env.sun_radius) + " rotation " + std::to_string(env.rotation_y) +
+                 (env.kind == scene::Environment::Kind::Map ? " map" : " sky"));
+    const scene::EnvironmentRadiance eval(env);
+    // The sun's centre as the sky sees it: the world direction that the rotation turns onto it.
+    const float c = std::cos(env.rotation_y), s = std::sin(env.rotation_y);
+    const vec3 sun = glm::normalize(env.sun_direction);
+    const vec3 sun_world(c * sun.x + s * sun.z, sun.y, -s * sun.x + c * sun.z);
+    std::vector<vec3> dirs = {sun_world, vec3(1.0f, 0.0f, 0.0f), vec3(1.0f, -0.0f, 0.0f), vec3(0.0f, 1.0f, 0.0f),
+                              vec3(0.0f, 2.0f, 0.0f), vec3(0.0f, -1.0f, 0.0f)};
+    // The rim: directions at the sun's angular radius, just inside and outside.
+    const vec3 side = glm::normalize(glm::cross(sun_world, vec3(0.0f, 0.0f, 1.0f)));
+    for (const float a : {0.999f, 1.0f, 1.001f})
+      dirs.push_back(std::cos(a * env.sun_radius) * sun_world + std::sin(a * env.sun_radius) * side);
+    for (int i = 0; i < 5000; ++i) dirs.push_back(glm::normalize(vec3(g(rng), g(rng), g(rng))));
+    for (int i = 0; i < 500; ++i) dirs.push_back(glm::normalize(sun_world + 0.1f * vec3(g(rng), g(rng), g(rng))));
+    std::vector<vec3> out(dirs.size());
+    eval(dirs.data(), dirs.size(), out.data());
+    std::size_t differ = 0, in_sun = 0, below = 0;
+    for (std::size_t k = 0; k < dirs.size(); ++k) {
+      const vec3 want = eval(dirs[k]);
+      differ += std::memcmp(&out[k], &want, sizeof(want)) != 0;
+      in_sun += want == env.intensity * env.sun_radiance;
+      below += want == env.intensity * env.ground;
+    }
+    EXPECT_EQ(differ, 0u) << "of " << dirs.size() << " directions";
+    if (env.kind == scene::Environment::Kind::Sky) {
+      EXPECT_EQ(in_sun > 0, env.sun_radius > 0.0f);
+      EXPECT_GT(below, 1000u);
+    }
+  }
 }

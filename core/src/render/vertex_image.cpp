@@ -13,6 +13,26 @@
 
 namespace softgi::render {
 
+namespace {
+
+// environment_background's callable, a type of its own so that background_run recognises it
+// (std::function::target) and evaluates a run of directions at once.
+struct EnvironmentBackground {
+  scene::EnvironmentRadiance eval;
+  glm::vec3 operator()(const glm::vec3& d) const { return eval(d); }
+};
+
+// background(dir[k]) into out[k], k < n: the environment's directions all at once.
+void background_along(const BackgroundFn& background, const glm::vec3* dir, int n, glm::vec3* out) {
+  if (const auto* env = background.target<EnvironmentBackground>()) {
+    env->eval(dir, static_cast<std::size_t>(n), out);
+    return;
+  }
+  for (int k = 0; k < n; ++k) out[k] = background(dir[k]);
+}
+
+}  // namespace
+
 Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& posed,
                                 const std::vector<std::vector<glm::vec3>>& per_vertex, const BackgroundFn& background) {
   return interpolate_vertex_values(gb, posed, per_vertex, background, Image(), false);
@@ -79,8 +99,8 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
           } else if (own_dir) {
             background_run(background, *derive.camera, *rays, x, y, run, &out.rgb[i], dirs);  // the G-buffer's rays
           } else {
-            // The G-buffer's ray for this pixel (its view_dir for background pixels).
-            for (int k = 0; k < run; ++k) out.rgb[i + k] = background(gb.view_dir[i + k]);
+            // The G-buffer's rays (its view_dir for background pixels).
+            background_along(background, &gb.view_dir[i], run, &out.rgb[i]);
           }
           x = x1;
           continue;
@@ -115,13 +135,14 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
   return out;
 }
 
+
 void background_run(const BackgroundFn& background, const PinholeCamera& camera, const BufferRays& rays, int x0, int y, int n,
                     glm::vec3* out, std::vector<glm::vec3>& scratch) {
   if (n <= 0) return;
   scratch.resize(static_cast<std::size_t>(n));
   detail::ray_directions(camera.forward, camera.right, camera.up, &rays.sx[static_cast<std::size_t>(x0)],
                          rays.sy[static_cast<std::size_t>(y)], n, scratch.data());
-  for (int k = 0; k < n; ++k) out[k] = background(scratch[static_cast<std::size_t>(k)]);
+  background_along(background, scratch.data(), n, out);
 }
 
 glm::vec3 background_radiance(const scene::Environment& env, const glm::vec3& ray_dir) { return env.radiance(ray_dir); }
@@ -129,7 +150,7 @@ glm::vec3 background_radiance(const scene::Environment& env, const glm::vec3& ra
 BackgroundFn environment_background(const scene::Environment& env) {
   // Prepared once: per pixel, Environment::radiance would work out the sun's direction and the
   // cosines again.
-  return [eval = scene::EnvironmentRadiance(env)](const glm::vec3& d) { return eval(d); };
+  return EnvironmentBackground{scene::EnvironmentRadiance(env)};
 }
 
 }  // namespace softgi::render

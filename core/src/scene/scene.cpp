@@ -3,6 +3,8 @@
 // structural validation, bounds.
 #include "softgi/scene/scene.hpp"
 
+#include "sky_run.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -134,6 +136,33 @@ glm::vec3 EnvironmentRadiance::operator()(const glm::vec3& dir) const {
   if (env.kind == Environment::Kind::Map) return env.intensity * map_lookup(env, d);
   if (env.sun_radius > 0.0f && glm::dot(d, sun_) >= cos_sun_) return env.intensity * env.sun_radiance;
   return env.intensity * sky_gradient(env, d.y);
+}
+
+void EnvironmentRadiance::operator()(const glm::vec3* dir, std::size_t n, glm::vec3* out) const {
+  const Environment& env = *env_;
+  if (env.kind == Environment::Kind::Map) {
+    for (std::size_t k = 0; k < n; ++k) out[k] = (*this)(dir[k]);
+    return;
+  }
+  if (n == 0) return;
+  static_assert(sizeof(glm::vec3) == 3 * sizeof(float));
+  detail::SkyParams p;
+  p.rotated = rotated_;
+  p.cos_r = cos_r_;
+  p.sin_r = sin_r_;
+  p.sun = env.sun_radius > 0.0f;
+  p.sun_x = sun_.x;
+  p.sun_y = sun_.y;
+  p.sun_z = sun_.z;
+  p.cos_sun = cos_sun_;
+  p.intensity = env.intensity;
+  for (int c = 0; c < 3; ++c) {
+    p.zenith[c] = env.zenith[c];
+    p.horizon[c] = env.horizon[c];
+    p.ground[c] = env.ground[c];
+    p.sun_radiance[c] = env.sun_radiance[c];
+  }
+  detail::sky_run(p, &dir[0].x, n, &out[0].x);
 }
 
 glm::vec3 Environment::radiance(const glm::vec3& dir) const { return EnvironmentRadiance(*this)(dir); }

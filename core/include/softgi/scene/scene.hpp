@@ -7,6 +7,7 @@
 #include <glm/glm.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <cstdint>
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -134,6 +135,9 @@ class EnvironmentRadiance {
  public:
   explicit EnvironmentRadiance(const Environment& env);
   glm::vec3 operator()(const glm::vec3& dir) const;
+  // operator() of dir[0 .. n) into out[0 .. n), the same values to the bit: the sky in vector lanes
+  // (scene/sky_run.cpp), a map one direction at a time. For the background pixels of an image.
+  void operator()(const glm::vec3* dir, std::size_t n, glm::vec3* out) const;
 
  private:
   const Environment* env_;
