@@ -26,23 +26,10 @@ using softgi::testing::silhouette;
 
 namespace {
 
-// The shared pass on the CPU backend with the given visibility: "gbuffer" at scale 1, else
-// "receiver_gbuffer" at `scale` (no display G-buffer in the frame, so it is not copied).
+// The shared pass on the CPU backend with the given visibility (softgi::testing::cpu_gbuffer).
 render::GBuffer run(const scene::Scene& sc, const scene::PosedScene& posed, const char* visibility, int scale, int w,
                     int h, render::PassRecord* rec = nullptr) {
-  backends::register_cpu_backend();
-  softgi::testing::ScopedVisibility v(visibility);
-  const std::string pass = scale == 1 ? "gbuffer" : "receiver_gbuffer";
-  const render::PassFn* fn = render::find_shared_pass_impl(pass, backends::cpu::kBackendName);
-  if (!fn) throw std::logic_error("no CPU " + pass);
-  render::ParamSet params({render::ParamDesc::integer("receiver_scale", 1, 1, 64, "receiver buffer scale")});
-  params.set("receiver_scale", std::to_string(scale));
-  render::FrameResult result;
-  render::FrameContext ctx(sc, posed, params, w, h, result);
-  result.passes.push_back(render::PassRecord{pass});
-  (*fn)(ctx);
-  if (rec) *rec = result.passes.back();
-  return ctx.get<render::GBuffer>(scale == 1 ? render::kGBuffer : render::kReceiverGBuffer);
+  return softgi::testing::cpu_gbuffer(sc, posed, visibility, scale, w, h, render::kGBufferAll, rec);
 }
 
 render::GBuffer run(const scene::Scene& sc, const char* visibility, render::PassRecord* rec = nullptr) {

@@ -6,11 +6,16 @@
 #include <cmath>
 #include <cstdlib>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include <glm/glm.hpp>
 
+#include "softgi/backends/cpu_backend.hpp"
+#include "softgi/render/common_passes.hpp"
+#include "softgi/render/frame.hpp"
 #include "softgi/render/gbuffer.hpp"
+#include "softgi/render/params.hpp"
 #include "softgi/scene/scene.hpp"
 
 namespace softgi::testing {
@@ -158,6 +163,27 @@ class ScopedVisibility {
   std::string saved_;
   bool had_ = false;
 };
+
+// The CPU backend's shared G-buffer pass with the given visibility method (ScopedVisibility):
+// "gbuffer" at scale 1, else "receiver_gbuffer" at `scale` (no display G-buffer in the frame, so it
+// is not copied), holding `planes` (a receiver buffer holds every plane); `rec`: its pass record.
+inline render::GBuffer cpu_gbuffer(const scene::Scene& sc, const scene::PosedScene& posed, const char* visibility, int scale,
+                                   int w, int h, unsigned planes = render::kGBufferAll, render::PassRecord* rec = nullptr) {
+  backends::register_cpu_backend();
+  ScopedVisibility v(visibility);
+  const std::string pass = scale == 1 ? "gbuffer" : "receiver_gbuffer";
+  const render::PassFn* fn = render::find_shared_pass_impl(pass, backends::cpu::kBackendName);
+  if (!fn) throw std::logic_error("no CPU " + pass);
+  render::ParamSet params({render::ParamDesc::integer("receiver_scale", 1, 1, 64, "receiver buffer scale")});
+  params.set("receiver_scale", std::to_string(scale));
+  render::FrameResult result;
+  render::FrameContext ctx(sc, posed, params, w, h, result);
+  ctx.set_gbuffer_planes(planes);
+  result.passes.push_back(render::PassRecord{pass});
+  (*fn)(ctx);
+  if (rec) *rec = result.passes.back();
+  return ctx.get<render::GBuffer>(scale == 1 ? render::kGBuffer : render::kReceiverGBuffer);
+}
 
 // A silhouette pixel: its 3x3 neighbourhood in g holds more than one object (or background).
 inline bool silhouette(const render::GBuffer& g, int x, int y) {

@@ -38,20 +38,8 @@ struct Resolved {
 // checked against the per-hit rule.
 Resolved resolve(const scene::Scene& sc, const scene::PosedScene& posed, const char* visibility, int scale, int w, int h,
                  unsigned planes) {
-  backends::register_cpu_backend();
-  softgi::testing::ScopedVisibility v(visibility);
-  const std::string pass = scale == 1 ? "gbuffer" : "receiver_gbuffer";
-  const render::PassFn* fn = render::find_shared_pass_impl(pass, backends::cpu::kBackendName);
-  if (!fn) throw std::logic_error("no CPU " + pass);
-  render::ParamSet params({render::ParamDesc::integer("receiver_scale", 1, 1, 64, "receiver buffer scale")});
-  params.set("receiver_scale", std::to_string(scale));
-  render::FrameResult result;
-  render::FrameContext ctx(sc, posed, params, w, h, result);
-  ctx.set_gbuffer_planes(planes);
-  result.passes.push_back(render::PassRecord{pass});
-  (*fn)(ctx);
   Resolved r;
-  r.gb = ctx.get<render::GBuffer>(scale == 1 ? render::kGBuffer : render::kReceiverGBuffer);
+  r.gb = softgi::testing::cpu_gbuffer(sc, posed, visibility, scale, w, h, planes);
   for (std::size_t i = 0; i < r.gb.object.size(); ++i) r.hits += r.gb.hit(i) ? 1 : 0;
   const render::PinholeCamera cam = render::make_pinhole_camera(sc, w, h, "test");
   r.differences = backends::cpu_resolve::surface_resolve_differences(cam, sc, posed, r.gb);
