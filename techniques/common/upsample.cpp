@@ -3,6 +3,7 @@
 // (the paper's Figure 7).
 #include "softgi/render/frame_pool.hpp"
 #include "upsample.hpp"
+#include "tap_pack.hpp"
 
 #include "softgi/render/gbuffer.hpp"
 
@@ -416,34 +417,25 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) bool bilateral_run(
     for (int t = 0; t < n; ++t) measure[t] += wn[k * n + t];
   for (int k = 0; k < 4; ++k)
     for (int t = 0; t < n; ++t) wf[k * n + t] = wn[k * n + t] / measure[t];  // used where measure > 0
+  // The taps with positive weight, packed to the front in tap order (detail::pack_taps). A
+  // background pixel has none (its eps is infinite, so w_z is NaN and every wn is 0), and so gets
+  // -1 and 0 in every slot, as upsample_pixel leaves it.
+  detail::pack_taps(tap, wf, wn, n, n, out_idx, out_w);
   const float threshold = static_cast<float>(opt.miss_threshold);
+  // The misses, and whether any display sample (checked above: +inf or finite) lost every weight.
+  int fallback = 0;
   for (int t = 0; t < n; ++t) {
-    std::array<std::int32_t, 4>& oi = out_idx[t];
-    std::array<float, 4>& ow = out_w[t];
-    oi = {-1, -1, -1, -1};
-    ow = {0.0f, 0.0f, 0.0f, 0.0f};
-    out_miss[t] = 0;
-    if (!is_hit(fz[t])) continue;  // background: nothing to shade, not a miss
-    if (measure[t] > 0.0f) {
-      // The taps with positive weight, packed to the front in tap order.
-      int m = 0;
-      for (int k = 0; k < 4; ++k) {
-        oi[m] = tap[k * n + t];
-        ow[m] = wf[k * n + t];
-        m += wn[k * n + t] > 0.0f ? 1 : 0;
-      }
-      for (int k = m; k < 4; ++k) {
-        oi[k] = -1;
-        ow[k] = 0.0f;
-      }
-      out_miss[t] = measure[t] < threshold ? 1 : 0;
-    } else {
-      // Every eq. 11 weight vanished: upsample_pixel's bilinear fallback, rare.
-      const Pixel px = upsample_pixel(c, f, opt, row0 + static_cast<std::size_t>(x0 + t), fp.column(x0 + t), ay);
-      oi = px.idx;
-      ow = px.w;
-      out_miss[t] = px.miss ? 1 : 0;
-    }
+    const bool weighted = measure[t] > 0.0f;
+    out_miss[t] = weighted & (measure[t] < threshold) ? 1 : 0;
+    fallback |= (fz[t] < kInf) & !weighted;
+  }
+  for (int t = 0; fallback && t < n; ++t) {
+    if (!is_hit(fz[t]) || measure[t] > 0.0f) continue;
+    // Every eq. 11 weight vanished: upsample_pixel's bilinear fallback, rare.
+    const Pixel px = upsample_pixel(c, f, opt, row0 + static_cast<std::size_t>(x0 + t), fp.column(x0 + t), ay);
+    out_idx[t] = px.idx;
+    out_w[t] = px.w;
+    out_miss[t] = px.miss ? 1 : 0;
   }
   return true;
 }

@@ -3,6 +3,8 @@
 // is the identity, misses are flagged exactly where the coarse buffer has no matching sample, the
 // fallbacks of the contract, and bad input.
 #include <gtest/gtest.h>
+#include <iostream>
+#include <bit>
 
 #include <algorithm>
 #include <array>
@@ -15,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "../../techniques/common/tap_pack.hpp"
 #include "../../techniques/common/upsample.hpp"
 
 using namespace softgi::techniques::common;
@@ -646,6 +649,59 @@ TEST(Upsample, BadInputIsRejectedWithAClearMessage) {
 
   expect_error([] { parse_upsample_mode("bicubic"); }, "'bicubic'");
   expect_error([] { parse_upsample_fallback("magic"); }, "'magic'");
+}
+
+// The packing of the eq. 11 taps (detail::pack_taps, the last step of upsample_weights): every
+// pixel keeps the taps whose unnormalised weight is positive, in tap order, then -1 and 0. Checked
+// against the rule written out here, for every 4-bit pattern of kept taps in every pixel position of
+// a 16-pixel vector (patterns shifted across the pixels), run lengths that end inside and past a
+// vector, a tap-row stride longer than the run, and NaN, -0 and negative weights (dropped). Exact:
+// packing only moves values. Where this processor has AVX-512, pack_taps takes the vector path and
+// pack_taps_portable is compared too, so both paths are held to the rule.
+TEST(Upsample, TapPackingKeepsPositiveTapsInTapOrder) {
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> pattern(0, 15), value(0, 1 << 20);
+  const float dropped[] = {0.0f, -0.0f, -1.0f, std::nanf("")};
+  for (const int n : {0, 1, 15, 16, 17, 31, 32, 47, 64, 70}) {
+    const int stride = n + 3;
+    std::vector<std::int32_t> tap(4 * stride);
+    std::vector<float> weight(4 * stride), live(4 * stride);
+    std::vector<int> masks(n);
+    for (int t = 0; t < n; ++t) {
+      // Each pattern in turn at each position, then random ones.
+      masks[t] = n >= 16 && t < 16 ? (t + n) % 16 : pattern(rng);
+      for (int k = 0; k < 4; ++k) {
+        const std::size_t i = static_cast<std::size_t>(k) * stride + t;
+        tap[i] = value(rng);
+        weight[i] = static_cast<float>(value(rng)) / (1 << 20);
+        live[i] = (masks[t] >> k) & 1 ? 1e-30f + weight[i] : dropped[value(rng) % 4];
+      }
+    }
+    const auto check = [&](auto pack, const char* which) {
+      std::vector<std::array<std::int32_t, 4>> oi(n + 1, {7, 7, 7, 7});
+      std::vector<std::array<float, 4>> ow(n + 1, {7.0f, 7.0f, 7.0f, 7.0f});
+      pack(tap.data(), weight.data(), live.data(), stride, n, oi.data(), ow.data());
+      for (int t = 0; t < n; ++t) {
+        SCOPED_TRACE(std::string(which) + " n " + std::to_string(n) + " pixel " + std::to_string(t) + " mask " + std::to_string(masks[t]));
+        int m = 0;
+        for (int k = 0; k < 4; ++k)
+          if ((masks[t] >> k) & 1) {
+            const std::size_t i = static_cast<std::size_t>(k) * stride + t;
+            EXPECT_EQ(oi[t][m], tap[i]);
+            EXPECT_EQ(ow[t][m], weight[i]);
+            ++m;
+          }
+        for (; m < 4; ++m) {
+          EXPECT_EQ(oi[t][m], -1);
+          EXPECT_EQ(std::bit_cast<std::uint32_t>(ow[t][m]), 0u);  // +0, not -0
+        }
+      }
+      EXPECT_EQ(oi[n][0], 7) << which << ": wrote past the run";
+    };
+    check(detail::pack_taps, "pack_taps");
+    check(detail::pack_taps_portable, "pack_taps_portable");
+  }
+  if (!detail::pack_taps_vectorised()) std::cout << "[ note ] no AVX-512 here: pack_taps took the portable path\n";
 }
 
 TEST(Upsample, NamesRoundTrip) {
