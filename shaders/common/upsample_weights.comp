@@ -13,10 +13,11 @@ layout(local_size_x = kUpsampleGroupX, local_size_y = kUpsampleGroupY) in;
 
 // Through texel buffers: a SIMD device fetches and stores texels for all lanes at once, where it
 // reads and writes a storage buffer lane by lane with a bounds check per component (llvmpipe).
-layout(set = 0, binding = kUpBindFineDepth) uniform samplerBuffer fdepth;
-layout(set = 0, binding = kUpBindFineNormal) uniform samplerBuffer fnormal;
-layout(set = 0, binding = kUpBindCoarseDepth) uniform samplerBuffer cdepth;
-layout(set = 0, binding = kUpBindCoarseNormal) uniform samplerBuffer cnormal;
+// A sample's normal and depth in one RGBA32F texel: one fetch per sample (llvmpipe runs each fetch
+// as a gather of its own; with depth and the three normal components in four single-float texels a
+// pixel took twenty).
+layout(set = 0, binding = kUpBindFine) uniform samplerBuffer fine_nz;
+layout(set = 0, binding = kUpBindCoarse) uniform samplerBuffer coarse_nz;
 layout(set = 0, binding = kUpBindIndex, rgba32i) uniform writeonly iimageBuffer out_index;
 layout(set = 0, binding = kUpBindWeight, rgba32f) uniform writeonly imageBuffer out_weight;
 layout(set = 0, binding = kUpBindMiss, rg32ui) uniform writeonly uimageBuffer out_miss;
@@ -35,13 +36,9 @@ bool is_hit(float z) { return !isinf(z); }
 bool depth_ok(float z) { return (isinf(z) && z > 0.0) || (!isnan(z) && !isinf(z) && z > 0.0); }
 bool normal_ok(vec3 n) { return !any(isnan(n)) && !any(isinf(n)); }
 
-float depth_at(samplerBuffer b, int i) { return texelFetch(b, i).x; }
-vec3 normal_at(samplerBuffer b, uint i) {
-  const int k = int(3u * i);
-  return vec3(texelFetch(b, k).x, texelFetch(b, k + 1).x, texelFetch(b, k + 2).x);
-}
-vec3 fine_normal(uint p) { return normal_at(fnormal, p); }
-vec3 coarse_normal(uint i) { return normal_at(cnormal, i); }
+vec4 fine_sample(uint p) { return texelFetch(fine_nz, int(p)); }
+vec4 coarse_sample(int i) { return texelFetch(coarse_nz, i); }
+float coarse_depth(int i) { return coarse_sample(i).w; }
 
 // b^e by squaring (upsample.cpp ipow); 0^0 = 1.
 float ipow(float b, int e) {
@@ -100,19 +97,20 @@ bool store_normalised(ivec4 bidx, vec4 w, out ivec4 idx, out vec4 wt) {
 }
 
 bool bilinear_valid(ivec4 bidx, vec4 bw, out ivec4 idx, out vec4 wt) {
-  const vec4 w = vec4(is_hit(depth_at(cdepth, bidx.x)) ? bw.x : 0.0, is_hit(depth_at(cdepth, bidx.y)) ? bw.y : 0.0,
-                      is_hit(depth_at(cdepth, bidx.z)) ? bw.z : 0.0, is_hit(depth_at(cdepth, bidx.w)) ? bw.w : 0.0);
+  const vec4 w = vec4(is_hit(coarse_depth(bidx.x)) ? bw.x : 0.0, is_hit(coarse_depth(bidx.y)) ? bw.y : 0.0,
+                      is_hit(coarse_depth(bidx.z)) ? bw.z : 0.0, is_hit(coarse_depth(bidx.w)) ? bw.w : 0.0);
   return store_normalised(bidx, w, idx, wt);
 }
 
 // Eq. 11's weight of one tap: w_b w_z w_N, 0 for a background tap or one of weight 0.
 float bilateral(int i, float wb, float zp, float eps, vec3 np) {
   if (!(wb > 0.0)) return 0.0;
-  const float zi = depth_at(cdepth, i);
+  const vec4 s = coarse_sample(i);
+  const float zi = s.w;
   if (!is_hit(zi)) return 0.0;
   const float dz = abs(zp - zi);
   const float wz = dz == 0.0 ? 1.0 : 1.0 / (1.0 + dz / eps);
-  const float wn = ipow(max(0.0, dot(np, coarse_normal(uint(i)))), pc.normal_power);
+  const float wn = ipow(max(0.0, dot(np, s.xyz)), pc.normal_power);
   return wb * wz * wn;
 }
 
@@ -122,17 +120,18 @@ void main() {
   // dispatches over the larger of both extents).
   if (X < pc.cw && Y < pc.ch) {
     const uint c = uint(Y) * uint(pc.cw) + uint(X);
-    const float zc = depth_at(cdepth, int(c));
-    if (!depth_ok(zc) || (is_hit(zc) && !normal_ok(coarse_normal(c)))) atomicMin(status[kUpStatusBadCoarse], c + 1);
+    const vec4 sc = coarse_sample(int(c));
+    if (!depth_ok(sc.w) || (is_hit(sc.w) && !normal_ok(sc.xyz))) atomicMin(status[kUpStatusBadCoarse], c + 1);
   }
   if (X >= pc.fw || Y >= pc.fh) return;
   const uint p = uint(Y) * uint(pc.fw) + uint(X);
-  const float zp = depth_at(fdepth, int(p));
+  const vec4 sp = fine_sample(p);
+  const float zp = sp.w;
   ivec4 idx = ivec4(-1);
   vec4 wt = vec4(0.0);
   uint miss = 0;
   float measure = 0.0;
-  const vec3 np = fine_normal(p);
+  const vec3 np = sp.xyz;
   if (!depth_ok(zp) || (is_hit(zp) && !normal_ok(np))) {
     atomicMin(status[kUpStatusBadFine], p + 1);
   } else if (is_hit(zp)) {  // background: nothing to shade, not a miss

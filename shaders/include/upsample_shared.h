@@ -20,14 +20,12 @@ SOFTGI_UP_CONST_UINT(kUpsampleBilateral, 0u)
 SOFTGI_UP_CONST_UINT(kUpsampleBilinear, 1u)
 
 // upsample_weights bindings (set 0)
-SOFTGI_UP_CONST_UINT(kUpBindFineDepth, 0u)     // float per display pixel
-SOFTGI_UP_CONST_UINT(kUpBindFineNormal, 1u)    // float[3] per display pixel
-SOFTGI_UP_CONST_UINT(kUpBindCoarseDepth, 2u)   // float per coarse pixel
-SOFTGI_UP_CONST_UINT(kUpBindCoarseNormal, 3u)  // float[3] per coarse pixel
-SOFTGI_UP_CONST_UINT(kUpBindIndex, 4u)         // ivec4 per display pixel (-1 = unused, packed to the front)
-SOFTGI_UP_CONST_UINT(kUpBindWeight, 5u)        // vec4 per display pixel
-SOFTGI_UP_CONST_UINT(kUpBindMiss, 6u)          // uvec2 per display pixel: (miss, bits of the eq. 11 measure)
-SOFTGI_UP_CONST_UINT(kUpBindStatus, 7u)        // uint[2]: first bad fine pixel + 1, first bad coarse pixel + 1 (0xffffffff: none)
+SOFTGI_UP_CONST_UINT(kUpBindFine, 0u)    // vec4 per display pixel: normal (xyz) and depth (w)
+SOFTGI_UP_CONST_UINT(kUpBindCoarse, 1u)  // vec4 per coarse pixel: normal (xyz) and depth (w)
+SOFTGI_UP_CONST_UINT(kUpBindIndex, 2u)   // ivec4 per display pixel (-1 = unused, packed to the front)
+SOFTGI_UP_CONST_UINT(kUpBindWeight, 3u)  // vec4 per display pixel
+SOFTGI_UP_CONST_UINT(kUpBindMiss, 4u)    // uvec2 per display pixel: (miss, bits of the eq. 11 measure)
+SOFTGI_UP_CONST_UINT(kUpBindStatus, 5u)  // uint[2]: first bad fine pixel + 1, first bad coarse pixel + 1 (0xffffffff: none)
 // Status words of upsample_weights.
 SOFTGI_UP_CONST_UINT(kUpStatusBadFine, 0u)
 SOFTGI_UP_CONST_UINT(kUpStatusBadCoarse, 1u)

@@ -11,9 +11,11 @@
 #include <stdexcept>
 #include <string>
 #include <tuple>
+#include <vector>
 
 #include "accumulation_vulkan.hpp"
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/render/frame_pool.hpp"
 #include "softgi_shared.h"
 #include "upsample.hpp"
 #include "upsample_shared.h"
@@ -34,7 +36,7 @@ namespace {
 struct UpsampleState {
   std::mutex m;
   PipelineCache pipelines;
-  vk::Buffer fdepth, fnormal, cdepth, cnormal, up_index, up_weight, up_miss, up_status;  // weights
+  vk::Buffer fine_nz, coarse_nz, up_index, up_weight, up_miss, up_status;  // weights
   const void* up_resident = nullptr;  // UpsampleWeights::index.data() of the weights in up_index / up_weight
   std::size_t up_pixels = 0;
   vk::Buffer ap_in, ap_out;           // apply
@@ -91,15 +93,18 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   std::lock_guard<std::mutex> lock(g.m);
   const std::size_t nf = static_cast<std::size_t>(fine.width) * fine.height, nc = static_cast<std::size_t>(coarse.width) * coarse.height;
   check_fits(dev, nf * 16, "the eq. 11 weights of " + std::to_string(nf) + " display pixels", "upsample");
-  check_fits(dev, nf * 12, "the normals of " + std::to_string(nf) + " display pixels", "upsample");
-  const auto up = [&](vk::Buffer& b, const void* src, std::size_t bytes, const char* name) {
-    dev.ensure_buffer(b, bytes, kStorage, vk::MemoryKind::Device, name);
-    dev.upload(b, src, bytes);
+  check_fits(dev, nf * 16, "the normals and depths of " + std::to_string(nf) + " display pixels", "upsample");
+  // Each sample's normal and depth as one RGBA32F texel (upsample_weights.comp reads a sample with
+  // one fetch). The same bytes cross to the device as the separate planes would (16 per sample).
+  const auto up = [&](vk::Buffer& b, const PlaneView& v, std::size_t n, const char* name) {
+    std::vector<glm::vec4> nz = ctx.pool().take_for_overwrite<glm::vec4>(n);
+    for (std::size_t i = 0; i < n; ++i) nz[i] = glm::vec4(v.normal[i], v.depth[i]);
+    dev.ensure_buffer(b, n * sizeof(glm::vec4), kStorage, vk::MemoryKind::Device, name);
+    dev.upload(b, nz.data(), n * sizeof(glm::vec4));
+    ctx.pool().give(std::move(nz));
   };
-  up(g.fdepth, fine.depth, nf * sizeof(float), "upsample display depth");
-  up(g.fnormal, fine.normal, nf * sizeof(glm::vec3), "upsample display normals");
-  up(g.cdepth, coarse.depth, nc * sizeof(float), "upsample receiver depth");
-  up(g.cnormal, coarse.normal, nc * sizeof(glm::vec3), "upsample receiver normals");
+  up(g.fine_nz, fine, nf, "upsample display normals and depth");
+  up(g.coarse_nz, coarse, nc, "upsample receiver normals and depth");
   dev.ensure_buffer(g.up_index, nf * 16, kStorage, vk::MemoryKind::Host, "upsample taps");
   dev.ensure_buffer(g.up_weight, nf * 16, kStorage, vk::MemoryKind::Host, "upsample weights");
   dev.ensure_buffer(g.up_miss, nf * 8, kStorage, vk::MemoryKind::Host, "upsample misses");
@@ -128,10 +133,8 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
                   static_cast<float>(opt.miss_threshold),
                   opt.mode == UpsampleMode::Bilateral ? gpu::kUpsampleBilateral : gpu::kUpsampleBilinear};
   const std::vector<vk::Bind> binds = {
-      vk::Bind::texels_at(gpu::kUpBindFineDepth, g.fdepth, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kUpBindFineNormal, g.fnormal, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kUpBindCoarseDepth, g.cdepth, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kUpBindCoarseNormal, g.cnormal, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kUpBindFine, g.fine_nz, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kUpBindCoarse, g.coarse_nz, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kUpBindIndex, g.up_index, VK_FORMAT_R32G32B32A32_SINT),
       vk::Bind::texels_at(gpu::kUpBindWeight, g.up_weight, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kUpBindMiss, g.up_miss, VK_FORMAT_R32G32_UINT),
