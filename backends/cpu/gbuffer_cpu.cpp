@@ -42,6 +42,7 @@
 #include <vector>
 
 #include "../../core/src/embree/embree_setup.hpp"
+#include "../../core/src/render/vertex_image_run.hpp"
 #include "raster_visibility.hpp"
 #include "surface_resolve.hpp"
 #include "softgi/backends/cpu_backend.hpp"
@@ -270,6 +271,30 @@ void trace_visibility(render::FrameContext& ctx, const render::PinholeCamera& ca
   stats.hits = hits.load();
 }
 
+// The end of the run of pixels from x that see object oi: sixteen pixels at a time while all
+// sixteen do (a loop of fixed length, which GCC turns into vector compares), then one at a time.
+int run_end(const std::int32_t* object, int x, int W, int oi) {
+  int x1 = x + 1;
+  while (x1 + 16 <= W) {
+    int differ = 0;
+    for (int k = 0; k < 16; ++k) differ |= object[x1 + k] != oi ? 1 : 0;
+    if (differ) break;
+    x1 += 16;
+  }
+  while (x1 < W && object[x1] == oi) ++x1;
+  return x1;
+}
+
+// n copies of v: sixteen copies (192 bytes) at a time, which the compiler stores in wide moves
+// where a copy of one 12-byte vector at a time takes two narrow stores each.
+void fill_vec3(vec3* dst, int n, const vec3& v) {
+  std::array<vec3, 16> block;
+  block.fill(v);
+  int k = 0;
+  for (; k + 16 <= n; k += 16) std::memcpy(static_cast<void*>(dst + k), block.data(), sizeof block);
+  for (; k < n; ++k) dst[k] = v;
+}
+
 // The surface attributes of row y of gb from its visibility planes (object, primitive,
 // barycentric): runs of pixels that see one object go through resolve_surface_run (the per-hit rule
 // of the reference renderer in vector lanes) and get their albedo per run; runs of misses get
@@ -283,24 +308,22 @@ void resolve_row(const scene::Scene& sc, const scene::PosedScene& posed, const r
   for (int x = 0; x < W;) {
     const std::size_t i = row0 + x;
     const int oi = gb.object[i];
-    int x1 = x + 1;
-    while (x1 < W && gb.object[row0 + x1] == oi) ++x1;
+    const int x1 = run_end(&gb.object[row0], x, W, oi);
     const int n = x1 - x;
     if (oi < 0) {
-      // A run of misses: GBuffer::set_background's values, one plane at a time.
-      const auto fill = [&](auto& plane, const auto& value) {
-        std::fill_n(plane.begin() + static_cast<std::ptrdiff_t>(i), n, value);
-      };
+      // A run of misses: GBuffer::set_background's values, one plane at a time; zeros and -1 as
+      // bytes (0.0f is all zero bits, -1 all one bits).
+      const auto zero = [&](auto& plane) { std::memset(static_cast<void*>(&plane[i]), 0, n * sizeof(plane[i])); };
       if (surface) {
-        fill(gb.position, vec3(0.0f));
-        fill(gb.normal, vec3(0.0f));
-        fill(gb.depth, std::numeric_limits<float>::infinity());
+        zero(gb.position);
+        zero(gb.normal);
+        std::fill_n(&gb.depth[i], n, std::numeric_limits<float>::infinity());
       }
-      if (albedo) fill(gb.albedo, vec3(0.0f));
+      if (albedo) zero(gb.albedo);
       if (view_dir)
-        for (int k = 0; k < n; ++k) gb.view_dir[i + k] = rays.direction(x + k, y);
-      fill(gb.primitive, -1);
-      fill(gb.barycentric, glm::vec2(0.0f));
+        render::detail::ray_directions(cam.forward, cam.right, cam.up, &rays.sx[x], rays.sy[static_cast<std::size_t>(y)], n, &gb.view_dir[i]);
+      std::memset(static_cast<void*>(&gb.primitive[i]), 0xff, n * sizeof(std::int32_t));
+      zero(gb.barycentric);
       x = x1;
       continue;
     }
@@ -312,12 +335,13 @@ void resolve_row(const scene::Scene& sc, const scene::PosedScene& posed, const r
                                        rays.sy[static_cast<std::size_t>(y)], n, &gb.position[i], &gb.normal[i],
                                        &gb.depth[i], view_dir ? &gb.view_dir[i] : nullptr);
     } else if (view_dir) {
-      for (int k = 0; k < n; ++k) gb.view_dir[i + k] = -rays.direction(x + k, y);
+      render::detail::ray_directions(cam.forward, cam.right, cam.up, &rays.sx[x], rays.sy[static_cast<std::size_t>(y)], n, &gb.view_dir[i]);
+      for (int k = 0; k < n; ++k) gb.view_dir[i + k] = -gb.view_dir[i + k];
     }
     if (albedo) {
       vec3 a(0.0f);
       if (scene::constant_albedo(sc, obj, a)) {
-        std::fill_n(gb.albedo.begin() + static_cast<std::ptrdiff_t>(i), n, a);
+        fill_vec3(&gb.albedo[i], n, a);
       } else {
         for (int k = 0; k < n; ++k)
           gb.albedo[i + k] = scene::surface_albedo(sc, obj, static_cast<std::size_t>(gb.primitive[i + k]),

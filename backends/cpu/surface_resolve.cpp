@@ -6,6 +6,8 @@
 // (so that the selects become blends).
 #include "surface_resolve.hpp"
 
+#include "../../core/src/render/vertex_image_run.hpp"
+
 #include <cmath>
 #include <limits>
 
@@ -26,7 +28,7 @@ struct Frame {
 __attribute__((target_clones("avx512f", "avx2", "default"))) void resolve_run(
     const Frame cf, const unsigned* __restrict tri, const float* __restrict pos, const float* __restrict nrm, bool has_normals,
     const std::int32_t* __restrict primitive, const float* __restrict bary, const float* __restrict sx, float sy, int n,
-    bool want_view, float* __restrict out_p, float* __restrict out_n, float* __restrict depth, float* __restrict out_v) {
+    bool want_view, float* __restrict out_p, float* __restrict out_n, float* __restrict depth) {
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const float fx = cf.fx, fy = cf.fy, fz = cf.fz, rx = cf.rx, ry = cf.ry, rz = cf.rz;
   const float ux = cf.ux, uy = cf.uy, uz = cf.uz, ex = cf.ex, ey = cf.ey, ez = cf.ez;
@@ -81,17 +83,6 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void resolve_run(
     // PinholeCamera::depth: (p - eye) . forward.
     depth[t] = (px - ex) * fx + (py - ey) * fy + (pz - ez) * fz;
   }
-  // view_dir in a loop of its own (a store under a condition would keep the loop above scalar): the
-  // unit ray of the loop above, which takes it unit wherever view_dir is written.
-  if (!want_view) return;
-  for (int t = 0; t < n; ++t) {
-    const float sxt = sx[t];
-    const float rrx = fx + sxt * rx + sy * ux, rry = fy + sxt * ry + sy * uy, rrz = fz + sxt * rz + sy * uz;
-    const float inv = 1.0f / std::sqrt(rrx * rrx + rry * rry + rrz * rrz);
-    out_v[3 * t] = -(rrx * inv);
-    out_v[3 * t + 1] = -(rry * inv);
-    out_v[3 * t + 2] = -(rrz * inv);
-  }
 }
 
 }  // namespace
@@ -106,7 +97,13 @@ void resolve_surface_run(const render::PinholeCamera& cam, const ObjectArrays& o
   // Without vertex normals the loop reads the positions in their place and ignores what it read.
   const float* nrm = obj.normals ? &obj.normals[0].x : pos;
   resolve_run(cf, &obj.triangles[0].x, pos, nrm, obj.normals != nullptr, primitive, &barycentric[0].x, sx, sy, n,
-              view_dir != nullptr, &position[0].x, &normal[0].x, depth, view_dir ? &view_dir[0].x : nullptr);
+              view_dir != nullptr, &position[0].x, &normal[0].x, depth);
+  if (!view_dir) return;
+  // view_dir apart from the loop above (a store under a condition would keep it scalar): the unit
+  // ray that loop takes wherever view_dir is written (the same expression), turned round.
+  render::detail::ray_directions(cam.forward, cam.right, cam.up, sx, sy, n, view_dir);
+  float* v = &view_dir[0].x;
+  for (int k = 0; k < 3 * n; ++k) v[k] = -v[k];
 }
 
 }  // namespace softgi::backends::cpu_resolve
