@@ -328,17 +328,23 @@ void grid_bounds(const Inverse& inv, int W, int H, Tri& t) {
   if (t.x0 >= t.x1 || t.y0 >= t.y1) t.x1 = t.x0;
 }
 
-// Tests the triangles of one tile against its samples and keeps the nearest. Compiled for AVX-512 and
-// AVX2 as well, chosen at load time; every version computes the same values (this file is compiled
-// with -ffp-contract=off: backends/CMakeLists.txt).
+// Tests the triangles of one tile (its top-left sample (tx, ty)) against its samples and keeps the
+// nearest. Compiled for AVX-512 and AVX2 as well, chosen at load time; every version computes the
+// same values (this file is compiled with -ffp-contract=off: backends/CMakeLists.txt). A row is
+// tested in spans of kSpan samples, only those that the triangle's bounds reach: no sample outside
+// [x0, x1) is covered (grid_bounds), so skipping the others changes nothing, and a triangle within
+// one span costs one vector per row instead of the tile's width.
+constexpr int kSpan = 16;
+static_assert(kTile % kSpan == 0);
 __attribute__((target_clones("avx512f", "avx2", "default"))) void raster_tile(const Tri* __restrict tris, const std::uint32_t* list,
                                                                      std::size_t count, const float* __restrict sx,
-                                                                     const float* __restrict sy, int ty, int rows,
+                                                                     const float* __restrict sy, int tx, int ty, int rows,
                                                                      float* __restrict wbuf, std::int32_t* __restrict ibuf) {
   for (std::size_t k = 0; k < count; ++k) {
     const std::int32_t id = static_cast<std::int32_t>(list[k]);
     const Tri& t = tris[id];
     const int ya = std::max(t.y0 - ty, 0), yb = std::min(t.y1 - ty, rows);
+    const int xa = std::max(t.x0 - tx, 0) / kSpan * kSpan, xb = std::min(t.x1 - tx, kTile);
     const float er0 = t.er[0], er1 = t.er[1], er2 = t.er[2], sr = t.sr, inv = t.inv_det;
     for (int y = ya; y < yb; ++y) {
       const float s_y = sy[y];
@@ -346,15 +352,16 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void raster_tile(co
       const float rs = t.sf + s_y * t.su;
       float* __restrict w = wbuf + y * kTile;
       std::int32_t* __restrict ids = ibuf + y * kTile;
-      for (int x = 0; x < kTile; ++x) {
-        const float s_x = sx[x];
-        const float e0 = r0 + s_x * er0, e1 = r1 + s_x * er1, e2 = r2 + s_x * er2;
-        const float wv = (rs + s_x * sr) * inv;  // inverse depth; > 0 only in front of the eye
-        // Nearer, or as near and first in (object, triangle) order.
-        const bool take = (e0 >= 0.0f) & (e1 >= 0.0f) & (e2 >= 0.0f) & ((wv > w[x]) | ((wv == w[x]) & (id < ids[x])));
-        w[x] = take ? wv : w[x];
-        ids[x] = take ? id : ids[x];
-      }
+      for (int x0 = xa; x0 < xb; x0 += kSpan)
+        for (int x = x0; x < x0 + kSpan; ++x) {
+          const float s_x = sx[x];
+          const float e0 = r0 + s_x * er0, e1 = r1 + s_x * er1, e2 = r2 + s_x * er2;
+          const float wv = (rs + s_x * sr) * inv;  // inverse depth; > 0 only in front of the eye
+          // Nearer, or as near and first in (object, triangle) order.
+          const bool take = (e0 >= 0.0f) & (e1 >= 0.0f) & (e2 >= 0.0f) & ((wv > w[x]) | ((wv == w[x]) & (id < ids[x])));
+          w[x] = take ? wv : w[x];
+          ids[x] = take ? id : ids[x];
+        }
     }
   }
 }
@@ -608,7 +615,7 @@ void rasterise_visibility(const render::PinholeCamera& cam, const scene::PosedSc
       wbuf.fill(0.0f);
       ibuf.fill(-1);
       raster_tile(tris.data(), list.data() + start[tile], start[tile + 1] - start[tile], sx.data() + tx, sy.data() + ty,
-                  ty, rows, wbuf.data(), ibuf.data());
+                  tx, ty, rows, wbuf.data(), ibuf.data());
       for (int y = 0; y < rows; ++y)
         for (int x = 0; x < cols; ++x) {
           const std::size_t i = static_cast<std::size_t>(ty + y) * W + (tx + x);
