@@ -50,6 +50,7 @@
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/render/gbuffer.hpp"
+#include "softgi/render/vertex_image.hpp"
 
 namespace softgi::backends {
 
@@ -271,20 +272,6 @@ void trace_visibility(render::FrameContext& ctx, const render::PinholeCamera& ca
   stats.hits = hits.load();
 }
 
-// The end of the run of pixels from x that see object oi: sixteen pixels at a time while all
-// sixteen do (a loop of fixed length, which GCC turns into vector compares), then one at a time.
-int run_end(const std::int32_t* object, int x, int W, int oi) {
-  int x1 = x + 1;
-  while (x1 + 16 <= W) {
-    int differ = 0;
-    for (int k = 0; k < 16; ++k) differ |= object[x1 + k] != oi ? 1 : 0;
-    if (differ) break;
-    x1 += 16;
-  }
-  while (x1 < W && object[x1] == oi) ++x1;
-  return x1;
-}
-
 // n copies of v: sixteen copies (192 bytes) at a time, which the compiler stores in wide moves
 // where a copy of one 12-byte vector at a time takes two narrow stores each.
 void fill_vec3(vec3* dst, int n, const vec3& v) {
@@ -308,7 +295,7 @@ void resolve_row(const scene::Scene& sc, const scene::PosedScene& posed, const r
   for (int x = 0; x < W;) {
     const std::size_t i = row0 + x;
     const int oi = gb.object[i];
-    const int x1 = run_end(&gb.object[row0], x, W, oi);
+    const int x1 = render::object_run_end(&gb.object[row0], x, W);
     const int n = x1 - x;
     if (oi < 0) {
       // A run of misses: GBuffer::set_background's values, one plane at a time; zeros and -1 as

@@ -826,12 +826,12 @@ void pass_shade_direct(State& st, const Settings& s, FrameContext& ctx, const Di
     std::vector<glm::vec3> dirs;
     for (int y = rows.begin(); y != rows.end(); ++y) {
       const std::size_t row0 = static_cast<std::size_t>(y) * static_cast<std::size_t>(fine.width);
-      // Runs of background pixels, their rays worked out together.
+      // Runs of background pixels, their rays worked out together; runs of surface pixels skipped.
+      const std::int32_t* object = &fine.object[row0];
       for (int x = 0; x < fine.width;) {
-        int x1 = x;
-        while (x1 < fine.width && !fine.hit(row0 + static_cast<std::size_t>(x1))) ++x1;
-        render::background_run(background, cam, rays, x, y, x1 - x, &img.rgb[row0 + static_cast<std::size_t>(x)], dirs);
-        x = x1 + 1;
+        const int x1 = render::object_run_end(object, x, fine.width);
+        if (object[x] < 0) render::background_run(background, cam, rays, x, y, x1 - x, &img.rgb[row0 + static_cast<std::size_t>(x)], dirs);
+        x = x1;
       }
     }
   });

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <random>
 #include <utility>
+#include <vector>
 
 #include "../../core/src/render/vertex_image_run.hpp"
 #include "softgi/backends/cpu_backend.hpp"
@@ -213,4 +214,29 @@ TEST(VertexImage, DerivedRayDirectionsAreTheBufferRaysToTheBit) {
     }
   }
   EXPECT_EQ(differ, 0u) << "of " << compared << " rays";
+}
+
+// render::object_run_end (the runs the G-buffer resolve, the per-vertex image and image-space's
+// background fill walk): the first pixel after x whose object differs, against the rule written out,
+// for rows of runs of every length from 1 to 40 (across and inside its 16-pixel steps), background
+// (-1) included, starting at every pixel of the row.
+TEST(VertexImage, ObjectRunsEndWhereTheObjectChanges) {
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> length(1, 40), id(-1, 3);
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<std::int32_t> row;
+    int prev = -2;
+    while (row.size() < 300) {
+      int o = id(rng);
+      if (o == prev) o = o == 3 ? -1 : o + 1;  // each run a different object from the one before
+      row.insert(row.end(), static_cast<std::size_t>(length(rng)), o);
+      prev = o;
+    }
+    const int width = static_cast<int>(row.size());
+    for (int x = 0; x < width; ++x) {
+      int expected = x + 1;
+      while (expected < width && row[static_cast<std::size_t>(expected)] == row[static_cast<std::size_t>(x)]) ++expected;
+      ASSERT_EQ(render::object_run_end(row.data(), x, width), expected) << "trial " << trial << " x " << x;
+    }
+  }
 }

@@ -90,8 +90,7 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
       for (int x = 0; x < gb.width;) {
         const std::size_t i = row0 + x;
         const int o = gb.object[i];
-        int x1 = x + 1;
-        while (x1 < gb.width && gb.object[row0 + x1] == o) ++x1;
+        const int x1 = object_run_end(&gb.object[row0], x, gb.width);
         const int run = x1 - x;
         if (o < 0) {
           if (!background) {
@@ -143,6 +142,21 @@ void background_run(const BackgroundFn& background, const PinholeCamera& camera,
   detail::ray_directions(camera.forward, camera.right, camera.up, &rays.sx[static_cast<std::size_t>(x0)],
                          rays.sy[static_cast<std::size_t>(y)], n, scratch.data());
   background_along(background, scratch.data(), n, out);
+}
+
+int object_run_end(const std::int32_t* object, int x, int width) {
+  const std::int32_t o = object[x];
+  int x1 = x + 1;
+  // Sixteen at a time while all sixteen match (a loop of fixed length: vector compares), then one
+  // at a time.
+  while (x1 + 16 <= width) {
+    int differ = 0;
+    for (int k = 0; k < 16; ++k) differ |= object[x1 + k] != o ? 1 : 0;
+    if (differ) break;
+    x1 += 16;
+  }
+  while (x1 < width && object[x1] == o) ++x1;
+  return x1;
 }
 
 glm::vec3 background_radiance(const scene::Environment& env, const glm::vec3& ray_dir) { return env.radiance(ray_dir); }

@@ -3,6 +3,7 @@
 // G-buffer's barycentrics, the way a rasteriser's Gouraud interpolation would.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <vector>
 
@@ -71,5 +72,10 @@ BackgroundFn environment_background(const scene::Environment& env);
 // out together in vector lanes, `scratch` holding them.
 void background_run(const BackgroundFn& background, const PinholeCamera& camera, const BufferRays& rays, int x0, int y, int n,
                     glm::vec3* out, std::vector<glm::vec3>& scratch);
+
+// The end of the run of a buffer row's pixels from x that see the object pixel x sees (object: the
+// row's object ids, -1 for background; width its length; x < width): the first x1 > x whose id
+// differs, or width. Sixteen pixels are compared at a time.
+int object_run_end(const std::int32_t* object, int x, int width);
 
 }  // namespace softgi::render
