@@ -134,7 +134,6 @@ Image interpolate_vertex_values(const GBuffer& gb, const scene::PosedScene& pose
   return out;
 }
 
-
 void background_run(const BackgroundFn& background, const PinholeCamera& camera, const BufferRays& rays, int x0, int y, int n,
                     glm::vec3* out, std::vector<glm::vec3>& scratch) {
   if (n <= 0) return;
