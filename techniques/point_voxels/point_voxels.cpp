@@ -78,6 +78,10 @@ std::vector<ParamDesc> params() {
                                  "rays per proxy marched for the environment's light on the VPLs (0 = local lights and sun only)"));
   d.push_back(ParamDesc::boolean("environment", true, "light by the environment too (sky and sun or map; an extension of the paper)"));
   d.push_back(ParamDesc::boolean("indirect", true, "gather the VPLs' indirect light (off: direct light only)"));
+  d.push_back(ParamDesc::choice("march_lanes", "discs", {"discs", "rays"},
+                                "how a device backend's marching shader spreads rays over a subgroup's lanes: each ray's "
+                                "discs across the lanes, the subgroup's rays one after another (as the CPU backend tests a "
+                                "cell's discs in vector lanes), or one ray per lane; the same voxels either way"));
   return d;
 }
 
@@ -112,6 +116,7 @@ Settings read_settings(const render::ParamSet& p) {
   s.indirect = p.get_bool("indirect");
   s.eq7 = p.get_enum("glossy_weight") == "eq7";
   s.eq7_sigma_scale = p.get_float("eq7_sigma");
+  s.march_lanes_discs = p.get_enum("march_lanes") == "discs";
   return s;
 }
 
@@ -337,7 +342,9 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
   PosedProxies& P = v->proxies;
   const std::size_t n = P.size();
   const int k_rays = L.sky ? s.vpl_env_rays : 0;
+  std::atomic<std::uint64_t> cells{0}, discs{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    MarchCount count;
     for (std::size_t i = r.begin(); i < r.end(); ++i) {
       const glm::vec3 p = P.position[i], nn = P.normal[i];
       glm::vec3 e(0.0f), dir;
@@ -355,18 +362,22 @@ void pass_light_vpls(const Settings& s, FrameContext& ctx) {
         for (int k = 0; k < k_rays; ++k) {
           const glm::vec2 u = ray_sample(k, k_rays, in.ray_seed[i]);
           const glm::vec3 d = cosine_direction(nn, u.x, u.y);
-          if (march_ray(in.grid, in.proxies, o, d, 0.5f * P.radius, 1e30f, &in.planes) < 0) sky += L.sky_radiance(d);
+          if (march_ray(in.grid, in.proxies, o, d, 0.5f * P.radius, 1e30f, &in.planes, &count) < 0) sky += L.sky_radiance(d);
         }
         e += sky * (kPi / static_cast<float>(k_rays));
       }
       P.radiance[i] = P.albedo[i] * e / kPi;
     }
+    cells += count.cells;
+    discs += count.discs;
   });
   accumulate_voxel_sh(v->grid, P);
   set_radiance(v->planes, P);  // positions and normals came with the copy of kVoxels
   auto& rec = ctx.record();
   rec.counters["vpls"] = static_cast<double>(n);
   rec.counters["env_rays"] = static_cast<double>(n) * k_rays;
+  rec.counters["env_cells_visited"] = static_cast<double>(cells.load());
+  rec.counters["env_discs_in_cells_visited"] = static_cast<double>(discs.load());
   rec.bytes = n * sizeof(glm::vec3) + v->grid.bytes() + v->planes.bytes();
   ctx.put<std::shared_ptr<const Voxels>>(kVpls, std::move(v));
 }
@@ -383,7 +394,9 @@ void pass_march(const Settings& s, FrameContext& ctx) {
   m->sky.irradiance.assign(np, glm::vec3(0.0f));
   m->sky.escaped.assign(np, 0.0f);
   const float r = V.proxies.radius;
+  std::atomic<std::uint64_t> cells{0}, discs{0};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, np, 64), [&](const tbb::blocked_range<std::size_t>& br) {
+    MarchCount count;
     for (std::size_t i = br.begin(); i < br.end(); ++i) {
       if (!g.hit(i)) continue;
       const glm::vec3 nn = g.normal[i], o = g.position[i] + nn * (0.25f * r);
@@ -394,7 +407,7 @@ void pass_march(const Settings& s, FrameContext& ctx) {
       for (int k = 0; k < s.rays; ++k) {
         const glm::vec2 u = ray_sample(k, s.rays, seed);
         const glm::vec3 d = cosine_direction(nn, u.x, u.y);
-        const std::int32_t vox = march_ray(V.grid, V.proxies, o, d, 0.5f * r, 1e30f, &V.planes);
+        const std::int32_t vox = march_ray(V.grid, V.proxies, o, d, 0.5f * r, 1e30f, &V.planes, &count);
         if (vox >= 0) {
           list.push_back(vox);
         } else {
@@ -407,6 +420,8 @@ void pass_march(const Settings& s, FrameContext& ctx) {
       m->sky.irradiance[i] = e * (kPi / static_cast<float>(s.rays));
       m->sky.escaped[i] = static_cast<float>(escaped) / static_cast<float>(s.rays);
     }
+    cells += count.cells;
+    discs += count.discs;
   });
   m->lists.width = g.width;
   m->lists.height = g.height;
@@ -420,6 +435,8 @@ void pass_march(const Settings& s, FrameContext& ctx) {
   rec.counters["pixels"] = static_cast<double>(hits);
   rec.counters["rays"] = static_cast<double>(hits) * s.rays;
   rec.counters["list_mean"] = hits ? static_cast<double>(m->lists.voxel.size()) / hits : 0.0;
+  rec.counters["cells_visited"] = static_cast<double>(cells.load());
+  rec.counters["discs_in_cells_visited"] = static_cast<double>(discs.load());
   rec.bytes = m->bytes();
   ctx.put<std::shared_ptr<const Marched>>(kLists, std::move(m));
 }

@@ -284,7 +284,7 @@ glm::vec3 cosine_direction(const glm::vec3& n, float u, float v) {
 }
 
 std::int32_t march_ray(const VoxelGrid& grid, const PosedProxies& proxies, const glm::vec3& o, const glm::vec3& d,
-                       float t_min, float t_max, const ProxyPlanes* planes) {
+                       float t_min, float t_max, const ProxyPlanes* planes, MarchCount* count) {
   if (grid.key.empty()) return -1;
   if (planes != nullptr && planes->size != proxies.size())
     throw std::invalid_argument("march_ray: proxy planes of " + std::to_string(planes->size) + " proxies for " +
@@ -320,6 +320,10 @@ std::int32_t march_ray(const VoxelGrid& grid, const PosedProxies& proxies, const
   const float r = proxies.radius;
   for (;;) {
     const std::uint32_t k = grid.hash(v);
+    if (count != nullptr) {
+      ++count->cells;
+      count->discs += grid.start[k + 1] - grid.start[k];
+    }
     if (planes != nullptr) {
       if (any_disc_hit(*planes, grid.start[k], grid.start[k + 1], o, d, r, t_min, t_max)) return static_cast<std::int32_t>(k);
     } else {

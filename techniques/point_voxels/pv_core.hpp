@@ -111,9 +111,13 @@ void accumulate_voxel_sh(VoxelGrid& grid, const PosedProxies& proxies);
 // The first voxel along the ray o + t d (t in [t_min, t_max]) whose proxies' discs the ray hits,
 // marching the grid cell by cell (3D DDA), or -1 when the ray leaves the grid unblocked.
 // With `planes` (proxy_planes of the same proxies), a cell's discs are tested kProxyLanes at a time,
-// each by ray_disc's arithmetic: the same voxel.
+// each by ray_disc's arithmetic: the same voxel. With `count`, adds the cells the ray visited and the
+// discs they hold (the hit's cell included: what a ray-by-ray search may test).
+struct MarchCount {
+  std::uint64_t cells = 0, discs = 0;
+};
 std::int32_t march_ray(const VoxelGrid& grid, const PosedProxies& proxies, const glm::vec3& o, const glm::vec3& d,
-                       float t_min, float t_max, const ProxyPlanes* planes = nullptr);
+                       float t_min, float t_max, const ProxyPlanes* planes = nullptr, MarchCount* count = nullptr);
 // Ray-disc intersection: t of the hit of o + t d with the disc (centre c, unit normal n, radius r),
 // or a negative value for none (parallel rays miss).
 float ray_disc(const glm::vec3& o, const glm::vec3& d, const glm::vec3& c, const glm::vec3& n, float r);

@@ -44,6 +44,7 @@ struct Settings {
   bool environment = true, indirect = true;
   bool eq7 = false;
   double eq7_sigma_scale = 1.0;
+  bool march_lanes_discs = true;  // device marching: a ray's discs across a subgroup's lanes
 };
 // Throws std::invalid_argument naming the parameter.
 Settings read_settings(const render::ParamSet& p);

@@ -373,12 +373,21 @@ struct MarchRun {
 // march.comp over the `rays` rays of sources [first, end) (one batch): dispatched again while
 // invocations ran out of loop budget, each resuming where it stopped.
 void run_march(vk::Context& dev, GpuState& g, vk::ComputePipeline& p, const std::vector<vk::Bind>& binds, std::size_t first, std::size_t end,
-               std::uint32_t rays, bool sky, MarchRun& run, const std::string& what) {
+               std::uint32_t rays, bool sky, bool lanes, const glm::ivec3& dims, MarchRun& run, const std::string& what) {
   struct Push {
     std::uint32_t first_source, sources, rays, sky, budget, first, end;
   };
   const std::size_t items = (end - first) * rays;
   const std::uint32_t budget = loop_budget(dev.device_info());
+  // A resumed ray replays its DDA steps (at most the sum of the grid's dims), in the lanes variant
+  // after the rays before it in its subgroup (one iteration each), before it tests discs again: a
+  // budget below that would resume it at the same place forever.
+  const std::uint64_t ahead = lanes ? dev.device_info().subgroup_size : 0u;
+  const std::uint64_t progress = ahead + static_cast<std::uint64_t>(dims.x) + dims.y + dims.z + 2;
+  if (budget < progress)
+    throw std::invalid_argument("point_voxels " + what + " on vulkan: a loop budget of " + std::to_string(budget) +
+                                " iterations is below the " + std::to_string(progress) + " a resumed ray may need to progress on a " +
+                                std::to_string(dims.x) + "x" + std::to_string(dims.y) + "x" + std::to_string(dims.z) + " grid");
   Push push{static_cast<std::uint32_t>(first), static_cast<std::uint32_t>(end - first), rays, sky ? 1u : 0u, budget, 0, 0};
   std::uint32_t status[gpu::kPvStatusWords];
   for (int pass = 0;; ++pass) {
@@ -399,6 +408,17 @@ void run_march(vk::Context& dev, GpuState& g, vk::ComputePipeline& p, const std:
     // thousands of iterations) exceeds the replay of its DDA steps (at most the sum of the grid's dims).
     if (pass > 1 << 20) throw std::logic_error("point_voxels " + what + " on vulkan: rays still unfinished after " + std::to_string(pass) + " dispatches");
   }
+}
+
+// march.comp for `source`: with Settings::march_lanes_discs, the variant that tests each ray's discs
+// across a subgroup's lanes (pv_march_lanes), where the device's subgroups tile the workgroup (their
+// size divides kPvGroup); one ray per invocation otherwise. `lanes_used` says which ran.
+vk::ComputePipeline& march_pipeline(vk::Context& dev, GpuState& g, const Settings& s, std::uint32_t source, bool& lanes_used) {
+  const std::uint32_t sg = dev.device_info().subgroup_size;
+  lanes_used = s.march_lanes_discs && sg > 0 && sg <= gpu::kPvGroup && gpu::kPvGroup % sg == 0;
+  const std::string name = std::string(source == gpu::kPvSourcePixels ? "pv.march.pixels" : "pv.march.proxies") +
+                           (lanes_used ? ".discs" : ".rays");
+  return pipeline(dev, g.pipelines, name, words(spv::point_voxels_march_comp), {{0, source}, {1, lanes_used ? 1u : 0u}});
 }
 
 // --- passes --------------------------------------------------------------------------------------------
@@ -537,7 +557,8 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
     }, "point_voxels light_vpls copies");
     run.seconds += std::max(0.0, res.gpu_seconds);
   }
-  vk::ComputePipeline& march = pipeline(dev, g.pipelines, "pv.march.proxies", words(spv::point_voxels_march_comp), {{0, gpu::kPvSourceProxies}});
+  bool lanes = false;
+  vk::ComputePipeline& march = march_pipeline(dev, g, s, gpu::kPvSourceProxies, lanes);
   vk::ComputePipeline& light = pipeline(dev, g.pipelines, "pv.vpl_light", words(spv::point_voxels_vpl_light_comp), {});
   vk::ComputePipeline& finish = pipeline(dev, g.pipelines, "pv.vpl_finish", words(spv::point_voxels_vpl_finish_comp), {});
   const std::size_t per_batch = k_rays ? std::max<std::size_t>(1, batch_items(dev) / k_rays) : std::max<std::size_t>(1, n);
@@ -563,7 +584,7 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
       vk::Bind::buffer_at(gpu::kPvLitBindRadiance, g.radiance), vk::Bind::buffer_at(gpu::kPvLitBindSh, g.vsh)};
   for (std::size_t first = 0; first < n; first += per_batch) {
     const std::size_t end = std::min(n, first + per_batch);
-    if (k_rays) run_march(dev, g, march, march_binds, first, end, k_rays, true, run, "point_voxels light_vpls environment rays");
+    if (k_rays) run_march(dev, g, march, march_binds, first, end, k_rays, true, lanes, d.frame.dims, run, "point_voxels light_vpls environment rays");
     const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
       rec.begin_timer("vpl_light");
       LightPush q = lp;
@@ -597,6 +618,7 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
   rec.counters["vpls"] = static_cast<double>(n);
   rec.counters["env_rays"] = static_cast<double>(n) * k_rays;
   rec.counters["march_dispatches"] = run.dispatches;
+  rec.counters["march_lanes_discs"] = lanes ? 1.0 : 0.0;
   rec.counters["kernel_gpu_seconds"] = run.seconds;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
   rec.bytes = n * (sizeof(GpuProxy) + sizeof(glm::vec4)) + cells * (gpu::kPvVoxelFloats + 1) * 4;
@@ -640,7 +662,8 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   const std::size_t per_batch = std::max<std::size_t>(1, batch_items(dev) / rays);
   ensure(dev, g.items, std::min(std::max<std::size_t>(np, 1), per_batch) * rays * sizeof(GpuItem), "point_voxels march items");
 
-  vk::ComputePipeline& march = pipeline(dev, g.pipelines, "pv.march.pixels", words(spv::point_voxels_march_comp), {{0, gpu::kPvSourcePixels}});
+  bool lanes = false;
+  vk::ComputePipeline& march = march_pipeline(dev, g, s, gpu::kPvSourcePixels, lanes);
   vk::ComputePipeline& lists = pipeline(dev, g.pipelines, "pv.march_lists", words(spv::point_voxels_march_lists_comp), {});
   const std::vector<vk::Bind> march_binds = {
       vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),         vk::Bind::buffer_at(gpu::kPvMarchBindProxies, g.sprox),
@@ -667,7 +690,7 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   }
   for (std::size_t first = 0; first < np; first += per_batch) {
     const std::size_t end = std::min(np, first + per_batch);
-    run_march(dev, g, march, march_binds, first, end, rays, sky, run, "point_voxels march");
+    run_march(dev, g, march, march_binds, first, end, rays, sky, lanes, d.frame.dims, run, "point_voxels march");
     const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
       rec.begin_timer("march_lists");
       dispatch_chunks<ListPush>(rec, lists, list_binds, end - first, gpu::kPvGroup, [&](std::uint32_t a, std::uint32_t b) {
@@ -687,6 +710,7 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   rec.counters["rays"] = static_cast<double>(hits) * s.rays;
   rec.counters["list_mean"] = hits ? static_cast<double>(dm.entries) / hits : 0.0;
   rec.counters["march_dispatches"] = run.dispatches;
+  rec.counters["march_lanes_discs"] = lanes ? 1.0 : 0.0;
   rec.counters["kernel_gpu_seconds"] = run.seconds;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
   rec.bytes = np * (W * 4 + sizeof(glm::vec4) + sizeof(GpuMarchPixel)) + std::min(np, per_batch) * rays * sizeof(GpuItem);

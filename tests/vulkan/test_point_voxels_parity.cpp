@@ -412,29 +412,43 @@ TEST_P(PointVoxelsParity, EveryVulkanPassMatchesTheCpuPass) {
 INSTANTIATE_TEST_SUITE_P(BuiltinScenes, PointVoxelsParity, ::testing::Values("cornell_glossy", "spheres", "character", "atrium"));
 
 // Marching and gathering under a tight loop-iteration limit (set for the test, so that it runs on
-// every driver: 300, a budget of 150) resume over several dispatches from the state each invocation saved; the split
+// every driver) resume over several dispatches from the state each invocation saved; the split
 // changes no arithmetic, so the lists are identical and the images equal up to the order in which
-// the atomics summed the voxels' SH (a few ulps). On cornell_glossy (6^3 voxels of ~30 proxies: the
-// shadow rays and gathering pixels run out of budget) and spheres (the VPLs' environment rays).
+// the atomics summed the voxels' SH (a few ulps). Both marching variants: one ray per invocation
+// under a limit of 300 (a budget of 150), and each ray's discs across a subgroup's lanes under a
+// limit that leaves it a few disc steps beyond what a resumed ray needs to progress (the rays before
+// it in its subgroup and its DDA replay: run_march's check), since the lanes variant spends about a
+// lane's share of the other's iterations. The two variants mark the same voxels, bit for bit. On
+// cornell_glossy (6^3 voxels of ~30 proxies: the shadow rays and gathering pixels run out of budget)
+// and spheres (the VPLs' environment rays).
 TEST(PointVoxelsVulkan, ResumedDispatchesGiveTheSameFrame) {
   backends::register_cpu_backend();
+  std::uint32_t subgroup = 0;
+  {
+    backends::vulkan::ContextOptions o;
+    o.validation = 0;
+    subgroup = backends::vulkan::Context(o).device_info().subgroup_size;
+  }
+  const bool lanes_fit = subgroup > 0 && subgroup <= 64 && 64 % subgroup == 0;
   for (const auto& [name, extra] : std::vector<std::pair<std::string, std::string>>{{"cornell_glossy", "6"}, {"spheres", "8"}}) {
     SCOPED_TRACE(name);
     const scene::Scene sc = scene::make_builtin(name);
     std::unique_ptr<render::Technique> tech = pv::create();
-    render::ParamSet params = render::default_params(*tech);
-    params.set("proxy_count", "6000");
-    params.set("grid", extra);
-    params.set("rays", "16");
-    params.set("shadow_map_size", "64");
-    render::RenderRequest req;
-    req.width = req.height = 48;
-    req.outputs = {render::kFinal, pv::kLists};
     struct Run {
       render::FrameResult frame;
       std::map<std::string, double> dispatches;
+      double lanes = -1.0;
     };
-    auto run = [&](std::uint32_t limit) {
+    auto run = [&](const std::string& lanes, std::uint32_t limit) {
+      render::ParamSet params = render::default_params(*tech);
+      params.set("proxy_count", "6000");
+      params.set("grid", extra);
+      params.set("rays", "16");
+      params.set("shadow_map_size", "64");
+      params.set("march_lanes", lanes);
+      render::RenderRequest req;
+      req.width = req.height = 48;
+      req.outputs = {render::kFinal, pv::kLists};
       backends::vulkan::ContextOptions o;
       o.validation = 1;
       o.loop_iteration_limit = limit;
@@ -447,32 +461,51 @@ TEST(PointVoxelsVulkan, ResumedDispatchesGiveTheSameFrame) {
         r.frame = vk.render(*tech, sc, params, req);
       }
       EXPECT_EQ(log->problems(), 0u) << log->summary();
-      for (const auto& p : r.frame.passes)
+      for (const auto& p : r.frame.passes) {
         for (const char* k : {"march_dispatches", "dispatches"})
           if (p.counters.count(k)) r.dispatches[p.name] = p.counters.at(k);
+        if (p.name == "march" && p.counters.count("march_lanes_discs")) r.lanes = p.counters.at("march_lanes_discs");
+      }
       return r;
     };
-    Run split = run(300), whole = run(0);  // 0: the driver's own limit
-    if (name == "cornell_glossy") {
-      EXPECT_GT(split.dispatches.at("march"), 2.0) << "a limit of 300 iterations splits the shadow rays over dispatches";
-      EXPECT_GT(split.dispatches.at("gather"), 2.0) << "and the gathering";
-    } else {
-      EXPECT_GT(split.dispatches.at("light_vpls"), 2.0) << "and the VPLs' environment rays";
-    }
-    for (const auto& [pass, n] : whole.dispatches)
-      if (whole.frame.backend == "vulkan" && split.dispatches.count(pass)) {
-        EXPECT_LE(n, split.dispatches.at(pass)) << pass;
+    const auto lists = [](const Run& r) -> const pv::Marched& {
+      return *std::any_cast<std::shared_ptr<const pv::Marched>>(r.frame.resources.at(pv::kLists));
+    };
+    std::map<std::string, Run> whole_of;
+    // The lanes variant's limit: twice (loop_budget halves limits this small) the iterations a
+    // resumed ray needs on the 8^3 grid (subgroup + 24 + 2), and 8 disc steps.
+    for (const auto& [lanes, limit] : std::vector<std::pair<std::string, std::uint32_t>>{{"rays", 300u}, {"discs", 2u * (subgroup + 26u + 8u)}}) {
+      SCOPED_TRACE(lanes);
+      Run split = run(lanes, limit), whole = run(lanes, 0);  // 0: the driver's own limit
+      if (whole.frame.backend != "vulkan") continue;
+      EXPECT_EQ(whole.lanes, lanes == "discs" && lanes_fit ? 1.0 : 0.0) << "the marching variant that ran";
+      if (name == "cornell_glossy") {
+        EXPECT_GT(split.dispatches.at("march"), 2.0) << "a limit of " << limit << " iterations splits the shadow rays over dispatches";
+        EXPECT_GT(split.dispatches.at("gather"), 2.0) << "and the gathering";
+      } else {
+        EXPECT_GT(split.dispatches.at("light_vpls"), 2.0) << "and the VPLs' environment rays";
       }
-    const auto& la = *std::any_cast<std::shared_ptr<const pv::Marched>>(split.frame.resources.at(pv::kLists));
-    const auto& lb = *std::any_cast<std::shared_ptr<const pv::Marched>>(whole.frame.resources.at(pv::kLists));
-    EXPECT_EQ(la.lists.offset, lb.lists.offset);
-    EXPECT_EQ(la.lists.voxel, lb.lists.voxel);
-    EXPECT_GT(la.lists.voxel.size(), 0u);
-    const double e = rel_mse(split.frame.final_image, whole.frame.final_image);
-    EXPECT_LE(e, 1e-12) << "final image";
-    std::printf("[pv resume] %-14s march %g / %g dispatches, gather %g / %g, light_vpls %g / %g; relMSE %.3g\n", name.c_str(),
-                split.dispatches["march"], whole.dispatches["march"], split.dispatches["gather"], whole.dispatches["gather"],
-                split.dispatches["light_vpls"], whole.dispatches["light_vpls"], e);
+      for (const auto& [pass, n] : whole.dispatches)
+        if (split.dispatches.count(pass)) {
+          EXPECT_LE(n, split.dispatches.at(pass)) << pass;
+        }
+      const auto& la = lists(split);
+      const auto& lb = lists(whole);
+      EXPECT_EQ(la.lists.offset, lb.lists.offset);
+      EXPECT_EQ(la.lists.voxel, lb.lists.voxel);
+      EXPECT_GT(la.lists.voxel.size(), 0u);
+      const double e = rel_mse(split.frame.final_image, whole.frame.final_image);
+      EXPECT_LE(e, 1e-12) << "final image";
+      std::printf("[pv resume] %-14s %-5s march %g / %g dispatches, gather %g / %g, light_vpls %g / %g; relMSE %.3g\n", name.c_str(),
+                  lanes.c_str(), split.dispatches["march"], whole.dispatches["march"], split.dispatches["gather"], whole.dispatches["gather"],
+                  split.dispatches["light_vpls"], whole.dispatches["light_vpls"], e);
+      whole_of[lanes] = std::move(whole);
+    }
+    if (whole_of.size() == 2) {
+      EXPECT_EQ(lists(whole_of["rays"]).lists.offset, lists(whole_of["discs"]).lists.offset) << "both variants mark the same voxels";
+      EXPECT_EQ(lists(whole_of["rays"]).lists.voxel, lists(whole_of["discs"]).lists.voxel) << "both variants mark the same voxels";
+      EXPECT_LE(rel_mse(whole_of["rays"].frame.final_image, whole_of["discs"].frame.final_image), 1e-12) << "and give the same frame";
+    }
   }
 }
 
