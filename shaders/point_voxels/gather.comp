@@ -22,6 +22,12 @@
 #include "pv_common.glsl"
 
 layout(local_size_x = kPvGroup) in;
+// 0 where no gathering pixel of the frame is glossy (GLOSSY) or weighted by eq. 7 (EQ7): the host
+// compiles that code out. A SIMD device runs both sides of a branch its lanes disagree on, and
+// llvmpipe runs a branch's code even when no lane takes it, so the Phong lobe's pow (log2 and exp2
+// series) and eq. 7's exp would cost every VPL of every diffuse frame.
+layout(constant_id = 0) const uint GLOSSY = 1u;
+layout(constant_id = 1) const uint EQ7 = 1u;
 // What the loops read comes through texel buffers: a SIMD device fetches texels for all lanes at
 // once, where it reads a storage buffer lane by lane. The proxies as RGBA32F texels, 4 per proxy
 // (position, normal, ...); the marching pixels 3 per pixel (position and hit, normal and depth, ...).
@@ -74,7 +80,7 @@ void add_glossy(vec3 e, vec3 wn, float weight) {
   const vec3 g = e * (rp.extra.z * pow(ca, ns));
   acc.glossy.xyz += weight * g;
   const float sigma = rp.extra.x;
-  if (sigma > 0.0) {
+  if (EQ7 != 0u && sigma > 0.0) {
     // eq7_weight times its peak's inverse sigma sqrt(2 pi): 1 at the reflection vector.
     const float x = abs(1.0 - pow(max(0.0, ca), ns)) / sigma;
     const float rel = exp(-0.5 * x * x) / (sigma * pc.eq7_norm) * (sigma * pc.eq7_norm);
@@ -98,7 +104,7 @@ void gather_far(uint k, float weight, vec3 to_c, float dc2) {
   const vec3 intensity = max(vec3(0.0), c0 * y[0] + c1 * y[1] + c2 * y[2] + c3 * y[3]);
   const vec3 ei = intensity * (cos_r / dc2);
   acc.irradiance.xyz += weight * ei;
-  if (rp.normal_glossy.w > 0.0) add_glossy(ei, wn, weight);
+  if (GLOSSY != 0u && rp.normal_glossy.w > 0.0) add_glossy(ei, wn, weight);
 }
 
 // One VPL of a near voxel: a disc of area A (eq. 6, first case), at `pos` with normal `nrm` and
@@ -106,13 +112,22 @@ void gather_far(uint k, float weight, vec3 to_c, float dc2) {
 void gather_vpl(vec3 pos, vec3 nrm, vec3 rad, float weight, inout vec3 esum) {
   const vec3 w = pos - rp.pos_depth.xyz;
   const float d2 = dot(w, w);
+  if (GLOSSY == 0u || !(rp.normal_glossy.w > 0.0)) {
+    // A diffuse receiver as the CPU's near_diffuse (pv_core.cpp): cos_r cos_v = (n_r . w)(-n_i . w) / d^2,
+    // without the square root and the direction's divisions that only the glossy lobe needs.
+    const float dr = dot(rp.normal_glossy.xyz, w), dv = -dot(nrm, w);
+    const bool ok = d2 > 0.0 && dr > 0.0 && dv > 0.0;
+    const float f = patch_area * (dr * dv) / (d2 * (d2 + pc.reg));
+    esum += rad * (ok ? f : 0.0);
+    return;
+  }
   if (!(d2 > 0.0)) return;
   const vec3 wn = w / sqrt(d2);
   const float cos_r = dot(rp.normal_glossy.xyz, wn), cos_v = -dot(nrm, wn);
   if (cos_r <= 0.0 || cos_v <= 0.0) return;
   const vec3 ei = rad * (patch_area * cos_v * cos_r / (d2 + pc.reg));
   esum += ei;
-  if (rp.normal_glossy.w > 0.0) add_glossy(ei, wn, weight);
+  add_glossy(ei, wn, weight);
 }
 
 void main() {

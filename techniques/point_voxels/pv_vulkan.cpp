@@ -803,10 +803,13 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
   check_fits(dev, np * sizeof(GpuGatherPixel), "the " + std::to_string(np) + " gathering pixels", "gather");
   std::vector<GpuGatherPixel> recv(np);
   const std::size_t hits = hit_pixels(gg);
+  bool glossy = false, eq7 = false;
   for (std::size_t i = 0; i < np; ++i) {
     if (!gg.hit(i)) continue;
     Receiver r = receiver_at(ctx, gg, i);
     if (s.eq7 && r.glossy > 0.0f) r.eq7_sigma = eq7_sigma(r.ns, static_cast<float>(s.eq7_sigma_scale));
+    glossy = glossy || r.glossy > 0.0f;
+    eq7 = eq7 || (r.glossy > 0.0f && r.eq7_sigma > 0.0f);
     recv[i] = {glm::vec4(r.position, gg.depth[i]), glm::vec4(r.normal, r.glossy), glm::vec4(r.reflect, r.ns),
                glm::vec4(r.eq7_sigma, 1.0f, (r.ns + 2.0f) / (2.0f * kPi), 0.0f)};
   }
@@ -817,7 +820,9 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
   ensure(dev, g.gather_status, gpu::kPvStatusWords * 4, "point_voxels gather status");
 
   const float near_range = static_cast<float>(s.near_range) * d.diagonal;
-  vk::ComputePipeline& p = pipeline(dev, g.pipelines, "pv.gather", words(spv::point_voxels_gather_comp), {});
+  // The glossy lobe's and eq. 7's code only where some pixel of this frame needs it (gather.comp).
+  vk::ComputePipeline& p = pipeline(dev, g.pipelines, std::string("pv.gather") + (glossy ? ".glossy" : "") + (eq7 ? ".eq7" : ""),
+                                    words(spv::point_voxels_gather_comp), {{0, glossy ? 1u : 0u}, {1, eq7 ? 1u : 0u}});
   struct Push {
     std::uint32_t first, end;
     std::int32_t gw, mw, mh;
@@ -870,6 +875,8 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
   rec.counters["voxels_per_pixel"] = hits ? static_cast<double>(gathered) / hits : 0.0;
   rec.counters["near_range"] = near_range;
   rec.counters["dispatches"] = dispatches;
+  rec.counters["glossy_code"] = glossy ? 1.0 : 0.0;
+  rec.counters["eq7_code"] = eq7 ? 1.0 : 0.0;
   rec.counters["kernel_gpu_seconds"] = secs;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
   rec.bytes = np * (sizeof(GpuGatherPixel) + sizeof(GpuGathered) + sizeof(GpuGatherState));
