@@ -28,7 +28,7 @@ layout(set = 0, binding = kIndBindProxies) uniform samplerBuffer proxies;
 layout(set = 0, binding = kIndBindAlbedo) uniform samplerBuffer albedo;
 layout(set = 0, binding = kIndBindVis) uniform samplerBuffer vis;
 layout(set = 0, binding = kIndBindDfac) uniform samplerBuffer dfac;
-layout(set = 0, binding = kIndBindConsts) uniform samplerBuffer consts;
+layout(std140, set = 0, binding = kIndBindConsts) uniform IndConsts { vec4 consts_v[kIndConstFloats / 4u]; };
 layout(std430, set = 0, binding = kIndBindOut) buffer Out { vec4 outv[]; };
 layout(std430, set = 0, binding = kIndBindPairs) buffer Pairs { uint pairs_inside; };
 layout(set = 0, binding = kIndBindMtab) uniform samplerBuffer mtab;

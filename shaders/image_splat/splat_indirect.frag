@@ -26,7 +26,7 @@ layout(set = 0, binding = kSplatIndBindProxies) uniform samplerBuffer proxies;
 layout(set = 0, binding = kSplatIndBindAlbedo) uniform samplerBuffer albedo;
 layout(set = 0, binding = kSplatIndBindVis) uniform samplerBuffer vis;
 layout(set = 0, binding = kSplatIndBindDfac) uniform samplerBuffer dfac;
-layout(set = 0, binding = kSplatIndBindConsts) uniform samplerBuffer consts;
+layout(std140, set = 0, binding = kSplatIndBindConsts) uniform IndConsts { vec4 consts_v[kIndConstFloats / 4u]; };
 layout(set = 0, binding = kSplatIndBindMtab) uniform samplerBuffer mtab;
 layout(set = 0, binding = kSplatIndBindQrot) uniform samplerBuffer qrot;
 layout(std430, set = 0, binding = kSplatIndBindPairs) buffer Pairs { uint pairs_inside; };

@@ -17,6 +17,9 @@ SOFTGI_II_CONST_UINT(kIndOpPoint, 0u)
 SOFTGI_II_CONST_UINT(kIndOpAveraged, 1u)  // averaged and averaged_poly: the D table differs, not the shader
 SOFTGI_II_CONST_UINT(kIndOpExact, 2u)     // eqs. 16-17: reads the M blocks, the Q blocks and hc
 
+// Floats of the indirect constants' uniform block (kIndBindConsts, kSplatIndBindConsts): 3 n^2 + 2 n
+// for n up to kAccumMaxOrder (8: 208), a multiple of 4 (std140 carries them as vec4s).
+SOFTGI_II_CONST_UINT(kIndConstFloats, 208u)
 // accumulate_indirect bindings (set 0)
 SOFTGI_II_CONST_UINT(kIndBindReceivers, 0u)     // float[6 * count]: px, py, pz, nx, ny, nz planes
 SOFTGI_II_CONST_UINT(kIndBindReceiverList, 1u)  // uint per receiver: index of its tile's proxy list
@@ -25,7 +28,7 @@ SOFTGI_II_CONST_UINT(kIndBindProxies, 3u)       // vec4 per proxy: centre, radiu
 SOFTGI_II_CONST_UINT(kIndBindAlbedo, 4u)        // vec4 per proxy: albedo / pi, 0
 SOFTGI_II_CONST_UINT(kIndBindVis, 5u)           // IndirectEvaluator visibility ZhTable::data
 SOFTGI_II_CONST_UINT(kIndBindDfac, 6u)          // rows * n D factors (averaged), 1 float otherwise
-SOFTGI_II_CONST_UINT(kIndBindConsts, 7u)        // L~ (3 n^2, coefficient-major), vh (n), then hc (n, exact only)
+SOFTGI_II_CONST_UINT(kIndBindConsts, 7u)        // uniform block of kIndConstFloats: L~ (3 n^2, coefficient-major), vh (n), hc (n), zeros
 SOFTGI_II_CONST_UINT(kIndBindBasis, 8u)         // shexp basis recurrence constants (asin included)
 SOFTGI_II_CONST_UINT(kIndBindOut, 9u)           // float[4 * count]: rgb, omega
 SOFTGI_II_CONST_UINT(kIndBindPairs, 10u)        // uint: receiver-proxy pairs inside the sphere of influence

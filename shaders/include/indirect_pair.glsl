@@ -7,15 +7,19 @@
 // is the SHEXP kernel's recurrence.
 //
 // Expects, declared before the include: the specialisation constants N (indirect order), RULE and
-// OP, the texel buffers vis, dfac, consts, mtab and qrot (image_splat_indirect_shared.h), and
-// softgi_shared.h, texels.glsl, sh_basis.glsl, accum_math.glsl, replacement_rule.glsl and
-// image_splat_indirect_shared.h included.
+// OP, the texel buffers vis, dfac, mtab and qrot, the uniform block `consts_v` (vec4
+// [kIndConstFloats / 4]; image_splat_indirect_shared.h), and softgi_shared.h, texels.glsl,
+// sh_basis.glsl, accum_math.glsl, replacement_rule.glsl and image_splat_indirect_shared.h included.
 #ifndef SOFTGI_INDIRECT_PAIR_GLSL
 #define SOFTGI_INDIRECT_PAIR_GLSL
 
-float lt(uint k, uint c) { return texel1(consts, 3 * k + c); }
-float vh(uint l) { return texel1(consts, 3 * N * N + l); }
-float hc(uint l) { return texel1(consts, 3 * N * N + N + l); }
+// L~ and the band factors, the same for every pair: a uniform block indexed by constants (every use
+// below sits in an unrolled loop), which a SIMD device reads once for all lanes, where a texel fetch
+// at one address costs llvmpipe a fetch per lane (and a pair reads 3 n^2 + n of them).
+float ind_const(uint i) { return consts_v[i >> 2u][i & 3u]; }
+float lt(uint k, uint c) { return ind_const(3 * k + c); }
+float vh(uint l) { return ind_const(3 * N * N + l); }
+float hc(uint l) { return ind_const(3 * N * N + N + l); }
 uint sh_index(uint l, int m) { return uint(int(l * l + l) + m); }
 
 // Paper 000 eqs. 16-17, Impl::pair's exact branch: I . H(N) = (M(theta) R L~) . H(R N) with

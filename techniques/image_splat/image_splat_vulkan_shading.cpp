@@ -148,7 +148,14 @@ std::uint32_t upload_indirect_tables(vk::Context& dev, IndirectTableBuffers& b, 
   std::vector<float> consts(tv.ltilde.begin(), tv.ltilde.end());
   consts.insert(consts.end(), tv.vh.begin(), tv.vh.end());
   consts.insert(consts.end(), tv.hc.begin(), tv.hc.end());
-  upload_if_changed(dev, b.consts, b.consts_host, consts, "image_splat indirect L~ and band factors");
+  if (consts.size() > gpu::kIndConstFloats)
+    throw std::logic_error("image_splat indirect on vulkan: " + std::to_string(consts.size()) + " constant floats (L~, vh, hc) exceed the " +
+                           std::to_string(gpu::kIndConstFloats) + " of the shaders' uniform block");
+  consts.resize(gpu::kIndConstFloats, 0.0f);  // the whole block (std140 vec4s), read as a uniform buffer
+  if (!b.consts || b.consts_host != consts) {
+    b.consts_host = consts;
+    b.consts = dev.upload_vector(b.consts_host, kStorage | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, "image_splat indirect L~ and band factors");
+  }
   const IndirectSetup& setup = ev.setup();
   return setup.op == IndirectOperator::Exact          ? gpu::kIndOpExact
          : setup.op == IndirectOperator::PointSampled ? gpu::kIndOpPoint
@@ -204,7 +211,7 @@ std::shared_ptr<IndirectSums> accumulate_indirect_bound(render::FrameContext& ct
       vk::Bind::texels_at(gpu::kIndBindAlbedo, *lists.payload, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindVis, g.tables.vis, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kIndBindDfac, g.tables.dfac, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kIndBindConsts, g.tables.consts, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kIndBindConsts, g.tables.consts),
       vk::Bind::buffer_at(gpu::kIndBindBasis, basis_constants(dev)),
       vk::Bind::buffer_at(gpu::kIndBindOut, g.out),
       vk::Bind::buffer_at(gpu::kIndBindPairs, g.pairs),

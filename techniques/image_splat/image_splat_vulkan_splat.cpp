@@ -469,7 +469,7 @@ std::shared_ptr<IndirectSums> vulkan_splat_indirect(render::FrameContext& ctx, c
       vk::Bind::texels_at(gpu::kSplatIndBindAlbedo, st->ind_albedo, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kSplatIndBindVis, st->tables.vis, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kSplatIndBindDfac, st->tables.dfac, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kSplatIndBindConsts, st->tables.consts, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kSplatIndBindConsts, st->tables.consts),
       vk::Bind::texels_at(gpu::kSplatIndBindMtab, st->tables.mtab, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kSplatIndBindQrot, st->tables.qrot, VK_FORMAT_R32_SFLOAT),
       vk::Bind::buffer_at(gpu::kSplatIndBindPairs, st->pairs)};
