@@ -28,8 +28,11 @@ layout(push_constant) uniform Push {
   float epsilon_rel;
   int normal_power;
   float miss_threshold;
-  uint mode;            // kUpsampleBilateral / kUpsampleBilinear
 } pc;
+// kUpsampleBilateral or kUpsampleBilinear, a specialisation constant: a SIMD device runs both sides
+// of a branch (llvmpipe does even when every lane takes the same side), which a push constant would
+// leave in the code.
+layout(constant_id = 0) const uint MODE = kUpsampleBilateral;
 
 bool is_hit(float z) { return !isinf(z); }
 // UpsampleOptions' input rule: a positive finite depth, or +inf for background.
@@ -38,7 +41,6 @@ bool normal_ok(vec3 n) { return !any(isnan(n)) && !any(isinf(n)); }
 
 vec4 fine_sample(uint p) { return texelFetch(fine_nz, int(p)); }
 vec4 coarse_sample(int i) { return texelFetch(coarse_nz, i); }
-float coarse_depth(int i) { return coarse_sample(i).w; }
 
 // b^e by squaring (upsample.cpp ipow); 0^0 = 1.
 float ipow(float b, int e) {
@@ -96,16 +98,15 @@ bool store_normalised(ivec4 bidx, vec4 w, out ivec4 idx, out vec4 wt) {
   return true;
 }
 
-bool bilinear_valid(ivec4 bidx, vec4 bw, out ivec4 idx, out vec4 wt) {
-  const vec4 w = vec4(is_hit(coarse_depth(bidx.x)) ? bw.x : 0.0, is_hit(coarse_depth(bidx.y)) ? bw.y : 0.0,
-                      is_hit(coarse_depth(bidx.z)) ? bw.z : 0.0, is_hit(coarse_depth(bidx.w)) ? bw.w : 0.0);
+// The bilinear taps over the block's valid (hit) samples, whose depths are `z`.
+bool bilinear_valid(ivec4 bidx, vec4 bw, vec4 z, out ivec4 idx, out vec4 wt) {
+  const vec4 w = vec4(is_hit(z.x) ? bw.x : 0.0, is_hit(z.y) ? bw.y : 0.0, is_hit(z.z) ? bw.z : 0.0, is_hit(z.w) ? bw.w : 0.0);
   return store_normalised(bidx, w, idx, wt);
 }
 
-// Eq. 11's weight of one tap: w_b w_z w_N, 0 for a background tap or one of weight 0.
-float bilateral(int i, float wb, float zp, float eps, vec3 np) {
+// Eq. 11's weight of one tap, coarse sample s: w_b w_z w_N, 0 for a background tap or one of weight 0.
+float bilateral(vec4 s, float wb, float zp, float eps, vec3 np) {
   if (!(wb > 0.0)) return 0.0;
-  const vec4 s = coarse_sample(i);
   const float zi = s.w;
   if (!is_hit(zi)) return 0.0;
   const float dz = abs(zp - zi);
@@ -138,19 +139,23 @@ void main() {
     ivec4 bidx;
     vec4 bw;
     bilinear_block(X, Y, bidx, bw);
-    if (pc.mode == kUpsampleBilinear) {
-      miss = bilinear_valid(bidx, bw, idx, wt) ? 0u : 1u;
+    // The block's four samples fetched once (the clamped indices are always inside the buffer; a tap
+    // of weight 0 ignores its sample).
+    const vec4 s0 = coarse_sample(bidx.x), s1 = coarse_sample(bidx.y), s2 = coarse_sample(bidx.z), s3 = coarse_sample(bidx.w);
+    const vec4 z = vec4(s0.w, s1.w, s2.w, s3.w);
+    if (MODE == kUpsampleBilinear) {
+      miss = bilinear_valid(bidx, bw, z, idx, wt) ? 0u : 1u;
     } else {
       // Eq. 11 with eps w_z in (0, 1] (see upsample.cpp): the sum is the miss measure directly.
       const float eps = pc.epsilon_rel * zp;
-      const vec4 w = vec4(bilateral(bidx.x, bw.x, zp, eps, np), bilateral(bidx.y, bw.y, zp, eps, np), bilateral(bidx.z, bw.z, zp, eps, np),
-                          bilateral(bidx.w, bw.w, zp, eps, np));
+      const vec4 w = vec4(bilateral(s0, bw.x, zp, eps, np), bilateral(s1, bw.y, zp, eps, np), bilateral(s2, bw.z, zp, eps, np),
+                          bilateral(s3, bw.w, zp, eps, np));
       measure = ((w.x + w.y) + w.z) + w.w;
       if (measure > 0.0) {
         store_normalised(bidx, w, idx, wt);
         miss = measure < pc.miss_threshold ? 1u : 0u;
       } else {
-        bilinear_valid(bidx, bw, idx, wt);  // every eq. 11 weight vanished: bilinear over the valid taps, a miss
+        bilinear_valid(bidx, bw, z, idx, wt);  // every eq. 11 weight vanished: bilinear over the valid taps, a miss
         miss = 1u;
       }
     }

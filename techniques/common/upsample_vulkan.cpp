@@ -114,13 +114,14 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   dev.upload(g.up_status, status0, sizeof status0);
   g.up_resident = nullptr;
 
-  vk::ComputePipeline& p = pipeline(dev, g.pipelines, "common.upsample_weights", words(spv::common_upsample_weights_comp), {});
+  const std::uint32_t mode = opt.mode == UpsampleMode::Bilateral ? gpu::kUpsampleBilateral : gpu::kUpsampleBilinear;
+  vk::ComputePipeline& p = pipeline(dev, g.pipelines, "common.upsample_weights.m" + std::to_string(mode), words(spv::common_upsample_weights_comp),
+                                    {{0, mode}});
   struct Push {
     std::int32_t fw, fh, fscale, cw, ch, cscale;
     float epsilon_rel;
     std::int32_t normal_power;
     float miss_threshold;
-    std::uint32_t mode;
   };
   const Push push{fine.width,
                   fine.height,
@@ -130,8 +131,7 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
                   coarse.scale,
                   static_cast<float>(opt.epsilon_rel),
                   opt.normal_power,
-                  static_cast<float>(opt.miss_threshold),
-                  opt.mode == UpsampleMode::Bilateral ? gpu::kUpsampleBilateral : gpu::kUpsampleBilinear};
+                  static_cast<float>(opt.miss_threshold)};
   const std::vector<vk::Bind> binds = {
       vk::Bind::texels_at(gpu::kUpBindFine, g.fine_nz, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kUpBindCoarse, g.coarse_nz, VK_FORMAT_R32G32B32A32_SFLOAT),

@@ -210,6 +210,30 @@ class ImageSplatParity : public softgi::testing::ValidatedParamSuite<ImageSplatP
       EXPECT_LE(worst_i, kUpsampleRelTol) << "upsample (" << label << ") indirect field";
     }
     EXPECT_GT(compared_pixels, 0u);
+    // The bilinear mode (no technique's default) from the same planes: its weights depend on the
+    // pixel positions alone (kWeightAbsTol covers them), its misses (no hit among the taps) on the
+    // depths' hit flags, equal on both backends.
+    {
+      is::UpsampleOptions bl = st.upsample;
+      bl.mode = is::UpsampleMode::Bilinear;
+      const auto coarse = plane(ctx.get<render::GBuffer>(render::kReceiverGBuffer)), fine = plane(ctx.get<render::GBuffer>(render::kGBuffer));
+      const is::UpsampleWeights c = softgi::techniques::common::upsample_weights(coarse, fine, bl);
+      const is::UpsampleWeights g = softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, bl);
+      ASSERT_EQ(c.index.size(), g.index.size());
+      double worst_b = 0.0;
+      std::size_t taps = 0;
+      for (std::size_t p = 0; p < c.index.size(); ++p) {
+        ASSERT_EQ(c.miss[p], g.miss[p]) << "bilinear: pixel " << p;
+        for (int k = 0; k < 4; ++k) {
+          ASSERT_EQ(c.index[p][k], g.index[p][k]) << "bilinear: pixel " << p << " tap " << k;
+          if (c.index[p][k] < 0) continue;
+          ++taps;
+          worst_b = std::max(worst_b, std::abs(static_cast<double>(c.weight[p][k]) - g.weight[p][k]));
+        }
+      }
+      EXPECT_GT(taps, 0u);
+      EXPECT_LE(worst_b, kWeightAbsTol) << "upsample (" << label << ") bilinear weights";
+    }
     std::printf("[parity] %-9s %-22s upsample        %zu pixels, worst weight difference %.3g, indirect %.3g, %zu of %zu misses flipped\n",
                 scene_name.c_str(), label.c_str(), compared_pixels, worst_w, worst_i, flips, cpu->w.misses);
     ctx.put<std::shared_ptr<const is::Upsampled>>(res, cpu);
