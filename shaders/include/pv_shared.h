@@ -76,6 +76,7 @@ SOFTGI_PV_CONST_UINT(kPvListBindFields, 4u)    // vec4 per pixel: sky irradiance
 SOFTGI_PV_CONST_UINT(kPvListBindStatus, 5u)
 
 // filter_lists (per pixel and bitset word) and filter_fields (per pixel): eq. 4.
+SOFTGI_PV_CONST_UINT(kPvFilterWords, 32u)     // filter_lists: most bitset words one invocation ORs
 SOFTGI_PV_CONST_UINT(kPvFiltBindPixels, 1u)
 SOFTGI_PV_CONST_UINT(kPvFiltBindIn, 2u)
 SOFTGI_PV_CONST_UINT(kPvFiltBindOut, 3u)

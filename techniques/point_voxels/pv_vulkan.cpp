@@ -739,7 +739,10 @@ void vulkan_filter(const Settings& s, FrameContext& ctx) {
   ensure(dev, g.fields[1], np * sizeof(glm::vec4), "point_voxels filtered sky fields");
   ensure(dev, g.list_status, gpu::kPvStatusWords * 4, "point_voxels list status");
   g.bits_hash[1] = g.fields_hash[1] = 0;
-  vk::ComputePipeline& lists = pipeline(dev, g.pipelines, "pv.filter_lists", words(spv::point_voxels_filter_lists_comp), {});
+  // filter_lists: one invocation per (pixel, run of `run` words).
+  const std::uint32_t run = std::min(W, gpu::kPvFilterWords), runs = (W + run - 1) / run;
+  vk::ComputePipeline& lists = pipeline(dev, g.pipelines, "pv.filter_lists.w" + std::to_string(run), words(spv::point_voxels_filter_lists_comp),
+                                        {{0, run}});
   vk::ComputePipeline& fields = pipeline(dev, g.pipelines, "pv.filter_fields", words(spv::point_voxels_filter_fields_comp), {});
   struct Push {
     std::uint32_t first, end;
@@ -758,7 +761,7 @@ void vulkan_filter(const Settings& s, FrameContext& ctx) {
              {vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid), vk::Bind::buffer_at(gpu::kPvFiltBindPixels, g.pixels),
               vk::Bind::buffer_at(gpu::kPvFiltBindIn, g.bits[0]), vk::Bind::buffer_at(gpu::kPvFiltBindOut, g.bits[1]),
               vk::Bind::buffer_at(gpu::kPvFiltBindStatus, g.list_status)},
-             np * W, push);
+             np * runs, push);
     dispatch(rec, fields,
              {vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid), vk::Bind::buffer_at(gpu::kPvFiltBindPixels, g.pixels),
               vk::Bind::buffer_at(gpu::kPvFiltBindIn, g.fields[0]), vk::Bind::buffer_at(gpu::kPvFiltBindOut, g.fields[1])},
