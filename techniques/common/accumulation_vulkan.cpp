@@ -91,12 +91,13 @@ OlTable upload_ol_table(vk::Context& dev, const sh::ShTables& sht, const std::st
   return {dev.upload_vector(ol, kStorage, technique + " OL table"), static_cast<std::uint32_t>(m)};
 }
 
-void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name) {
+void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name,
+                       VkBufferUsageFlags usage) {
   static const float kUnused = 0.0f;
   if (now.empty()) now = std::span<const float>(&kUnused, 1);
   if (!buf || !std::equal(host.begin(), host.end(), now.begin(), now.end())) {
     host.assign(now.begin(), now.end());
-    buf = dev.upload_vector(host, kStorage, name);
+    buf = dev.upload_vector(host, usage, name);
   }
 }
 

@@ -77,8 +77,9 @@ void put(vk::Context& dev, vk::Buffer& b, const V& v, const std::string& name) {
 
 // A table of host floats in a device buffer, re-uploaded only when its floats differ from `host`
 // (the copy last uploaded), compared in place. An empty table uploads one 0 (an unused binding still
-// needs a buffer).
-void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name);
+// needs a buffer). `usage`: the buffer's (with VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT for a uniform block).
+void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name,
+                       VkBufferUsageFlags usage = kStorage);
 
 // A 64-bit hash of a byte range (FNV-1a over 8-byte words): what a device buffer was last filled
 // with, so that inputs that did not change between frames stay on the device.

@@ -152,10 +152,7 @@ std::uint32_t upload_indirect_tables(vk::Context& dev, IndirectTableBuffers& b, 
     throw std::logic_error("image_splat indirect on vulkan: " + std::to_string(consts.size()) + " constant floats (L~, vh, hc) exceed the " +
                            std::to_string(gpu::kIndConstFloats) + " of the shaders' uniform block");
   consts.resize(gpu::kIndConstFloats, 0.0f);  // the whole block (std140 vec4s), read as a uniform buffer
-  if (!b.consts || b.consts_host != consts) {
-    b.consts_host = consts;
-    b.consts = dev.upload_vector(b.consts_host, kStorage | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, "image_splat indirect L~ and band factors");
-  }
+  upload_if_changed(dev, b.consts, b.consts_host, consts, "image_splat indirect L~ and band factors", kStorage | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT);
   const IndirectSetup& setup = ev.setup();
   return setup.op == IndirectOperator::Exact          ? gpu::kIndOpExact
          : setup.op == IndirectOperator::PointSampled ? gpu::kIndOpPoint
