@@ -43,6 +43,7 @@ SOFTGI_PV_CONST_UINT(kPvMarchBindSky, 4u)      // vec4 per sky SH coefficient (o
 SOFTGI_PV_CONST_UINT(kPvMarchBindItems, 5u)    // struct { uvec4 state; vec4 radiance; } per (source, ray)
 SOFTGI_PV_CONST_UINT(kPvMarchBindStatus, 6u)   // status words
 SOFTGI_PV_CONST_UINT(kPvMarchBindDiscs, 7u)    // the sorted proxies again, as RGBA32F texels (4 per proxy) for the disc tests
+SOFTGI_PV_CONST_UINT(kPvMarchBindSources, 8u)  // uint per source pixel: its index in the pixels (the hit pixels only)
 // Sources of the march shader (specialisation constant 0).
 SOFTGI_PV_CONST_UINT(kPvSourceProxies, 0u)
 SOFTGI_PV_CONST_UINT(kPvSourcePixels, 1u)
@@ -68,12 +69,13 @@ SOFTGI_PV_CONST_UINT(kPvFinBindSh, 2u)
 SOFTGI_PV_CONST_UINT(kPvSunHeader, 16u)
 SOFTGI_PV_CONST_UINT(kPvVoxelFloats, 16u)      // floats per cell of the SH buffer
 
-// march_lists: per marching pixel, its rays' voxels as a bitset, the escaped rays' sky light.
-SOFTGI_PV_CONST_UINT(kPvListBindPixels, 1u)
+// march_lists: per marching pixel that sees a surface, its rays' voxels as a bitset, the escaped
+// rays' sky light (the others keep the zeroed bitsets and fields).
 SOFTGI_PV_CONST_UINT(kPvListBindItems, 2u)
 SOFTGI_PV_CONST_UINT(kPvListBindBits, 3u)      // uint words per pixel (zeroed before)
 SOFTGI_PV_CONST_UINT(kPvListBindFields, 4u)    // vec4 per pixel: sky irradiance, escaped fraction
 SOFTGI_PV_CONST_UINT(kPvListBindStatus, 5u)
+SOFTGI_PV_CONST_UINT(kPvListBindSources, 6u)   // as kPvMarchBindSources
 
 // filter_lists (per pixel and bitset word) and filter_fields (per pixel): eq. 4.
 SOFTGI_PV_CONST_UINT(kPvFilterWords, 32u)     // filter_lists: most bitset words one invocation ORs
@@ -95,6 +97,7 @@ SOFTGI_PV_CONST_UINT(kPvGathBindOut, 8u)       // vec4 irradiance, glossy, weigh
 SOFTGI_PV_CONST_UINT(kPvGathBindState, 9u)     // per pixel: uvec4 (phase, next voxel, next VPL, voxels gathered),
                                                // vec4 (the current voxel's VPL irradiance sum so far)
 SOFTGI_PV_CONST_UINT(kPvGathBindStatus, 10u)
+SOFTGI_PV_CONST_UINT(kPvGathBindSources, 11u)  // uint per gathering pixel that sees a surface: its index
 
 // depth_raster.vert (light_maps): the posed triangles' corners, vec4 each, 3 per triangle.
 SOFTGI_PV_CONST_UINT(kPvRasterBindCorners, 0u)

@@ -5,7 +5,8 @@
 // gathered once with the sum of their weights, in increasing voxel order; voxels nearer than R are
 // gathered VPL by VPL as discs, farther ones through their order-2 SH from their centroid
 // (gather_voxel), diffuse and glossy (the Phong lobe, optionally weighted by eq. 7) apart. One
-// invocation per gathering pixel; under a driver's loop-iteration limit an invocation that runs out
+// invocation per gathering pixel that sees a surface (the background's keep their zeroed sums, and
+// cost no lane: a SIMD device runs a subgroup's loops for idle lanes too); under a driver's loop-iteration limit an invocation that runs out
 // of budget saves its place and sums and the host dispatches again.
 //
 // The lanes of a subgroup walk one voxel sequence together: the union of their lists, in increasing
@@ -56,6 +57,7 @@ struct GatherState {
 };
 layout(std430, set = 0, binding = kPvGathBindState) buffer State { GatherState state[]; };
 layout(std430, set = 0, binding = kPvGathBindStatus) buffer Status { uint status[]; };
+layout(std430, set = 0, binding = kPvGathBindSources) readonly buffer Sources { uint sources[]; };
 layout(push_constant) uniform Push {
   uint first, end;
   int gw, mw, mh;
@@ -131,16 +133,13 @@ void gather_vpl(vec3 pos, vec3 nrm, vec3 rad, float weight, inout vec3 esum) {
 }
 
 void main() {
-  const uint i = pc.first + gl_GlobalInvocationID.x;
-  if (i >= pc.end) return;
+  const uint j = pc.first + gl_GlobalInvocationID.x;
+  if (j >= pc.end) return;
+  const uint i = sources[j];
   GatherState st = state[i];
   if (st.s.x == kPvPhaseDone) return;
   rp = recv[i];
   patch_area = g_cell_a.w;
-  if (rp.extra.y == 0.0) {
-    state[i].s = uvec4(kPvPhaseDone, 0u, 0u, 0u);
-    return;
-  }
   // gather_taps (point_voxels.cpp): eq. 5's weights over the four marching neighbours.
   const int x = int(i % uint(pc.gw)), y = int(i / uint(pc.gw));
   const float u = (float(x) + 0.5) * pc.ratio - 0.5, v = (float(y) + 0.5) * pc.ratio - 0.5;

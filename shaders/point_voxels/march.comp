@@ -27,6 +27,10 @@ layout(std430, set = 0, binding = kPvMarchBindPixels) readonly buffer Pixels { M
 layout(std430, set = 0, binding = kPvMarchBindSky) readonly buffer Sky { vec4 sky_sh[]; };
 layout(std430, set = 0, binding = kPvMarchBindItems) buffer Items { MarchItem items[]; };
 layout(std430, set = 0, binding = kPvMarchBindStatus) buffer Status { uint status[]; };
+// SOURCE == kPvSourcePixels: the marching pixels that see a surface, so that no invocation (nor, on
+// a SIMD device that runs a subgroup's loops for its idle lanes too, any lane) is spent on the
+// background's.
+layout(std430, set = 0, binding = kPvMarchBindSources) readonly buffer Sources { uint sources[]; };
 layout(push_constant) uniform Push {
   uint first_source;  // the items of this batch are (first_source + s, k) for s < sources
   uint sources;
@@ -57,25 +61,18 @@ void main() {
     vec3 p, n;
     uint seed;
     if (SOURCE == kPvSourcePixels) {
-      const MarchPixel px = pixels[src];
+      const MarchPixel px = pixels[sources[src]];
       p = px.pos_hit.xyz;
       n = px.normal_depth.xyz;
       seed = px.seed.x;
-      if (px.pos_hit.w == 0.0) {
-        items[item].state = uvec4(kPvPhaseDone, 0u, 0u, uint(-1));
-        items[item].radiance = vec4(0.0);
-        live = false;
-      }
     } else {
       p = prox[src].position.xyz;
       n = prox[src].normal.xyz;
       seed = prox[src].meta.x;
     }
-    if (live) {
-      o = p + n * (0.25 * g_lo_r.w);
-      const vec2 u = pv_ray_sample(k, pc.rays, seed);
-      d = pv_cosine_direction(n, u.x, u.y);
-    }
+    o = p + n * (0.25 * g_lo_r.w);
+    const vec2 u = pv_ray_sample(k, pc.rays, seed);
+    d = pv_cosine_direction(n, u.x, u.y);
   }
   uint steps = st.x == kPvPhaseResume ? st.y : 0u, disc = st.x == kPvPhaseResume ? st.z : 0u;
   const float t_min = 0.5 * g_lo_r.w, t_max = 1e30;

@@ -2,34 +2,31 @@
 // Each marching pixel's list of visible voxels (paper 002 section 3.1, V_p), as a bitset over the
 // grid's cells (sorted and free of duplicates by construction), from its rays' first hits; the
 // escaped rays' sky light as irradiance pi / rays sum L_k and the escaped fraction (pass_march).
-// One invocation per pixel of the batch.
+// One invocation per source pixel of the batch (the marching pixels that see a surface).
 #extension GL_GOOGLE_include_directive : require
 #include "pv_shared.h"
 #include "pv_common.glsl"
 
 layout(local_size_x = kPvGroup) in;
-layout(std430, set = 0, binding = kPvListBindPixels) readonly buffer Pixels { MarchPixel pixels[]; };
 layout(std430, set = 0, binding = kPvListBindItems) readonly buffer Items { MarchItem items[]; };
 layout(std430, set = 0, binding = kPvListBindBits) buffer Bits { uint bits[]; };
 layout(std430, set = 0, binding = kPvListBindFields) writeonly buffer Fields { vec4 fields[]; };
 layout(std430, set = 0, binding = kPvListBindStatus) buffer Status { uint status[]; };
+layout(std430, set = 0, binding = kPvListBindSources) readonly buffer Sources { uint sources[]; };
 layout(push_constant) uniform Push {
-  uint first, end;   // pixels of this batch
+  uint first, end;   // source pixels of this batch
   uint rays;
   uint words;        // bitset words per pixel
   float sky_scale;   // pi / rays
 } pc;
 
 void main() {
-  const uint p = pc.first + gl_GlobalInvocationID.x;
-  if (p >= pc.end) return;
-  if (pixels[p].pos_hit.w == 0.0) {
-    fields[p] = vec4(0.0);
-    return;
-  }
+  const uint src = pc.first + gl_GlobalInvocationID.x;
+  if (src >= pc.end) return;
+  const uint p = sources[src];
   vec3 e = vec3(0.0);
   uint escaped = 0u, listed = 0u;
-  const uint base = (p - pc.first) * pc.rays;
+  const uint base = (src - pc.first) * pc.rays;
   for (uint k = 0u; k < pc.rays; ++k) {
     const int v = int(items[base + k].state.w);
     if (v >= 0) {

@@ -120,8 +120,8 @@ struct GpuState {
   std::uint64_t lights_hash = 0, sky_hash = 0;
   LightBuffers maps;
   vk::Buffer items, march_status;
-  vk::Buffer pixels;
-  std::uint64_t pixels_hash = 0;
+  vk::Buffer pixels, sources, gsources;
+  std::uint64_t pixels_hash = 0, sources_hash = 0, gsources_hash = 0;
   vk::Buffer bits[2], fields[2];
   std::uint64_t bits_hash[2] = {0, 0}, fields_hash[2] = {0, 0};
   vk::Buffer list_status;
@@ -273,17 +273,25 @@ DeviceVoxels voxels_on_device(FrameContext& ctx, vk::Context& dev, GpuState& g, 
   return d;
 }
 
-// The marching G-buffer as march.comp reads it, with each pixel's ray seed.
-void put_pixels(vk::Context& dev, GpuState& g, const GBuffer& mg) {
+// The marching G-buffer as march.comp reads it, with each pixel's ray seed, and the pixels that see
+// a surface (march.comp's sources, in pixel order). Returns how many of those there are.
+std::size_t put_pixels(vk::Context& dev, GpuState& g, const GBuffer& mg) {
   const std::size_t np = static_cast<std::size_t>(mg.width) * mg.height;
   std::vector<GpuMarchPixel> px(np);
+  std::vector<std::uint32_t> sources;
+  sources.reserve(np);
   for (std::size_t i = 0; i < np; ++i) {
     const bool hit = mg.hit(i);
     px[i].pos_hit = glm::vec4(mg.position[i], hit ? 1.0f : 0.0f);
     px[i].normal_depth = glm::vec4(mg.normal[i], hit ? mg.depth[i] : 0.0f);
     px[i].seed = glm::uvec4(pixel_ray_seed(i), 0u, 0u, 0u);
+    if (hit) sources.push_back(static_cast<std::uint32_t>(i));
   }
   put_if_changed(dev, g.pixels, g.pixels_hash, px, "point_voxels marching pixels");
+  const std::size_t n = sources.size();
+  if (sources.empty()) sources.push_back(0u);  // a buffer is never empty; no source reads it
+  put_if_changed(dev, g.sources, g.sources_hash, sources, "point_voxels march sources");
+  return n;
 }
 
 // Lists of kLists (slot 0) or kFiltered (slot 1) on the device: the device copy, else the host
@@ -576,7 +584,8 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
       vk::Bind::texels_at(gpu::kPvMarchBindStart, g.vstart, VK_FORMAT_R32_UINT), vk::Bind::buffer_at(gpu::kPvMarchBindPixels, g.vprox),
       vk::Bind::buffer_at(gpu::kPvMarchBindSky, g.sky),       vk::Bind::buffer_at(gpu::kPvMarchBindItems, g.items),
       vk::Bind::buffer_at(gpu::kPvMarchBindStatus, g.march_status),
-      vk::Bind::texels_at(gpu::kPvMarchBindDiscs, g.vprox, VK_FORMAT_R32G32B32A32_SFLOAT)};
+      vk::Bind::texels_at(gpu::kPvMarchBindDiscs, g.vprox, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kPvMarchBindSources, g.vstart)};  // as the pixels: not read for proxy sources
   const std::vector<vk::Bind> light_binds = {
       vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),          vk::Bind::buffer_at(gpu::kPvLitBindProxies, g.vprox),
       vk::Bind::buffer_at(gpu::kPvLitBindItems, g.items),     vk::Bind::buffer_at(gpu::kPvLitBindLights, g.lights),
@@ -648,7 +657,7 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   check_fits(dev, np * sizeof(GpuMarchPixel), "the " + std::to_string(np) + " marching pixels", "march");
 
   const std::size_t before = dev.transfer_bytes().upload;
-  put_pixels(dev, g, mg);
+  const std::size_t nh = put_pixels(dev, g, mg);
   std::vector<glm::vec4> sky_sh(kSkyOrder * kSkyOrder, glm::vec4(0.0f));
   if (sky)
     for (std::size_t i = 0; i < sky_sh.size() && i < L->sky_sh.size(); ++i) sky_sh[i] = glm::vec4(L->sky_sh[i], 0.0f);
@@ -660,7 +669,7 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   ensure(dev, g.list_status, gpu::kPvStatusWords * 4, "point_voxels list status");
   g.bits_hash[0] = g.fields_hash[0] = 0;
   const std::size_t per_batch = std::max<std::size_t>(1, batch_items(dev) / rays);
-  ensure(dev, g.items, std::min(std::max<std::size_t>(np, 1), per_batch) * rays * sizeof(GpuItem), "point_voxels march items");
+  ensure(dev, g.items, std::min(std::max<std::size_t>(nh, 1), per_batch) * rays * sizeof(GpuItem), "point_voxels march items");
 
   bool lanes = false;
   vk::ComputePipeline& march = march_pipeline(dev, g, s, gpu::kPvSourcePixels, lanes);
@@ -670,9 +679,10 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
       vk::Bind::texels_at(gpu::kPvMarchBindStart, g.start, VK_FORMAT_R32_UINT), vk::Bind::buffer_at(gpu::kPvMarchBindPixels, g.pixels),
       vk::Bind::buffer_at(gpu::kPvMarchBindSky, g.sky),      vk::Bind::buffer_at(gpu::kPvMarchBindItems, g.items),
       vk::Bind::buffer_at(gpu::kPvMarchBindStatus, g.march_status),
-      vk::Bind::texels_at(gpu::kPvMarchBindDiscs, g.sprox, VK_FORMAT_R32G32B32A32_SFLOAT)};
+      vk::Bind::texels_at(gpu::kPvMarchBindDiscs, g.sprox, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kPvMarchBindSources, g.sources)};
   const std::vector<vk::Bind> list_binds = {
-      vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),          vk::Bind::buffer_at(gpu::kPvListBindPixels, g.pixels),
+      vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),          vk::Bind::buffer_at(gpu::kPvListBindSources, g.sources),
       vk::Bind::buffer_at(gpu::kPvListBindItems, g.items),    vk::Bind::buffer_at(gpu::kPvListBindBits, g.bits[0]),
       vk::Bind::buffer_at(gpu::kPvListBindFields, g.fields[0]), vk::Bind::buffer_at(gpu::kPvListBindStatus, g.list_status)};
   struct ListPush {
@@ -682,14 +692,15 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   MarchRun run;
   {
     const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
-      rec.fill(g.bits[0], 0u);
+      rec.fill(g.bits[0], 0u);  // and the background's fields, which march_lists leaves alone
+      rec.fill(g.fields[0], 0u);
       rec.fill(g.list_status, 0u);
       rec.barrier();
     }, "point_voxels march clear");
     run.seconds += std::max(0.0, res.gpu_seconds);
   }
-  for (std::size_t first = 0; first < np; first += per_batch) {
-    const std::size_t end = std::min(np, first + per_batch);
+  for (std::size_t first = 0; first < nh; first += per_batch) {
+    const std::size_t end = std::min(nh, first + per_batch);
     run_march(dev, g, march, march_binds, first, end, rays, sky, lanes, d.frame.dims, run, "point_voxels march");
     const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
       rec.begin_timer("march_lists");
@@ -713,7 +724,8 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   rec.counters["march_lanes_discs"] = lanes ? 1.0 : 0.0;
   rec.counters["kernel_gpu_seconds"] = run.seconds;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
-  rec.bytes = np * (W * 4 + sizeof(glm::vec4) + sizeof(GpuMarchPixel)) + std::min(np, per_batch) * rays * sizeof(GpuItem);
+  rec.bytes = np * (W * 4 + sizeof(glm::vec4) + sizeof(GpuMarchPixel)) + nh * sizeof(std::uint32_t) +
+              std::min(nh, per_batch) * rays * sizeof(GpuItem);
   ctx.put_deferred<std::shared_ptr<const Marched>>(kLists, [dm, &g, &dev]() {
     std::lock_guard<std::mutex> l(g.m);
     return read_marched(dev, dm, g.bits[0], &g.fields[0]);
@@ -805,10 +817,12 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
   check_index(np, "gathering pixels", "gather");
   check_fits(dev, np * sizeof(GpuGatherPixel), "the " + std::to_string(np) + " gathering pixels", "gather");
   std::vector<GpuGatherPixel> recv(np);
-  const std::size_t hits = hit_pixels(gg);
+  std::vector<std::uint32_t> sources;  // the pixels that see a surface: gather.comp's invocations
+  sources.reserve(np);
   bool glossy = false, eq7 = false;
   for (std::size_t i = 0; i < np; ++i) {
     if (!gg.hit(i)) continue;
+    sources.push_back(static_cast<std::uint32_t>(i));
     Receiver r = receiver_at(ctx, gg, i);
     if (s.eq7 && r.glossy > 0.0f) r.eq7_sigma = eq7_sigma(r.ns, static_cast<float>(s.eq7_sigma_scale));
     glossy = glossy || r.glossy > 0.0f;
@@ -817,6 +831,9 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
                glm::vec4(r.eq7_sigma, 1.0f, (r.ns + 2.0f) / (2.0f * kPi), 0.0f)};
   }
   put_if_changed(dev, g.receivers, g.receivers_hash, recv, "point_voxels gathering pixels");
+  const std::size_t hits = sources.size();
+  if (sources.empty()) sources.push_back(0u);  // a buffer is never empty; no invocation reads it
+  put_if_changed(dev, g.gsources, g.gsources_hash, sources, "point_voxels gathering sources");
   const std::size_t uploaded = dev.transfer_bytes().upload - before;
   ensure(dev, g.gathered, np * sizeof(GpuGathered), "point_voxels gathered light");
   ensure(dev, g.gstate, np * sizeof(GpuGatherState), "point_voxels gathering state");
@@ -846,7 +863,7 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
       vk::Bind::texels_at(gpu::kPvGathBindBits, g.bits[1], VK_FORMAT_R32_UINT),
       vk::Bind::buffer_at(gpu::kPvGathBindReceivers, g.receivers),
       vk::Bind::buffer_at(gpu::kPvGathBindOut, g.gathered),      vk::Bind::buffer_at(gpu::kPvGathBindState, g.gstate),
-      vk::Bind::buffer_at(gpu::kPvGathBindStatus, g.gather_status)};
+      vk::Bind::buffer_at(gpu::kPvGathBindStatus, g.gather_status), vk::Bind::buffer_at(gpu::kPvGathBindSources, g.gsources)};
   double secs = 0.0;
   int dispatches = 0;
   std::uint32_t status[gpu::kPvStatusWords];
@@ -860,7 +877,7 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
       rec.fill(g.gather_status, 0u);
       rec.barrier();
       rec.begin_timer("gather");
-      dispatch(rec, p, binds, np, push);
+      dispatch(rec, p, binds, hits, push);
       rec.end_timer();
       rec.barrier();
     }, "point_voxels gather");
