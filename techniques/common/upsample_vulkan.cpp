@@ -168,15 +168,18 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
                     "; expected a positive eye-space depth or +inf for background");
     upsample_fail(std::string(name) + " normal at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is not finite");
   }
+  // From the frame pool, as upsample.cpp's weights (the caller gives them back): every element is
+  // overwritten, and fresh vectors would cost the frame their zero fill and page faults.
+  render::FramePool& pool = ctx.pool();
   UpsampleWeights w;
   w.width = fine.width;
   w.height = fine.height;
-  w.index.resize(nf);
-  w.weight.resize(nf);
-  w.miss.resize(nf);
+  w.index = pool.take_for_overwrite<std::array<std::int32_t, 4>>(nf);
+  w.weight = pool.take_for_overwrite<std::array<float, 4>>(nf);
+  w.miss = pool.take_for_overwrite<std::uint8_t>(nf);
   dev.download(g.up_index, w.index.data(), nf * 16);
   dev.download(g.up_weight, w.weight.data(), nf * 16);
-  std::vector<std::uint32_t> mm(2 * nf);
+  std::vector<std::uint32_t> mm = pool.take_for_overwrite<std::uint32_t>(2 * nf);
   dev.download(g.up_miss, mm.data(), nf * 8);
   if (measure) measure->resize(nf);
   for (std::size_t i = 0; i < nf; ++i) {
@@ -184,6 +187,7 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
     w.misses += w.miss[i];
     if (measure) std::memcpy(&(*measure)[i], &mm[2 * i + 1], sizeof(float));
   }
+  pool.give(std::move(mm));
   g.up_resident = w.index.data();
   g.up_pixels = nf;
   ctx.record().counters["weights_gpu_seconds"] = timer_seconds(res);
