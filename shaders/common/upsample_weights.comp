@@ -1,5 +1,8 @@
 #version 450
-// Upsampling weights of paper 000 section 4.2, eq. 11, one invocation per display pixel: the 2x2
+// Upsampling weights of paper 000 section 4.2, eq. 11, one invocation per display pixel that sees a
+// surface (the host lists them, and fills the background's outputs: no taps, not a miss; a SIMD
+// device runs a shader's every branch for all lanes, so an invocation per background pixel would
+// cost as much as one per surface pixel). The host also checks the inputs (upsample_vulkan.cpp). The 2x2
 // coarse block of bilinear weights w_b, times w_z = 1 / (eps + |z_p - z_i|) (as eps w_z =
 // 1 / (1 + |z_p - z_i| / eps), eps = epsilon_rel z_p) and w_N = max(0, N_p . N_i)^power, renormalised;
 // a miss where the unnormalised sum is below the threshold. Step by step the arithmetic of
@@ -9,20 +12,21 @@
 #extension GL_GOOGLE_include_directive : require
 #include "upsample_shared.h"
 
-layout(local_size_x = kUpsampleGroupX, local_size_y = kUpsampleGroupY) in;
+layout(local_size_x = kUpWeightsGroup) in;
 
 // Through texel buffers: a SIMD device fetches and stores texels for all lanes at once, where it
 // reads and writes a storage buffer lane by lane with a bounds check per component (llvmpipe).
 // A sample's normal and depth in one RGBA32F texel: one fetch per sample (llvmpipe runs each fetch
 // as a gather of its own; with depth and the three normal components in four single-float texels a
 // pixel took twenty).
+layout(set = 0, binding = kUpBindSurface) uniform usamplerBuffer surface;
 layout(set = 0, binding = kUpBindFine) uniform samplerBuffer fine_nz;
 layout(set = 0, binding = kUpBindCoarse) uniform samplerBuffer coarse_nz;
 layout(set = 0, binding = kUpBindIndex, rgba32i) uniform writeonly iimageBuffer out_index;
 layout(set = 0, binding = kUpBindWeight, rgba32f) uniform writeonly imageBuffer out_weight;
 layout(set = 0, binding = kUpBindMiss, rg32ui) uniform writeonly uimageBuffer out_miss;
-layout(std430, set = 0, binding = kUpBindStatus) buffer Status { uint status[]; };
 layout(push_constant) uniform Push {
+  uint first, end;      // surface pixels of this dispatch
   int fw, fh, fscale;   // display buffer
   int cw, ch, cscale;   // receiver buffer
   float epsilon_rel;
@@ -35,9 +39,6 @@ layout(push_constant) uniform Push {
 layout(constant_id = 0) const uint MODE = kUpsampleBilateral;
 
 bool is_hit(float z) { return !isinf(z); }
-// UpsampleOptions' input rule: a positive finite depth, or +inf for background.
-bool depth_ok(float z) { return (isinf(z) && z > 0.0) || (!isnan(z) && !isinf(z) && z > 0.0); }
-bool normal_ok(vec3 n) { return !any(isnan(n)) && !any(isinf(n)); }
 
 vec4 fine_sample(uint p) { return texelFetch(fine_nz, int(p)); }
 vec4 coarse_sample(int i) { return texelFetch(coarse_nz, i); }
@@ -116,48 +117,38 @@ float bilateral(vec4 s, float wb, float zp, float eps, vec3 np) {
 }
 
 void main() {
-  const int X = int(gl_GlobalInvocationID.x), Y = int(gl_GlobalInvocationID.y);
-  // The coarse buffer is checked once, spread over the invocations of its own extent (the host
-  // dispatches over the larger of both extents).
-  if (X < pc.cw && Y < pc.ch) {
-    const uint c = uint(Y) * uint(pc.cw) + uint(X);
-    const vec4 sc = coarse_sample(int(c));
-    if (!depth_ok(sc.w) || (is_hit(sc.w) && !normal_ok(sc.xyz))) atomicMin(status[kUpStatusBadCoarse], c + 1);
-  }
-  if (X >= pc.fw || Y >= pc.fh) return;
-  const uint p = uint(Y) * uint(pc.fw) + uint(X);
+  const uint j = pc.first + gl_GlobalInvocationID.x;
+  if (j >= pc.end) return;
+  const uint p = texelFetch(surface, int(j)).x;
+  const int X = int(p % uint(pc.fw)), Y = int(p / uint(pc.fw));
   const vec4 sp = fine_sample(p);
   const float zp = sp.w;
+  const vec3 np = sp.xyz;
   ivec4 idx = ivec4(-1);
   vec4 wt = vec4(0.0);
   uint miss = 0;
   float measure = 0.0;
-  const vec3 np = sp.xyz;
-  if (!depth_ok(zp) || (is_hit(zp) && !normal_ok(np))) {
-    atomicMin(status[kUpStatusBadFine], p + 1);
-  } else if (is_hit(zp)) {  // background: nothing to shade, not a miss
-    ivec4 bidx;
-    vec4 bw;
-    bilinear_block(X, Y, bidx, bw);
-    // The block's four samples fetched once (the clamped indices are always inside the buffer; a tap
-    // of weight 0 ignores its sample).
-    const vec4 s0 = coarse_sample(bidx.x), s1 = coarse_sample(bidx.y), s2 = coarse_sample(bidx.z), s3 = coarse_sample(bidx.w);
-    const vec4 z = vec4(s0.w, s1.w, s2.w, s3.w);
-    if (MODE == kUpsampleBilinear) {
-      miss = bilinear_valid(bidx, bw, z, idx, wt) ? 0u : 1u;
+  ivec4 bidx;
+  vec4 bw;
+  bilinear_block(X, Y, bidx, bw);
+  // The block's four samples fetched once (the clamped indices are always inside the buffer; a tap
+  // of weight 0 ignores its sample).
+  const vec4 s0 = coarse_sample(bidx.x), s1 = coarse_sample(bidx.y), s2 = coarse_sample(bidx.z), s3 = coarse_sample(bidx.w);
+  const vec4 z = vec4(s0.w, s1.w, s2.w, s3.w);
+  if (MODE == kUpsampleBilinear) {
+    miss = bilinear_valid(bidx, bw, z, idx, wt) ? 0u : 1u;
+  } else {
+    // Eq. 11 with eps w_z in (0, 1] (see upsample.cpp): the sum is the miss measure directly.
+    const float eps = pc.epsilon_rel * zp;
+    const vec4 w = vec4(bilateral(s0, bw.x, zp, eps, np), bilateral(s1, bw.y, zp, eps, np), bilateral(s2, bw.z, zp, eps, np),
+                        bilateral(s3, bw.w, zp, eps, np));
+    measure = ((w.x + w.y) + w.z) + w.w;
+    if (measure > 0.0) {
+      store_normalised(bidx, w, idx, wt);
+      miss = measure < pc.miss_threshold ? 1u : 0u;
     } else {
-      // Eq. 11 with eps w_z in (0, 1] (see upsample.cpp): the sum is the miss measure directly.
-      const float eps = pc.epsilon_rel * zp;
-      const vec4 w = vec4(bilateral(s0, bw.x, zp, eps, np), bilateral(s1, bw.y, zp, eps, np), bilateral(s2, bw.z, zp, eps, np),
-                          bilateral(s3, bw.w, zp, eps, np));
-      measure = ((w.x + w.y) + w.z) + w.w;
-      if (measure > 0.0) {
-        store_normalised(bidx, w, idx, wt);
-        miss = measure < pc.miss_threshold ? 1u : 0u;
-      } else {
-        bilinear_valid(bidx, bw, z, idx, wt);  // every eq. 11 weight vanished: bilinear over the valid taps, a miss
-        miss = 1u;
-      }
+      bilinear_valid(bidx, bw, z, idx, wt);  // every eq. 11 weight vanished: bilinear over the valid taps, a miss
+      miss = 1u;
     }
   }
   imageStore(out_index, int(p), idx);

@@ -25,11 +25,8 @@ SOFTGI_UP_CONST_UINT(kUpBindCoarse, 1u)  // vec4 per coarse pixel: normal (xyz) 
 SOFTGI_UP_CONST_UINT(kUpBindIndex, 2u)   // ivec4 per display pixel (-1 = unused, packed to the front)
 SOFTGI_UP_CONST_UINT(kUpBindWeight, 3u)  // vec4 per display pixel
 SOFTGI_UP_CONST_UINT(kUpBindMiss, 4u)    // uvec2 per display pixel: (miss, bits of the eq. 11 measure)
-SOFTGI_UP_CONST_UINT(kUpBindStatus, 5u)  // uint[2]: first bad fine pixel + 1, first bad coarse pixel + 1 (0xffffffff: none)
-// Status words of upsample_weights.
-SOFTGI_UP_CONST_UINT(kUpStatusBadFine, 0u)
-SOFTGI_UP_CONST_UINT(kUpStatusBadCoarse, 1u)
-SOFTGI_UP_CONST_UINT(kUpStatusWords, 2u)
+SOFTGI_UP_CONST_UINT(kUpBindSurface, 5u) // uint per display pixel that sees a surface: its index (the invocations)
+SOFTGI_UP_CONST_UINT(kUpWeightsGroup, 64u)
 
 // upsample_apply bindings (set 0)
 SOFTGI_UP_CONST_UINT(kApBindIndex, 0u)

@@ -36,7 +36,7 @@ namespace {
 struct UpsampleState {
   std::mutex m;
   PipelineCache pipelines;
-  vk::Buffer fine_nz, coarse_nz, up_index, up_weight, up_miss, up_status;  // weights
+  vk::Buffer fine_nz, coarse_nz, surface, up_index, up_weight, up_miss;  // weights
   const void* up_resident = nullptr;  // UpsampleWeights::index.data() of the weights in up_index / up_weight
   std::size_t up_pixels = 0;
   vk::Buffer ap_in, ap_out;           // apply
@@ -96,34 +96,60 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   check_fits(dev, nf * 16, "the normals and depths of " + std::to_string(nf) + " display pixels", "upsample");
   // Each sample's normal and depth as one RGBA32F texel (upsample_weights.comp reads a sample with
   // one fetch). The same bytes cross to the device as the separate planes would (16 per sample).
-  const auto up = [&](vk::Buffer& b, const PlaneView& v, std::size_t n, const char* name) {
+  // The same pass checks the samples, upsample.cpp's rule and messages (the coarse buffer first),
+  // and lists the display pixels that see a surface: the shader's invocations.
+  std::vector<std::uint32_t> surface = ctx.pool().take_for_overwrite<std::uint32_t>(nf);
+  std::size_t ns = 0;
+  const auto up = [&](vk::Buffer& b, const PlaneView& v, std::size_t n, const char* name, const char* which, bool list) {
     std::vector<glm::vec4> nz = ctx.pool().take_for_overwrite<glm::vec4>(n);
-    for (std::size_t i = 0; i < n; ++i) nz[i] = glm::vec4(v.normal[i], v.depth[i]);
+    std::size_t bad = n;
+    for (std::size_t i = 0; i < n; ++i) {
+      const float z = v.depth[i];
+      const glm::vec3 nv = v.normal[i];
+      nz[i] = glm::vec4(nv, z);
+      const bool background = std::isinf(z) && z > 0.0f;
+      const bool ok = background || (std::isfinite(z) && z > 0.0f && std::isfinite(nv.x) && std::isfinite(nv.y) && std::isfinite(nv.z));
+      if (!ok && bad == n) bad = i;
+      if (list && !background) surface[ns++] = static_cast<std::uint32_t>(i);
+    }
+    if (bad < n) {
+      ctx.pool().give(std::move(nz));
+      ctx.pool().give(std::move(surface));
+      const int x = static_cast<int>(bad % static_cast<std::size_t>(v.width)), y = static_cast<int>(bad / static_cast<std::size_t>(v.width));
+      const float z = v.depth[bad];
+      if (!(std::isfinite(z) && z > 0.0f))
+        upsample_fail(std::string(which) + " depth at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " + std::to_string(z) +
+                      "; expected a positive eye-space depth or +inf for background");
+      upsample_fail(std::string(which) + " normal at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is not finite");
+    }
     dev.ensure_buffer(b, n * sizeof(glm::vec4), kStorage, vk::MemoryKind::Device, name);
     dev.upload(b, nz.data(), n * sizeof(glm::vec4));
     ctx.pool().give(std::move(nz));
   };
-  up(g.fine_nz, fine, nf, "upsample display normals and depth");
-  up(g.coarse_nz, coarse, nc, "upsample receiver normals and depth");
+  up(g.coarse_nz, coarse, nc, "upsample receiver normals and depth", "coarse", false);
+  up(g.fine_nz, fine, nf, "upsample display normals and depth", "fine", true);
+  dev.ensure_buffer(g.surface, std::max<std::size_t>(ns, 1) * sizeof(std::uint32_t), kStorage, vk::MemoryKind::Device,
+                    "upsample surface pixels");
+  if (ns) dev.upload(g.surface, surface.data(), ns * sizeof(std::uint32_t));
+  ctx.pool().give(std::move(surface));
   dev.ensure_buffer(g.up_index, nf * 16, kStorage, vk::MemoryKind::Host, "upsample taps");
   dev.ensure_buffer(g.up_weight, nf * 16, kStorage, vk::MemoryKind::Host, "upsample weights");
   dev.ensure_buffer(g.up_miss, nf * 8, kStorage, vk::MemoryKind::Host, "upsample misses");
-  const std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
-  const std::uint32_t status0[gpu::kUpStatusWords] = {none, none};
-  dev.ensure_buffer(g.up_status, sizeof status0, kStorage, vk::MemoryKind::Host, "upsample status");
-  dev.upload(g.up_status, status0, sizeof status0);
   g.up_resident = nullptr;
 
   const std::uint32_t mode = opt.mode == UpsampleMode::Bilateral ? gpu::kUpsampleBilateral : gpu::kUpsampleBilinear;
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "common.upsample_weights.m" + std::to_string(mode), words(spv::common_upsample_weights_comp),
                                     {{0, mode}});
   struct Push {
+    std::uint32_t first, end;
     std::int32_t fw, fh, fscale, cw, ch, cscale;
     float epsilon_rel;
     std::int32_t normal_power;
     float miss_threshold;
   };
-  const Push push{fine.width,
+  const Push push{0,
+                  0,
+                  fine.width,
                   fine.height,
                   fine.scale,
                   coarse.width,
@@ -138,36 +164,23 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
       vk::Bind::texels_at(gpu::kUpBindIndex, g.up_index, VK_FORMAT_R32G32B32A32_SINT),
       vk::Bind::texels_at(gpu::kUpBindWeight, g.up_weight, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kUpBindMiss, g.up_miss, VK_FORMAT_R32G32_UINT),
-      vk::Bind::buffer_at(gpu::kUpBindStatus, g.up_status)};
-  // The coarse buffer is checked by the invocations of its own extent: cover the larger of both.
-  const int gw = std::max(fine.width, coarse.width), gh = std::max(fine.height, coarse.height);
-  const auto& lim = dev.device_info().limits.maxComputeWorkGroupCount;
-  const std::uint32_t gx = (static_cast<std::uint32_t>(gw) + gpu::kUpsampleGroupX - 1) / gpu::kUpsampleGroupX;
-  const std::uint32_t gy = (static_cast<std::uint32_t>(gh) + gpu::kUpsampleGroupY - 1) / gpu::kUpsampleGroupY;
-  if (gx > lim[0] || gy > lim[1])
-    upsample_fail("display buffer " + dims(fine) + " needs more workgroups than device '" + dev.device_info().name + "' allows");
+      vk::Bind::texels_at(gpu::kUpBindSurface, g.surface, VK_FORMAT_R32_UINT)};
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
+    // The background's outputs: no taps (index -1, weight 0), not a miss (measure 0).
+    rec.fill(g.up_index, 0xFFFFFFFFu);
+    rec.fill(g.up_weight, 0u);
+    rec.fill(g.up_miss, 0u);
+    rec.barrier();
     rec.begin_timer("upsample_weights");
-    rec.dispatch(p, binds, push, gx, gy);
+    dispatch_chunks<Push>(rec, p, binds, ns, gpu::kUpWeightsGroup, [&](std::uint32_t first, std::uint32_t end) {
+      Push q = push;
+      q.first = first;
+      q.end = end;
+      return q;
+    });
     rec.end_timer();
     rec.barrier();
   }, "upsample weights");
-
-  std::uint32_t status[gpu::kUpStatusWords];
-  dev.download(g.up_status, status, sizeof status);
-  // upsample.cpp's per-pixel errors, naming the pixel (the coarse buffer is checked first there).
-  for (const auto& [word, v, name] : {std::tuple<std::uint32_t, const PlaneView&, const char*>{status[gpu::kUpStatusBadCoarse], coarse, "coarse"},
-                                      {status[gpu::kUpStatusBadFine], fine, "fine"}}) {
-    if (word == none) continue;
-    const std::size_t i = word - 1;
-    const int x = static_cast<int>(i % v.width), y = static_cast<int>(i / v.width);
-    const float z = v.depth[i];
-    const bool background = std::isinf(z) && z > 0.0f;
-    if (!background && !(std::isfinite(z) && z > 0.0f))
-      upsample_fail(std::string(name) + " depth at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " + std::to_string(z) +
-                    "; expected a positive eye-space depth or +inf for background");
-    upsample_fail(std::string(name) + " normal at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is not finite");
-  }
   // From the frame pool, as upsample.cpp's weights (the caller gives them back): every element is
   // overwritten, and fresh vectors would cost the frame their zero fill and page faults.
   render::FramePool& pool = ctx.pool();
