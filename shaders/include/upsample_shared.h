@@ -32,7 +32,8 @@ SOFTGI_UP_CONST_UINT(kUpWeightsGroup, 64u)
 SOFTGI_UP_CONST_UINT(kApBindIndex, 0u)
 SOFTGI_UP_CONST_UINT(kApBindWeight, 1u)
 SOFTGI_UP_CONST_UINT(kApBindIn, 2u)   // channels floats per coarse pixel
-SOFTGI_UP_CONST_UINT(kApBindOut, 3u)  // channels floats per display pixel
+SOFTGI_UP_CONST_UINT(kApBindOut, 3u)  // channels floats per listed pixel, in list order
+SOFTGI_UP_CONST_UINT(kApBindList, 4u) // uint per display pixel with a tap: its index (the invocations)
 
 #undef SOFTGI_UP_CONST_UINT
 #ifdef __cplusplus

@@ -39,7 +39,7 @@ struct UpsampleState {
   vk::Buffer fine_nz, coarse_nz, surface, up_index, up_weight, up_miss;  // weights
   const void* up_resident = nullptr;  // UpsampleWeights::index.data() of the weights in up_index / up_weight
   std::size_t up_pixels = 0;
-  vk::Buffer ap_in, ap_out;           // apply
+  vk::Buffer ap_in, ap_out, ap_list;  // apply
 };
 
 UpsampleState& upsample_state(vk::Context& dev) {
@@ -216,9 +216,16 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   vk::Context& dev = vk::context_of(ctx);
   UpsampleState& g = upsample_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
-  // The coarse buffer's size: one past the largest tap.
+  // The coarse buffer's size: one past the largest tap; and the pixels with a tap, the shader's
+  // invocations (the others keep their value, and cost no lane).
   std::int32_t top = -1;
-  for (const auto& idx : w.index) top = std::max({top, idx[0], idx[1], idx[2], idx[3]});
+  std::vector<std::uint32_t> list = ctx.pool().take_for_overwrite<std::uint32_t>(nf);
+  std::size_t nl = 0;
+  for (std::size_t i = 0; i < nf; ++i) {
+    const auto& idx = w.index[i];
+    top = std::max({top, idx[0], idx[1], idx[2], idx[3]});
+    if (idx[0] >= 0) list[nl++] = static_cast<std::uint32_t>(i);
+  }
   const std::size_t nc = static_cast<std::size_t>(top + 1), ch = static_cast<std::size_t>(channels);
   check_fits(dev, nf * ch * sizeof(float), std::to_string(channels) + " channels of " + std::to_string(nf) + " display pixels", "upsample");
   if (g.up_resident != w.index.data() || g.up_pixels != nf) {  // not the weights on the device: upload them
@@ -231,8 +238,11 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   }
   dev.ensure_buffer(g.ap_in, std::max<std::size_t>(1, nc * ch) * sizeof(float), kStorage, vk::MemoryKind::Device, "upsample input");
   if (nc) dev.upload(g.ap_in, in, nc * ch * sizeof(float));
-  dev.ensure_buffer(g.ap_out, nf * ch * sizeof(float), kStorage, vk::MemoryKind::Host, "upsample output");
-  dev.upload(g.ap_out, out, nf * ch * sizeof(float));  // pixels without a tap keep their value
+  dev.ensure_buffer(g.ap_list, std::max<std::size_t>(1, nl) * sizeof(std::uint32_t), kStorage, vk::MemoryKind::Device,
+                    "upsample pixels with taps");
+  if (nl) dev.upload(g.ap_list, list.data(), nl * sizeof(std::uint32_t));
+  // The listed pixels' values, in list order.
+  dev.ensure_buffer(g.ap_out, std::max<std::size_t>(1, nl) * ch * sizeof(float), kStorage, vk::MemoryKind::Host, "upsample output");
   vk::ComputePipeline& p = pipeline(dev, g.pipelines, "common.upsample_apply.c" + std::to_string(channels), words(spv::common_upsample_apply_comp),
                                     {{0, static_cast<std::uint32_t>(channels)}});
   struct Push {
@@ -241,15 +251,21 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   const std::vector<vk::Bind> binds = {vk::Bind::texels_at(gpu::kApBindIndex, g.up_index, VK_FORMAT_R32G32B32A32_SINT),
                                        vk::Bind::texels_at(gpu::kApBindWeight, g.up_weight, VK_FORMAT_R32G32B32A32_SFLOAT),
                                        vk::Bind::texels_at(gpu::kApBindIn, g.ap_in, VK_FORMAT_R32_SFLOAT),
-                                       vk::Bind::texels_at(gpu::kApBindOut, g.ap_out, VK_FORMAT_R32_SFLOAT)};
+                                       vk::Bind::texels_at(gpu::kApBindOut, g.ap_out, VK_FORMAT_R32_SFLOAT),
+                                       vk::Bind::texels_at(gpu::kApBindList, g.ap_list, VK_FORMAT_R32_UINT)};
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("upsample_apply");
-    dispatch_chunks<Push>(rec, p, binds, nf, gpu::kUpsampleGroupX * gpu::kUpsampleGroupY,
+    dispatch_chunks<Push>(rec, p, binds, nl, gpu::kUpsampleGroupX * gpu::kUpsampleGroupY,
                           [&](std::uint32_t first, std::uint32_t end) { return Push{first, end}; });
     rec.end_timer();
     rec.barrier();
   }, "upsample apply");
-  dev.download(g.ap_out, out, nf * ch * sizeof(float));
+  std::vector<float> values = ctx.pool().take_for_overwrite<float>(nl * ch);
+  if (nl) dev.download(g.ap_out, values.data(), nl * ch * sizeof(float));
+  for (std::size_t j = 0; j < nl; ++j)
+    for (std::size_t c = 0; c < ch; ++c) out[list[j] * ch + c] = values[j * ch + c];
+  ctx.pool().give(std::move(values));
+  ctx.pool().give(std::move(list));
   ctx.record().counters["apply_gpu_seconds"] = timer_seconds(res);
 }
 

@@ -385,4 +385,57 @@ TEST_F(ImageSplatParity, UpsampleOnVulkanRejectsBadInput) {
   EXPECT_EQ(softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, opt).misses, 0u) << "the context is usable after the errors";
 }
 
+// The GPU application of eq. 11 weights: pixels with taps get the CPU's upsample_apply values (to
+// kUpsampleRelTol), pixels without a tap (background) keep whatever the output held, as upsample.cpp
+// documents; both with the weights resident on the device and uploaded from the host.
+TEST_F(ImageSplatParity, UpsampleApplyOnVulkanLeavesPixelsWithoutTaps) {
+  const scene::Scene sc = scene::make_builtin("spheres");
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  const render::ParamSet params = params_for(4);
+  render::FrameResult result;
+  constexpr int kW = 16, kH = 12, kC = 3;
+  render::FrameContext ctx(sc, posed, params, kW, kH, result, ctx_.get());
+  result.passes.push_back(render::PassRecord{"upsample"});
+  // Display pixels in columns 0-3 see the background; the rest a surface at depths that vary.
+  std::vector<float> fdepth(kW * kH), cdepth((kW / 2) * (kH / 2));
+  std::vector<glm::vec3> fnormal(fdepth.size(), glm::vec3(0, 0, 1)), cnormal(cdepth.size(), glm::vec3(0, 0, 1));
+  const float inf = std::numeric_limits<float>::infinity();
+  for (int y = 0; y < kH; ++y)
+    for (int x = 0; x < kW; ++x) fdepth[static_cast<std::size_t>(y * kW + x)] = x < 4 ? inf : 2.0f + 0.05f * static_cast<float>(x + y);
+  for (int y = 0; y < kH / 2; ++y)
+    for (int x = 0; x < kW / 2; ++x) cdepth[static_cast<std::size_t>(y * (kW / 2) + x)] = x < 2 ? inf : 2.0f + 0.1f * static_cast<float>(2 * x + 2 * y);
+  const is::PlaneView fine{kW, kH, 1, fdepth.data(), fnormal.data()}, coarse{kW / 2, kH / 2, 2, cdepth.data(), cnormal.data()};
+  const is::UpsampleOptions opt;
+  const is::UpsampleWeights gw = softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, opt);
+  const is::UpsampleWeights cw = softgi::techniques::common::upsample_weights(coarse, fine, opt);
+  std::vector<float> in(cdepth.size() * kC);
+  for (std::size_t i = 0; i < in.size(); ++i) in[i] = 0.5f + 0.25f * static_cast<float>(i % 7);
+  const float kSentinel = -123.0f;
+  std::vector<float> expect(fdepth.size() * kC, kSentinel);
+  softgi::techniques::common::upsample_apply(cw, in.data(), kC, expect.data());
+  for (const bool resident : {true, false}) {
+    is::UpsampleWeights copy;
+    if (!resident) copy = gw;  // other host vectors: uploaded again
+    const is::UpsampleWeights& w = resident ? gw : copy;
+    std::vector<float> out(fdepth.size() * kC, kSentinel);
+    softgi::techniques::common::vulkan_upsample_apply(ctx, w, in.data(), kC, out.data());
+    int tapped = 0, kept = 0;
+    for (std::size_t p = 0; p < fdepth.size(); ++p) {
+      const bool has_tap = w.index[p][0] >= 0;
+      tapped += has_tap;
+      for (int c = 0; c < kC; ++c) {
+        const float g = out[p * kC + c], e = expect[p * kC + c];
+        if (!has_tap) {
+          kept += g == kSentinel;
+          EXPECT_EQ(g, kSentinel) << "pixel " << p << " has no tap";
+        } else {
+          EXPECT_NEAR(g, e, kUpsampleRelTol * std::max(1.0f, std::fabs(e))) << "pixel " << p << " channel " << c;
+        }
+      }
+    }
+    EXPECT_EQ(tapped, (kW - 4) * kH) << "every surface pixel has taps";
+    EXPECT_EQ(kept, 4 * kH * kC);
+  }
+}
+
 }  // namespace
