@@ -1,8 +1,8 @@
 #version 450
 // Upsampling weights of paper 000 section 4.2, eq. 11, one invocation per display pixel that sees a
-// surface (the host lists them, and fills the background's outputs: no taps, not a miss; a SIMD
-// device runs a shader's every branch for all lanes, so an invocation per background pixel would
-// cost as much as one per surface pixel). The host also checks the inputs (upsample_vulkan.cpp). The 2x2
+// surface (the host lists them, fills the background's outputs: no taps, not a miss, and checks the
+// inputs, upsample_vulkan.cpp; a SIMD device runs a shader's every branch for all lanes, so an
+// invocation per background pixel would cost as much as one per surface pixel). The 2x2
 // coarse block of bilinear weights w_b, times w_z = 1 / (eps + |z_p - z_i|) (as eps w_z =
 // 1 / (1 + |z_p - z_i| / eps), eps = epsilon_rel z_p) and w_N = max(0, N_p . N_i)^power, renormalised;
 // a miss where the unnormalised sum is below the threshold. Step by step the arithmetic of

@@ -5,9 +5,10 @@
 // gathered once with the sum of their weights, in increasing voxel order; voxels nearer than R are
 // gathered VPL by VPL as discs, farther ones through their order-2 SH from their centroid
 // (gather_voxel), diffuse and glossy (the Phong lobe, optionally weighted by eq. 7) apart. One
-// invocation per gathering pixel that sees a surface (the background's keep their zeroed sums, and
-// cost no lane: a SIMD device runs a subgroup's loops for idle lanes too); under a driver's loop-iteration limit an invocation that runs out
-// of budget saves its place and sums and the host dispatches again.
+// invocation per gathering pixel that sees a surface (the host lists them; the background's keep
+// their zeroed sums and cost no lane, where a SIMD device would run a subgroup's loops for its idle
+// lanes too); under a driver's loop-iteration limit an invocation that runs out of budget saves its
+// place and sums and the host dispatches again.
 //
 // The lanes of a subgroup walk one voxel sequence together: the union of their lists, in increasing
 // voxel order, each lane adding only the voxels of its own list. Neighbouring pixels share most of
