@@ -60,6 +60,29 @@ PlaneView plane_view(const render::GBuffer& g) {
   return v;
 }
 
+bool upsample_sample_ok(const PlaneView& v, std::size_t i) {
+  const float z = v.depth[i];
+  if (z == std::numeric_limits<float>::infinity()) return true;
+  if (!(z > 0.0f && std::isfinite(z))) return false;
+  const glm::vec3 n = v.normal[i];
+  return std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z);
+}
+
+std::string upsample_sample_error(const PlaneView& v, const char* name, int x, int y) {
+  const std::size_t i = static_cast<std::size_t>(y) * v.width + x;
+  const float z = v.depth[i];
+  const bool background = std::isinf(z) && z > 0.0f;
+  if (!background && !(std::isfinite(z) && z > 0.0f))
+    return std::string(name) + " depth at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " + std::to_string(z) +
+           "; expected a positive eye-space depth or +inf for background";
+  if (!background) {
+    const glm::vec3 n = v.normal[i];
+    if (!(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z)))
+      return std::string(name) + " normal at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is not finite";
+  }
+  return {};
+}
+
 std::size_t UpsampleWeights::bytes() const {
   return index.size() * sizeof(index[0]) + weight.size() * sizeof(weight[0]) + miss.size() * sizeof(miss[0]);
 }
@@ -84,28 +107,12 @@ void check_plane(const PlaneView& v, const char* name) {
 
 // Depth must be a positive eye-space depth, or +inf for background; a hit needs a finite normal.
 void check_sample(const PlaneView& v, const char* name, int x, int y) {
-  const std::size_t i = static_cast<std::size_t>(y) * v.width + x;
-  const float z = v.depth[i];
-  const bool background = std::isinf(z) && z > 0.0f;
-  if (!background && !(std::isfinite(z) && z > 0.0f))
-    fail(std::string(name) + " depth at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " +
-         std::to_string(z) + "; expected a positive eye-space depth or +inf for background");
-  if (!background) {
-    const glm::vec3 n = v.normal[i];
-    if (!(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z)))
-      fail(std::string(name) + " normal at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is not finite");
-  }
+  const std::string e = upsample_sample_error(v, name, x, y);
+  if (!e.empty()) fail(e);
 }
 
-// check_sample's condition without its message, for the per-pixel loops: a background depth (+inf),
-// or a positive finite depth with a finite normal.
-bool sample_ok(const PlaneView& v, std::size_t i) {
-  const float z = v.depth[i];
-  if (z == std::numeric_limits<float>::infinity()) return true;
-  if (!(z > 0.0f && std::isfinite(z))) return false;
-  const glm::vec3 n = v.normal[i];
-  return std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z);
-}
+// check_sample's condition without its message, for the per-pixel loops.
+bool sample_ok(const PlaneView& v, std::size_t i) { return upsample_sample_ok(v, i); }
 
 void check_pair(const PlaneView& coarse, const PlaneView& fine) {
   check_plane(coarse, "coarse");

@@ -80,6 +80,13 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
 // Hands w's per-pixel planes to `pool` for a later upsample_weights (w is left empty).
 void give(render::FramePool& pool, UpsampleWeights&& w);
 
+// The input rule for one sample i of a buffer: a background depth (+inf), or a positive finite
+// depth with a finite normal.
+bool upsample_sample_ok(const PlaneView& v, std::size_t i);
+// What breaks that rule at sample (x, y) of buffer `name` ("coarse", "fine"), for an error message;
+// empty when the sample is fine.
+std::string upsample_sample_error(const PlaneView& v, const char* name, int x, int y);
+
 // out[p * channels + c] = sum_k weight[p][k] * in[index[p][k] * channels + c] for every display
 // pixel with samples (misses included: their weights are the eq. 11 weights however small, or the
 // bilinear ones where all eq. 11 weights vanish); other pixels are left untouched.

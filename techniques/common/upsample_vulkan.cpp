@@ -105,22 +105,15 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
     std::size_t bad = n;
     for (std::size_t i = 0; i < n; ++i) {
       const float z = v.depth[i];
-      const glm::vec3 nv = v.normal[i];
-      nz[i] = glm::vec4(nv, z);
-      const bool background = std::isinf(z) && z > 0.0f;
-      const bool ok = background || (std::isfinite(z) && z > 0.0f && std::isfinite(nv.x) && std::isfinite(nv.y) && std::isfinite(nv.z));
-      if (!ok && bad == n) bad = i;
-      if (list && !background) surface[ns++] = static_cast<std::uint32_t>(i);
+      nz[i] = glm::vec4(v.normal[i], z);
+      if (bad == n && !upsample_sample_ok(v, i)) bad = i;
+      if (list && !std::isinf(z)) surface[ns++] = static_cast<std::uint32_t>(i);
     }
     if (bad < n) {
       ctx.pool().give(std::move(nz));
       ctx.pool().give(std::move(surface));
-      const int x = static_cast<int>(bad % static_cast<std::size_t>(v.width)), y = static_cast<int>(bad / static_cast<std::size_t>(v.width));
-      const float z = v.depth[bad];
-      if (!(std::isfinite(z) && z > 0.0f))
-        upsample_fail(std::string(which) + " depth at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " + std::to_string(z) +
-                      "; expected a positive eye-space depth or +inf for background");
-      upsample_fail(std::string(which) + " normal at pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is not finite");
+      upsample_fail(upsample_sample_error(v, which, static_cast<int>(bad % static_cast<std::size_t>(v.width)),
+                                          static_cast<int>(bad / static_cast<std::size_t>(v.width))));
     }
     dev.ensure_buffer(b, n * sizeof(glm::vec4), kStorage, vk::MemoryKind::Device, name);
     dev.upload(b, nz.data(), n * sizeof(glm::vec4));
