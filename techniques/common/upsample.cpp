@@ -111,9 +111,6 @@ void check_sample(const PlaneView& v, const char* name, int x, int y) {
   if (!e.empty()) fail(e);
 }
 
-// check_sample's condition without its message, for the per-pixel loops.
-bool sample_ok(const PlaneView& v, std::size_t i) { return upsample_sample_ok(v, i); }
-
 void check_pair(const PlaneView& coarse, const PlaneView& fine) {
   check_plane(coarse, "coarse");
   check_plane(fine, "fine");
@@ -338,7 +335,7 @@ Pixel upsample_pixel(const PlaneView& c, const PlaneView& f, const UpsampleOptio
 // vectorise, with the coarse samples of the row's two tap rows from `rows` (ExpandedRow) instead of
 // gathered. Compiled for AVX-512, AVX2 and the baseline (target_clones; -ffp-contract=off for this
 // file keeps every version's bits those of the baseline). Also checks the run's display samples
-// (sample_ok): false where one is bad, and the caller names it.
+// (upsample_sample_ok): false where one is bad, and the caller names it.
 constexpr int kRun = 64;
 
 __attribute__((target_clones("avx512f", "avx2", "default"))) bool bilateral_run(
@@ -358,7 +355,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) bool bilateral_run(
   const float* __restrict fz = f.depth + row0 + x0;
   const glm::vec3* __restrict fn = f.normal + row0 + x0;
   const float eps_rel = static_cast<float>(opt.epsilon_rel);
-  // sample_ok over the run: a background depth, or a positive finite one with a finite normal.
+  // upsample_sample_ok over the run: a background depth, or a positive finite one with a finite normal.
   int bad = 0;
   for (int t = 0; t < n; ++t) {
     const float z = fz[t];
@@ -491,7 +488,7 @@ UpsampleWeights upsample_weights(const PlaneView& coarse, const PlaneView& fine,
       // A bad display sample throws (check_sample names it); TBB rethrows it in the calling thread.
       const auto check_row = [&] {
         for (int x = 0; x < fine.width; ++x)
-          if (!sample_ok(fine, row0 + x)) check_sample(fine, "fine", x, y);
+          if (!upsample_sample_ok(fine, row0 + x)) check_sample(fine, "fine", x, y);
       };
       if (opt.mode == UpsampleMode::Bilateral) {
         // The two coarse rows of this display row's blocks, expanded unless a slot holds them.
@@ -584,7 +581,7 @@ void upsample_apply_bilinear(const UpsampleWeights& w, const PlaneView& coarse, 
       for (int x = 0; x < fine.width; ++x) {
         const std::size_t p = static_cast<std::size_t>(y) * fine.width + x;
         if (only != nullptr && (*only)[p] == 0) continue;
-        if (!sample_ok(fine, p)) check_sample(fine, "fine", x, y);
+        if (!upsample_sample_ok(fine, p)) check_sample(fine, "fine", x, y);
         if (!is_hit(fine.depth[p])) continue;
         Pixel px;
         if (!bilinear_valid(coarse, bilinear_block(coarse, fp.column(x), fp.y[y]), px)) continue;  // no valid tap

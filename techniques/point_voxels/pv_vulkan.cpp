@@ -714,12 +714,11 @@ void vulkan_march(const Settings& s, FrameContext& ctx) {
   }
   std::uint32_t status[gpu::kPvStatusWords];
   dev.download(g.list_status, status, sizeof status);
-  const std::size_t hits = hit_pixels(mg);
   const DeviceMarched dm{mg.width, mg.height, W, status[gpu::kPvStatusCount]};
   auto& rec = ctx.record();
-  rec.counters["pixels"] = static_cast<double>(hits);
-  rec.counters["rays"] = static_cast<double>(hits) * s.rays;
-  rec.counters["list_mean"] = hits ? static_cast<double>(dm.entries) / hits : 0.0;
+  rec.counters["pixels"] = static_cast<double>(nh);
+  rec.counters["rays"] = static_cast<double>(nh) * s.rays;
+  rec.counters["list_mean"] = nh ? static_cast<double>(dm.entries) / nh : 0.0;
   rec.counters["march_dispatches"] = run.dispatches;
   rec.counters["march_lanes_discs"] = lanes ? 1.0 : 0.0;
   rec.counters["kernel_gpu_seconds"] = run.seconds;
@@ -744,7 +743,7 @@ void vulkan_filter(const Settings& s, FrameContext& ctx) {
   const std::uint32_t W = words_of(cube);
   const std::size_t before = dev.transfer_bytes().upload;
   const DeviceMarched in = marched_on_device(ctx, dev, g, kLists, 0, W, "filter");
-  put_pixels(dev, g, mg);
+  const std::size_t hits = put_pixels(dev, g, mg);
   const std::size_t uploaded = dev.transfer_bytes().upload - before;
   check_fits(dev, np * W * sizeof(std::uint32_t), "the voxel bitsets of " + std::to_string(np) + " marching pixels", "filter");
   ensure(dev, g.bits[1], np * W * 4, "point_voxels filtered bitsets");
@@ -783,7 +782,6 @@ void vulkan_filter(const Settings& s, FrameContext& ctx) {
   }, "point_voxels filter");
   std::uint32_t status[gpu::kPvStatusWords];
   dev.download(g.list_status, status, sizeof status);
-  const std::size_t hits = hit_pixels(mg);
   const DeviceMarched dm{mg.width, mg.height, W, status[gpu::kPvStatusCount]};
   auto& rec = ctx.record();
   rec.counters["list_mean_before"] = hits ? static_cast<double>(in.entries) / hits : 0.0;
