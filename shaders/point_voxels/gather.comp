@@ -43,7 +43,7 @@ struct GatherPixel {
   vec4 pos_depth;
   vec4 normal_glossy;
   vec4 reflect_ns;
-  vec4 extra;  // eq. 7 sigma (0: off), hit, (ns + 2) / (2 pi)
+  vec4 extra;  // eq. 7 sigma (0: off), unused (0), (ns + 2) / (2 pi)
 };
 layout(std430, set = 0, binding = kPvGathBindReceivers) readonly buffer Receivers { GatherPixel recv[]; };
 struct Gathered {

@@ -826,7 +826,7 @@ void vulkan_gather(const Settings& s, FrameContext& ctx) {
     glossy = glossy || r.glossy > 0.0f;
     eq7 = eq7 || (r.glossy > 0.0f && r.eq7_sigma > 0.0f);
     recv[i] = {glm::vec4(r.position, gg.depth[i]), glm::vec4(r.normal, r.glossy), glm::vec4(r.reflect, r.ns),
-               glm::vec4(r.eq7_sigma, 1.0f, (r.ns + 2.0f) / (2.0f * kPi), 0.0f)};
+               glm::vec4(r.eq7_sigma, 0.0f, (r.ns + 2.0f) / (2.0f * kPi), 0.0f)};
   }
   put_if_changed(dev, g.receivers, g.receivers_hash, recv, "point_voxels gathering pixels");
   const std::size_t hits = sources.size();
