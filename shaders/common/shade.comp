@@ -21,13 +21,19 @@ layout(constant_id = 0) const uint N = SH_PLAN_FIXED_ORDER;  // shading order
 #include "accum_math.glsl"
 layout(constant_id = 1) const uint VIS = kShadeVisReceiver;
 layout(constant_id = 2) const uint LIGHTS = 0;
+const bool VIS4 = (N * N) % 4u == 0u;
 layout(local_size_x = kShadeGroup) in;
 
 // Inputs through texel buffers: a SIMD device fetches texels for all lanes at once, where it reads a
 // storage buffer lane by lane with a bounds check per component (llvmpipe).
 layout(set = 0, binding = kShadeBindReceivers) uniform samplerBuffer rec;
 layout(set = 0, binding = kShadeBindVis) uniform samplerBuffer vis;
-layout(set = 0, binding = kShadeBindConsts) uniform samplerBuffer consts;  // L (3 n^2), hcoef, gwin
+// The constants, the same for every lane, in a uniform block: a texel fetch at one address costs a
+// fetch per lane on a device that fetches lane by lane (llvmpipe), a uniform read one load.
+layout(std140, set = 0, binding = kShadeBindConsts) uniform ShadeConsts { vec4 consts_v[kShadeConstFloats / 4u]; };
+float shade_const(uint j) { return consts_v[j >> 2u][j & 3u]; }  // L (3 n^2), hcoef (n^2), gwin (n^2)
+// With n^2 a multiple of 4 the visibility rows are read four floats to a texel (VIS4).
+layout(set = 0, binding = kShadeBindVis4) uniform samplerBuffer vis4;
 #include "sh_plan_products.glsl"
 layout(std430, set = 0, binding = kShadeBindOut) writeonly buffer Out { vec4 outv[]; };
 layout(set = 0, binding = kShadeBindTapPixel) uniform isamplerBuffer tap_pixel;
@@ -122,7 +128,17 @@ void main() {
   [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = 0.0;
   bool unshadowed = VIS == kShadeVisNone;
   if (VIS == kShadeVisReceiver) {
-    [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = texelFetch(vis, int(i * n2 + k)).x;
+    if (VIS4) {
+      [[unroll]] for (uint q = 0; q < n2 / 4u; ++q) {
+        const vec4 v = texelFetch(vis4, int(i * (n2 / 4u) + q));
+        g[4u * q] = v.x;
+        g[4u * q + 1u] = v.y;
+        g[4u * q + 2u] = v.z;
+        g[4u * q + 3u] = v.w;
+      }
+    } else {
+      [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = texelFetch(vis, int(i * n2 + k)).x;
+    }
   } else if (VIS == kShadeVisGather) {
     // Eq. 11 (paper 000): sum over the pixel's taps, in the CPU's order; no tap at all: unshadowed.
     const int px = texelFetch(tap_pixel, ii).x;
@@ -133,23 +149,34 @@ void main() {
       // The field's row of the tap's coarse sample: the sample itself, or (a field in another
       // order, as O_p in receiver order) its entry of coarse_row.
       const uint row = (pc.flags & kShadeFlagCoarseRow) != 0u ? uint(texelFetch(coarse_row, idx[t]).x) : uint(idx[t]);
-      const uint base = row * n2;
-      [[unroll]] for (uint k = 0; k < n2; ++k) g[k] += wt[t] * texelFetch(vis, int(base + k)).x;
+      if (VIS4) {
+        const uint base4 = row * (n2 / 4u);
+        [[unroll]] for (uint q = 0; q < n2 / 4u; ++q) {
+          const vec4 v = texelFetch(vis4, int(base4 + q));
+          g[4u * q] += wt[t] * v.x;
+          g[4u * q + 1u] += wt[t] * v.y;
+          g[4u * q + 2u] += wt[t] * v.z;
+          g[4u * q + 3u] += wt[t] * v.w;
+        }
+      } else {
+        const uint base = row * n2;
+        [[unroll]] for (uint k = 0; k < n2; ++k) g[k] += wt[t] * texelFetch(vis, int(base + k)).x;
+      }
     }
   }
   if (unshadowed) {
     [[unroll]] for (uint k = 0; k < n2; ++k) g[k] = k == 0 ? kSqrt4Pi : 0.0;
   }
   [[unroll]] for (uint k = 0; k < n2; ++k) {
-    H[k] *= texelFetch(consts, int(3 * n2 + k)).x;  // hcoef
-    g[k] *= texelFetch(consts, int(4 * n2 + k)).x;  // gwin
+    H[k] *= shade_const(3u * n2 + k);  // hcoef
+    g[k] *= shade_const(4u * n2 + k);  // gwin
   }
   // (H * g)_k (eq. 3), then dotted with the light.
   float hg[kAccumMaxCoeffs];
   sh_plan_product(H, g, hg);
   vec3 e = vec3(0.0);
   [[unroll]] for (uint k = 0; k < n2; ++k)
-    e += hg[k] * vec3(texelFetch(consts, int(k)).x, texelFetch(consts, int(n2 + k)).x, texelFetch(consts, int(2 * n2 + k)).x);
+    e += hg[k] * vec3(shade_const(k), shade_const(n2 + k), shade_const(2u * n2 + k));
   if (LIGHTS != 0) {
     for (uint li = 0; li < pc.light_count; ++li) {
       const vec4 cr = texelFetch(lights, int(2 * li));

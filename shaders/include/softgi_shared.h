@@ -19,6 +19,7 @@ SOFTGI_CONST_UINT(kAccumMaxCoeffs, 64u)
 SOFTGI_CONST_UINT(kAccumulateGroup, 64u)
 SOFTGI_CONST_UINT(kExponentiateGroup, 64u)
 SOFTGI_CONST_UINT(kShadeGroup, 64u)
+SOFTGI_CONST_UINT(kShadeConstFloats, 320u)  // 5 kAccumMaxCoeffs: shade.comp's uniform block of constants
 
 // Layout of the SH basis-recurrence constant buffer (floats; the constants of the CPU kernel,
 // shexp::basis_recurrence_constants): Q_m^m, a1, A[l][m], B[l][m] (row-major, kAccumMaxOrder wide),
@@ -71,8 +72,9 @@ SOFTGI_CONST_UINT(kExpBindSeries, 8u)    // PS*: 1/k! as float(1/double k!); PS:
 // shade bindings (set 0)
 SOFTGI_CONST_UINT(kShadeBindReceivers, 0u)
 SOFTGI_CONST_UINT(kShadeBindVis, 1u)
-SOFTGI_CONST_UINT(kShadeBindConsts, 2u)   // L (3 n^2), hcoef (n^2), gwin (n^2)
-// 3, 4: unused (the products are generated code, shaders/include/sh_plan_products.glsl)
+SOFTGI_CONST_UINT(kShadeBindConsts, 2u)   // uniform block of kShadeConstFloats: L (3 n^2), hcoef (n^2), gwin (n^2)
+SOFTGI_CONST_UINT(kShadeBindVis4, 3u)     // the visibility buffer again, as RGBA32F texels (n^2 a multiple of 4)
+// 4: unused (the products are generated code, shaders/include/sh_plan_products.glsl)
 SOFTGI_CONST_UINT(kShadeBindBasis, 5u)
 SOFTGI_CONST_UINT(kShadeBindOut, 6u)      // vec4 per receiver (rgb, unused)
 SOFTGI_CONST_UINT(kShadeBindTapPixel, 7u)    // gather: int per receiver, the display pixel whose taps it reads

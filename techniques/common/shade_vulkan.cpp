@@ -34,6 +34,7 @@ struct ShadeState {
   std::uint64_t rec_hash = 0;     // what shade_rec holds (upload_receivers)
   vk::Buffer light_table;         // LightLobeTable psi then k
   std::vector<float> light_host;  // the floats in light_table (upload_if_changed)
+  std::vector<float> consts_host; // the floats in shade_consts (upload_if_changed)
 };
 
 ShadeState& shade_state(vk::Context& dev) {
@@ -77,7 +78,8 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   const std::size_t vrows = ga ? (dcoarse ? dcoarse->floats / n2 : ga->coarse_count) : count;
   const std::size_t vis_bytes = vsrc ? vrows * n2 * sizeof(float) : 0;
   check_fits_shade(dev, vis_bytes, "the visibility of " + std::to_string(vrows) + (ga ? " coarse samples" : " receivers"), "shade");
-  dev.ensure_buffer(g.shade_vis, std::max<std::size_t>(sizeof(float), vis_bytes), kStorage, vk::MemoryKind::Device, "shade visibility");
+  // At least one RGBA32F texel: the buffer is bound as both views.
+  dev.ensure_buffer(g.shade_vis, std::max<std::size_t>(16, vis_bytes), kStorage, vk::MemoryKind::Device, "shade visibility");
   if (vis_bytes) dev.upload(g.shade_vis, vsrc, vis_bytes);
   ResidentTaps taps;
   if (ga) {
@@ -111,11 +113,12 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
     for (vk::Buffer* buf : {&g.shade_tap_pixel, &g.shade_tap_index, &g.shade_tap_weight, &g.shade_coarse_row})
       dev.ensure_buffer(*buf, 16, kStorage, vk::MemoryKind::Device, "shade taps (unused)");
   }
-  std::vector<float> consts(5 * n2);
+  // The uniform block's whole size (std140, vec4s), the floats past 5 n^2 unread.
+  std::vector<float> consts(gpu::kShadeConstFloats, 0.0f);
   std::copy(b.L, b.L + 3 * n2, consts.begin());
   std::copy(b.hcoef, b.hcoef + n2, consts.begin() + 3 * n2);
   std::copy(b.gwin, b.gwin + n2, consts.begin() + 4 * n2);
-  put(dev, g.shade_consts, consts, "shade constants");
+  upload_if_changed(dev, g.shade_consts, g.consts_host, consts, "shade constants", kStorage | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT);
 
   // Paper 004 section 7: the light-lobe table (the CPU's floats, uploaded when they change) and the
   // posed lights.
@@ -151,10 +154,12 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
       (in.zero_normal_empty ? gpu::kShadeFlagZeroNormalEmpty : 0u) | (ga && ga->coarse_row ? gpu::kShadeFlagCoarseRow : 0u);
   const std::uint32_t nl = lights ? static_cast<std::uint32_t>(in.lights->size()) : 0u;
   const std::uint32_t rt = lights ? static_cast<std::uint32_t>(lt->rows_theta) : 2u, rf = lights ? static_cast<std::uint32_t>(lt->rows_f) : 2u;
+  const vk::Buffer& vis_buffer = dvis ? *dvis->buffer : dcoarse ? *dcoarse->buffer : g.shade_vis;
   const std::vector<vk::Bind> binds = {
       vk::Bind::texels_at(gpu::kShadeBindReceivers, g.shade_rec, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kShadeBindVis, dvis ? *dvis->buffer : dcoarse ? *dcoarse->buffer : g.shade_vis, VK_FORMAT_R32_SFLOAT),
-      vk::Bind::texels_at(gpu::kShadeBindConsts, g.shade_consts, VK_FORMAT_R32_SFLOAT), vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
+      vk::Bind::texels_at(gpu::kShadeBindVis, vis_buffer, VK_FORMAT_R32_SFLOAT),
+      vk::Bind::texels_at(gpu::kShadeBindVis4, vis_buffer, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::buffer_at(gpu::kShadeBindConsts, g.shade_consts), vk::Bind::buffer_at(gpu::kShadeBindBasis, basis),
       vk::Bind::buffer_at(gpu::kShadeBindOut, g.shade_out),
       vk::Bind::texels_at(gpu::kShadeBindTapPixel, g.shade_tap_pixel, VK_FORMAT_R32_SINT),
       vk::Bind::texels_at(gpu::kShadeBindTapIndex, taps.index ? *taps.index : g.shade_tap_index, VK_FORMAT_R32G32B32A32_SINT),
