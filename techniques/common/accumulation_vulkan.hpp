@@ -81,8 +81,9 @@ void put(vk::Context& dev, vk::Buffer& b, const V& v, const std::string& name) {
 void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& host, std::span<const float> now, const std::string& name,
                        VkBufferUsageFlags usage = kStorage);
 
-// A 64-bit hash of a byte range (FNV-1a over 8-byte words): what a device buffer was last filled
-// with, so that inputs that did not change between frames stay on the device.
+// A 64-bit hash of a byte range (FNV-style multiply and shift over 8-byte words, in four streams):
+// what a device buffer was last filled with, so that inputs that did not change between frames stay
+// on the device.
 std::uint64_t content_hash(const void* data, std::size_t bytes, std::uint64_t seed = 0xcbf29ce484222325ull);
 // `bytes` bytes into `b` (grown as needed; at least 16 bytes so that an empty input binds), uploaded
 // only when their hash differs from `hash` (the last upload's, updated) or `b` was reallocated.

@@ -3,11 +3,15 @@
 // product plan, basis constants and light-lobe table are the CPU's own floats, uploaded once per
 // device (the table again when it changes) and kept in the context's cache.
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <limits>
 #include <map>
 #include <mutex>
 #include <stdexcept>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "accumulation_vulkan.hpp"
 #include "softgi/backends/vulkan/context.hpp"
@@ -91,9 +95,23 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
       if (ga->coarse_row[q] >= 0 && static_cast<std::size_t>(ga->coarse_row[q]) >= vrows)
         throw std::logic_error("shade on vulkan: coarse sample " + std::to_string(q) + " reads row " + std::to_string(ga->coarse_row[q]) +
                                " of " + std::to_string(vrows));
-    for (std::size_t p = 0; p < ga->pixels; ++p)
+    auto bad_tap = [&](std::int32_t t) {
+      return t >= 0 && (static_cast<std::size_t>(t) >= samples || (ga->coarse_row && ga->coarse_row[t] < 0));
+    };
+    // Over the display's pixels on every core; the error names the first pixel with a bad tap.
+    std::atomic<std::size_t> first_bad{ga->pixels};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ga->pixels, 1 << 14), [&](const tbb::blocked_range<std::size_t>& br) {
+      for (std::size_t p = br.begin(); p != br.end(); ++p)
+        if (bad_tap(ga->index[p][0]) || bad_tap(ga->index[p][1]) || bad_tap(ga->index[p][2]) || bad_tap(ga->index[p][3])) {
+          std::size_t seen = first_bad.load();
+          while (p < seen && !first_bad.compare_exchange_weak(seen, p)) {
+          }
+          return;
+        }
+    });
+    if (const std::size_t p = first_bad.load(); p < ga->pixels)
       for (std::int32_t t : ga->index[p])
-        if (t >= 0 && (static_cast<std::size_t>(t) >= samples || (ga->coarse_row && ga->coarse_row[t] < 0)))
+        if (bad_tap(t))
           throw std::logic_error("shade on vulkan: display pixel " + std::to_string(p) + " gathers coarse sample " + std::to_string(t) +
                                  (ga->coarse_row ? ", which has no row of the field" : " of " + std::to_string(vrows)));
     dev.ensure_buffer(g.shade_tap_pixel, count * sizeof(std::int32_t), kStorage, vk::MemoryKind::Device, "shade tap pixels");

@@ -21,6 +21,9 @@
 #include <stdexcept>
 #include <string>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "../common/accumulation_vulkan.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/backends/vulkan/context.hpp"
@@ -236,10 +239,12 @@ DirectKernels vulkan_direct_kernels(render::FrameContext& ctx) {
     if (ns == 0) return 0;
     common::ReceiverSoA soa;
     soa.resize(ns);
-    for (std::size_t i = 0; i < ns; ++i) {
-      const std::size_t p = static_cast<std::size_t>(up.surface[i]);
-      soa.set(i, fine.position[p], fine.normal[p]);
-    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ns, 1 << 14), [&](const tbb::blocked_range<std::size_t>& br) {
+      for (std::size_t i = br.begin(); i != br.end(); ++i) {
+        const std::size_t p = static_cast<std::size_t>(up.surface[i]);
+        soa.set(i, fine.position[p], fine.normal[p]);
+      }
+    });
     const common::BatchShade bs = d.batch(nullptr);
     const std::size_t n2 = static_cast<std::size_t>(d.order) * d.order;
     common::GpuShade in{&bs, d.lights_table.get(), &d.lights, true, nullptr};

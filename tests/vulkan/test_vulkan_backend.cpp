@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "../../techniques/common/accumulation_vulkan.hpp"
 #include "../../techniques/shexp/shexp_passes.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
@@ -485,4 +486,36 @@ TEST(VulkanBackend, ExponentialBeyondTheLoopLimitIsAnError) {
   o.loop_iteration_limit = 65535;
   backends::VulkanBackend vk(std::make_shared<backends::vulkan::Context>(o));
   EXPECT_NO_THROW(vk.render(*tech, sc, params, req));
+}
+
+// content_hash decides whether a device buffer is uploaded again: a byte that changed and hashes the
+// same leaves a stale buffer. Every single-bit change of every byte, in ranges that end inside and
+// past the 32-byte blocks of its four streams and in the 8-byte words and bytes after them, must
+// change the hash; where the bytes lie in memory must not.
+TEST(ContentHash, EveryChangedBitChangesTheHash) {
+  using softgi::techniques::common::gpu_passes::content_hash;
+  std::vector<unsigned char> buf(8 + 100);
+  for (std::size_t k = 0; k < buf.size(); ++k) buf[k] = static_cast<unsigned char>(k * 37 + 11);
+  int compared = 0;
+  for (std::size_t size = 0; size <= 100; ++size) {
+    unsigned char* a = buf.data() + 8;
+    const std::uint64_t h = content_hash(a, size);
+    // The same bytes at another address (unaligned), and another seed.
+    std::vector<unsigned char> moved(size + 3);
+    std::copy(a, a + size, moved.begin() + 3);
+    EXPECT_EQ(content_hash(moved.data() + 3, size), h) << size << " bytes";
+    EXPECT_NE(content_hash(a, size, 12345u), h) << size << " bytes";
+    for (std::size_t i = 0; i < size; ++i)
+      for (int bit = 0; bit < 8; ++bit) {
+        a[i] ^= static_cast<unsigned char>(1u << bit);
+        EXPECT_NE(content_hash(a, size), h) << size << " bytes, byte " << i << " bit " << bit;
+        a[i] ^= static_cast<unsigned char>(1u << bit);
+        ++compared;
+      }
+    // A longer range with the same prefix.
+    if (size < 100) {
+      EXPECT_NE(content_hash(a, size + 1), h) << size << " bytes";
+    }
+  }
+  EXPECT_EQ(compared, 8 * 100 * 101 / 2);
 }
