@@ -6,11 +6,16 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include "accumulation_vulkan.hpp"
 #include "softgi/backends/vulkan/context.hpp"
@@ -99,14 +104,35 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   // and lists the display pixels that see a surface: the shader's invocations.
   std::vector<std::uint32_t> surface = ctx.pool().take_for_overwrite<std::uint32_t>(nf);
   std::size_t ns = 0;
+  // In blocks on every core: the first bad sample of each block and its surface count, then each
+  // block's surface pixels at their offset in the list (pixel order, as one loop would list them).
+  constexpr std::size_t kBlock = 1 << 14;
+  std::vector<std::size_t> block_bad, block_surface;
   const auto up = [&](vk::Buffer& b, const PlaneView& v, std::size_t n, const char* name, const char* which, bool list) {
     std::vector<glm::vec4> nz = ctx.pool().take_for_overwrite<glm::vec4>(n);
-    std::size_t bad = n;
-    for (std::size_t i = 0; i < n; ++i) {
-      const float z = v.depth[i];
-      nz[i] = glm::vec4(v.normal[i], z);
-      if (bad == n && !upsample_sample_ok(v, i)) bad = i;
-      if (list && !std::isinf(z)) surface[ns++] = static_cast<std::uint32_t>(i);
+    const std::size_t blocks = (n + kBlock - 1) / kBlock;
+    block_bad.assign(blocks, n);
+    block_surface.assign(blocks + 1, 0);
+    tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
+      std::size_t bad = n, count = 0;
+      for (std::size_t i = k * kBlock, e = std::min(n, i + kBlock); i < e; ++i) {
+        const float z = v.depth[i];
+        nz[i] = glm::vec4(v.normal[i], z);
+        if (bad == n && !upsample_sample_ok(v, i)) bad = i;
+        count += std::isinf(z) ? 0 : 1;
+      }
+      block_bad[k] = bad;
+      block_surface[k + 1] = count;
+    });
+    const std::size_t bad = blocks ? *std::min_element(block_bad.begin(), block_bad.end()) : n;
+    if (list && bad == n) {
+      for (std::size_t k = 0; k < blocks; ++k) block_surface[k + 1] += block_surface[k];
+      tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
+        std::size_t at = block_surface[k];
+        for (std::size_t i = k * kBlock, e = std::min(n, i + kBlock); i < e; ++i)
+          if (!std::isinf(v.depth[i])) surface[at++] = static_cast<std::uint32_t>(i);
+      });
+      ns = block_surface[blocks];
     }
     if (bad < n) {
       ctx.pool().give(std::move(nz));
@@ -187,11 +213,17 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   std::vector<std::uint32_t> mm = pool.take_for_overwrite<std::uint32_t>(2 * nf);
   dev.download(g.up_miss, mm.data(), nf * 8);
   if (measure) measure->resize(nf);
-  for (std::size_t i = 0; i < nf; ++i) {
-    w.miss[i] = mm[2 * i] ? 1 : 0;
-    w.misses += w.miss[i];
-    if (measure) std::memcpy(&(*measure)[i], &mm[2 * i + 1], sizeof(float));
-  }
+  w.misses = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, nf, kBlock), std::size_t{0},
+      [&](const tbb::blocked_range<std::size_t>& br, std::size_t misses) {
+        for (std::size_t i = br.begin(); i != br.end(); ++i) {
+          w.miss[i] = mm[2 * i] ? 1 : 0;
+          misses += w.miss[i];
+          if (measure) std::memcpy(&(*measure)[i], &mm[2 * i + 1], sizeof(float));
+        }
+        return misses;
+      },
+      std::plus<std::size_t>());
   pool.give(std::move(mm));
   g.up_resident = w.index.data();
   g.up_pixels = nf;
@@ -210,14 +242,31 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   std::lock_guard<std::mutex> lock(g.m);
   // The coarse buffer's size: one past the largest tap; and the pixels with a tap, the shader's
   // invocations (the others keep their value, and cost no lane).
-  std::int32_t top = -1;
-  std::vector<std::uint32_t> list = ctx.pool().take_for_overwrite<std::uint32_t>(nf);
-  std::size_t nl = 0;
-  for (std::size_t i = 0; i < nf; ++i) {
-    const auto& idx = w.index[i];
-    top = std::max({top, idx[0], idx[1], idx[2], idx[3]});
-    if (idx[0] >= 0) list[nl++] = static_cast<std::uint32_t>(i);
-  }
+  // In blocks on every core, as the weights' surface list.
+  constexpr std::size_t kBlock = 1 << 14;
+  const std::size_t blocks = (nf + kBlock - 1) / kBlock;
+  std::vector<std::size_t> offset(blocks + 1, 0);
+  std::vector<std::int32_t> block_top(blocks, -1);
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
+    std::int32_t t = -1;
+    std::size_t count = 0;
+    for (std::size_t i = k * kBlock, e = std::min(nf, i + kBlock); i < e; ++i) {
+      const auto& idx = w.index[i];
+      t = std::max({t, idx[0], idx[1], idx[2], idx[3]});
+      count += idx[0] >= 0 ? 1 : 0;
+    }
+    block_top[k] = t;
+    offset[k + 1] = count;
+  });
+  const std::int32_t top = blocks ? *std::max_element(block_top.begin(), block_top.end()) : -1;
+  for (std::size_t k = 0; k < blocks; ++k) offset[k + 1] += offset[k];
+  const std::size_t nl = offset[blocks];
+  std::vector<std::uint32_t> list = ctx.pool().take_for_overwrite<std::uint32_t>(nl);
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
+    std::size_t at = offset[k];
+    for (std::size_t i = k * kBlock, e = std::min(nf, i + kBlock); i < e; ++i)
+      if (w.index[i][0] >= 0) list[at++] = static_cast<std::uint32_t>(i);
+  });
   const std::size_t nc = static_cast<std::size_t>(top + 1), ch = static_cast<std::size_t>(channels);
   check_fits(dev, nf * ch * sizeof(float), std::to_string(channels) + " channels of " + std::to_string(nf) + " display pixels", "upsample");
   if (g.up_resident != w.index.data() || g.up_pixels != nf) {  // not the weights on the device: upload them
@@ -254,8 +303,10 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   }, "upsample apply");
   std::vector<float> values = ctx.pool().take_for_overwrite<float>(nl * ch);
   if (nl) dev.download(g.ap_out, values.data(), nl * ch * sizeof(float));
-  for (std::size_t j = 0; j < nl; ++j)
-    for (std::size_t c = 0; c < ch; ++c) out[list[j] * ch + c] = values[j * ch + c];
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nl, kBlock), [&](const tbb::blocked_range<std::size_t>& br) {
+    for (std::size_t j = br.begin(); j != br.end(); ++j)
+      for (std::size_t c = 0; c < ch; ++c) out[list[j] * ch + c] = values[j * ch + c];
+  });
   ctx.pool().give(std::move(values));
   ctx.pool().give(std::move(list));
   ctx.record().counters["apply_gpu_seconds"] = timer_seconds(res);

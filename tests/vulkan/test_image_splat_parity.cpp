@@ -385,6 +385,37 @@ TEST_F(ImageSplatParity, UpsampleOnVulkanRejectsBadInput) {
   EXPECT_EQ(softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, opt).misses, 0u) << "the context is usable after the errors";
 }
 
+// The host checks the samples in blocks on every core: with bad samples in two blocks, the error
+// names the first in pixel order, as one loop over the pixels would (the later block may finish
+// first).
+TEST_F(ImageSplatParity, UpsampleOnVulkanNamesTheFirstBadSample) {
+  const scene::Scene sc = scene::make_builtin("spheres");
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  const render::ParamSet params = params_for(4);
+  render::FrameResult result;
+  constexpr int kW = 256, kH = 200;  // 51200 display pixels: four blocks of the host's checks
+  render::FrameContext ctx(sc, posed, params, kW, kH, result, ctx_.get());
+  result.passes.push_back(render::PassRecord{"upsample"});
+  std::vector<float> fdepth(kW * kH, 2.0f), cdepth((kW / 2) * (kH / 2), 2.0f);
+  std::vector<glm::vec3> fnormal(kW * kH, glm::vec3(0, 0, 1)), cnormal((kW / 2) * (kH / 2), glm::vec3(0, 0, 1));
+  const is::PlaneView fine{kW, kH, 1, fdepth.data(), fnormal.data()}, coarse{kW / 2, kH / 2, 2, cdepth.data(), cnormal.data()};
+  fdepth[190 * kW + 3] = -1.0f;                                            // block 2
+  fnormal[100 * kW + 7] = glm::vec3(std::nanf(""), 0.0f, 1.0f);            // block 1: the first
+  try {
+    softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, is::UpsampleOptions{});
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("fine normal at pixel (7, 100)"), std::string::npos) << e.what();
+  }
+  fnormal[100 * kW + 7] = glm::vec3(0, 0, 1);
+  try {
+    softgi::techniques::common::vulkan_upsample_weights(ctx, coarse, fine, is::UpsampleOptions{});
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("fine depth at pixel (3, 190)"), std::string::npos) << e.what();
+  }
+}
+
 // The GPU application of eq. 11 weights: pixels with taps get the CPU's upsample_apply values (to
 // kUpsampleRelTol), pixels without a tap (background) keep whatever the output held, as upsample.cpp
 // documents; both with the weights resident on the device and uploaded from the host.
