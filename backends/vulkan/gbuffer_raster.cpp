@@ -27,9 +27,11 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -39,6 +41,8 @@
 #include <vector>
 
 #include <glm/glm.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 #include "gbuffer_shared.h"
 #include "softgi/backends/vulkan/backend.hpp"
@@ -282,7 +286,6 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
   stats.triangles = static_cast<long long>(triangle_total);
   stats.draws = static_cast<long long>(draws.size());
 
-  render::GBuffer gb = render::GBuffer::background(bw, bh, scale, &fc.pool(), planes);
   // The CPU G-buffer's ray of each pixel (PinholeCamera::buffer_direction, to the bit), from screen
   // coordinates worked out once per column and row; only the view_dir plane needs it.
   const render::BufferRays rays(cam, bw, bh, scale);
@@ -291,6 +294,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
   // Nothing in front of the camera: every pixel is background (no GPU work); the background's view
   // directions where the frame holds that plane.
   if (draws.empty() || !(max_depth > 0.0f)) {
+    render::GBuffer gb = render::GBuffer::background(bw, bh, scale, &fc.pool(), planes);
     if (gb.planes & render::kGBufferViewDir)
       for (int y = 0; y < bh; ++y)
         for (int x = 0; x < bw; ++x) gb.view_dir[static_cast<std::size_t>(y) * bw + x] = ray(x, y);
@@ -401,34 +405,52 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
   const auto* nm = static_cast<const glm::vec4*>(tg.normal.mapped());
   const auto* ids = static_cast<const glm::ivec2*>(tg.readback[gpu::kGbOutIds].mapped());
   const auto* bc = static_cast<const glm::vec2*>(tg.readback[gpu::kGbOutBarycentric].mapped());
-  long long hits = 0;
-  for (int y = 0; y < bh; ++y)
-    for (int x = 0; x < bw; ++x) {
-      const std::size_t i = static_cast<std::size_t>(y) * bw + x;
-      const int oi = ids[i].x;
-      if (oi < 0) {
-        if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = ray(x, y);
-        continue;
-      }
-      const int prim = ids[i].y;
-      if (oi >= static_cast<int>(fc.posed.objects.size()) || !drawn(fc.posed.objects[oi]) || prim < 0 ||
-          prim >= static_cast<int>(fc.posed.objects[oi].source->triangles.size()))
-        throw std::logic_error(std::string(who) + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) +
-                               ") read back object " + std::to_string(oi) + " primitive " + std::to_string(prim) +
-                               ", which the frame did not draw");
-      if (gb.planes & render::kGBufferSurface) {
-        gb.position[i] = vec3(pd[i]);
-        gb.depth[i] = pd[i].w;
-        gb.normal[i] = vec3(nm[i]);
-      }
-      gb.object[i] = oi;
-      gb.primitive[i] = prim;
-      gb.barycentric[i] = bc[i];
-      if (gb.planes & render::kGBufferAlbedo)
-        gb.albedo[i] = scene::surface_albedo(fc.scene, fc.posed.objects[oi], static_cast<std::size_t>(prim), bc[i].x, bc[i].y);
-      if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = -ray(x, y);
-      ++hits;
-    }
+  // Every pixel written once, background or hit, rows on every core. A pixel naming what the frame
+  // did not draw is an error naming the first such pixel.
+  render::GBuffer gb = render::GBuffer::for_overwrite(bw, bh, scale, fc.pool(), planes);
+  const std::size_t npix = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
+  std::atomic<std::size_t> first_bad{npix};
+  const long long hits = tbb::parallel_reduce(
+      tbb::blocked_range<int>(0, bh, 8), 0LL,
+      [&](const tbb::blocked_range<int>& rows, long long count) {
+        for (int y = rows.begin(); y != rows.end(); ++y)
+          for (int x = 0; x < bw; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * bw + x;
+            const int oi = ids[i].x;
+            if (oi < 0) {
+              gb.set_background(i, gb.planes & render::kGBufferViewDir ? ray(x, y) : glm::vec3(0.0f));
+              continue;
+            }
+            const int prim = ids[i].y;
+            if (oi >= static_cast<int>(fc.posed.objects.size()) || !drawn(fc.posed.objects[oi]) || prim < 0 ||
+                prim >= static_cast<int>(fc.posed.objects[oi].source->triangles.size())) {
+              std::size_t seen = first_bad.load();
+              while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {
+              }
+              gb.set_background(i, glm::vec3(0.0f));
+              continue;
+            }
+            if (gb.planes & render::kGBufferSurface) {
+              gb.position[i] = vec3(pd[i]);
+              gb.depth[i] = pd[i].w;
+              gb.normal[i] = vec3(nm[i]);
+            }
+            gb.object[i] = oi;
+            gb.primitive[i] = prim;
+            gb.barycentric[i] = bc[i];
+            if (gb.planes & render::kGBufferAlbedo)
+              gb.albedo[i] = scene::surface_albedo(fc.scene, fc.posed.objects[oi], static_cast<std::size_t>(prim), bc[i].x, bc[i].y);
+            if (gb.planes & render::kGBufferViewDir) gb.view_dir[i] = -ray(x, y);
+            ++count;
+          }
+        return count;
+      },
+      std::plus<long long>());
+  if (const std::size_t i = first_bad.load(); i < npix) {
+    const int x = static_cast<int>(i % static_cast<std::size_t>(bw)), y = static_cast<int>(i / static_cast<std::size_t>(bw));
+    throw std::logic_error(std::string(who) + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") read back object " +
+                           std::to_string(ids[i].x) + " primitive " + std::to_string(ids[i].y) + ", which the frame did not draw");
+  }
   stats.readback_seconds = std::chrono::duration<double>(clock::now() - t1).count();
   // The readback targets read through their mapping: ids and barycentrics, and the resolved
   // position-depth and normal where the frame's G-buffer holds the surface planes.
