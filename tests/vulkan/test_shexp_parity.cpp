@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <random>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -206,6 +208,50 @@ TEST_F(ShexpParity, ShadingWithSphericalLightsMatchesTheCpuOnRandomInput) {
     }
   }
   std::printf("[shade] random receivers with spherical lights, orders 3, 4, 6: worst relative difference %.3g\n", worst_all);
+}
+
+// The eq. 11 gather's taps are checked on the host before the shader reads them unchecked, the
+// pixels in blocks on every core: with bad taps in two blocks, the error names the first pixel in
+// pixel order (the later block may finish first).
+TEST_F(ShexpParity, ShadeGatherNamesTheFirstPixelWithABadTap) {
+  scene::Scene sc = scene::make_builtin("spheres");
+  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  render::ParamSet params;
+  render::FrameResult result;
+  render::FrameContext ctx(sc, posed, params, 4, 4, result, ctx_.get());
+  constexpr int kOrder = 4, kN2 = kOrder * kOrder;
+  constexpr std::size_t kPixels = 40000;  // three blocks of the host's check
+  std::vector<float> L(3 * kN2, 0.0f), hcoef(kN2, 0.5f), gwin(kN2, 1.0f), coarse(2 * kN2, 0.0f);
+  L[0] = L[kN2] = L[2 * kN2] = 1.0f;
+  coarse[0] = coarse[kN2] = 3.5449077f;
+  const sx::BatchShade bs = sx::BatchShade::make(kOrder, L.data(), hcoef.data(), gwin.data(), nullptr);
+  sx::ReceiverSoA soa;
+  soa.resize(kPixels);
+  std::vector<std::int32_t> pixel(kPixels);
+  std::vector<std::array<std::int32_t, 4>> index(kPixels, {1, 0, -1, -1});
+  std::vector<std::array<float, 4>> weight(kPixels, {0.5f, 0.5f, 0.0f, 0.0f});
+  for (std::size_t i = 0; i < kPixels; ++i) {
+    soa.set(i, glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, 1.0f));
+    pixel[i] = static_cast<std::int32_t>(i);
+  }
+  sx::GpuShade::Gather ga;
+  ga.pixel = pixel.data();
+  ga.index = index.data();
+  ga.weight = weight.data();
+  ga.pixels = kPixels;
+  ga.coarse = coarse.data();
+  ga.coarse_count = 2;
+  std::vector<glm::vec3> out(kPixels);
+  result.passes.push_back(render::PassRecord{"shade@vulkan"});
+  ASSERT_NO_THROW(techniques::common::vulkan_shade(ctx, sx::GpuShade{&bs, nullptr, nullptr, false, &ga}, soa, out.data()));
+  index[35000][1] = 9;  // block 2
+  index[20000][0] = 7;  // block 1: the first
+  try {
+    techniques::common::vulkan_shade(ctx, sx::GpuShade{&bs, nullptr, nullptr, false, &ga}, soa, out.data());
+    ADD_FAILURE() << "no error";
+  } catch (const std::logic_error& e) {
+    EXPECT_NE(std::string(e.what()).find("display pixel 20000 gathers coarse sample 7 of 2"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
