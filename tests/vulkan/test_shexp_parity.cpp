@@ -136,6 +136,16 @@ TEST_P(ShexpParity, EveryVulkanPassMatchesTheCpuPass) {
 
 INSTANTIATE_TEST_SUITE_P(BuiltinScenes, ShexpParity, ::testing::Values("spheres", "cornell", "character", "crowd", "bunny"));
 
+// A frame context on `spheres` for the tests that call the shading kernel directly.
+struct ShadeFrame {
+  explicit ShadeFrame(backends::vulkan::Context* dev) : ctx(sc, posed, params, 4, 4, result, dev) {}
+  scene::Scene sc = scene::make_builtin("spheres");
+  scene::PosedScene posed = scene::evaluate(sc, 0.0);
+  render::ParamSet params;
+  render::FrameResult result;
+  render::FrameContext ctx;
+};
+
 // shade.comp against shade_batch + add_lights_and_clamp on random receivers, visibilities and
 // spherical lights, including the special cases of light_lh_world: a light on the normal (any
 // tangent), a receiver inside the light (theta = pi/2), a light behind the horizon, a zero radius,
@@ -143,11 +153,9 @@ INSTANTIATE_TEST_SUITE_P(BuiltinScenes, ShexpParity, ::testing::Values("spheres"
 // visibility. The light terms dominate (radiance up to 50 against a unit sky), so the tolerance is
 // the shade pass's relative to each receiver's largest channel. Observed: see the [shade] line.
 TEST_F(ShexpParity, ShadingWithSphericalLightsMatchesTheCpuOnRandomInput) {
-  scene::Scene sc = scene::make_builtin("spheres");
-  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
-  render::ParamSet params;
-  render::FrameResult result;
-  render::FrameContext ctx(sc, posed, params, 4, 4, result, ctx_.get());
+  ShadeFrame frame(ctx_.get());
+  render::FrameContext& ctx = frame.ctx;
+  render::FrameResult& result = frame.result;
   std::mt19937 rng(20261201);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f), u01(0.0f, 1.0f);
   const auto unit = [&] {
@@ -214,11 +222,9 @@ TEST_F(ShexpParity, ShadingWithSphericalLightsMatchesTheCpuOnRandomInput) {
 // pixels in blocks on every core: with bad taps in two blocks, the error names the first pixel in
 // pixel order (the later block may finish first).
 TEST_F(ShexpParity, ShadeGatherNamesTheFirstPixelWithABadTap) {
-  scene::Scene sc = scene::make_builtin("spheres");
-  const scene::PosedScene posed = scene::evaluate(sc, 0.0);
-  render::ParamSet params;
-  render::FrameResult result;
-  render::FrameContext ctx(sc, posed, params, 4, 4, result, ctx_.get());
+  ShadeFrame frame(ctx_.get());
+  render::FrameContext& ctx = frame.ctx;
+  render::FrameResult& result = frame.result;
   constexpr int kOrder = 4, kN2 = kOrder * kOrder;
   constexpr std::size_t kPixels = 40000;  // three blocks of the host's check
   std::vector<float> L(3 * kN2, 0.0f), hcoef(kN2, 0.5f), gwin(kN2, 1.0f), coarse(2 * kN2, 0.0f);
