@@ -56,6 +56,29 @@ void check_fits(const vk::Context& dev, std::size_t bytes, const std::string& wh
 
 [[noreturn]] void upsample_fail(const std::string& what) { throw std::invalid_argument("upsample on vulkan: " + what); }
 
+// The host loops over display pixels run in blocks on every core.
+constexpr std::size_t kBlock = 1 << 14;
+
+// The indices i < n where keep(i), in increasing order (as one loop would list them), into out (n
+// entries at least): each block's count, then each block's indices at its offset. Returns how many.
+template <class Keep>
+std::size_t compact_in_blocks(std::size_t n, const Keep& keep, std::uint32_t* out) {
+  const std::size_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<std::size_t> offset(blocks + 1, 0);
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
+    std::size_t count = 0;
+    for (std::size_t i = k * kBlock, e = std::min(n, i + kBlock); i < e; ++i) count += keep(i) ? 1 : 0;
+    offset[k + 1] = count;
+  });
+  for (std::size_t k = 0; k < blocks; ++k) offset[k + 1] += offset[k];
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
+    std::size_t at = offset[k];
+    for (std::size_t i = k * kBlock, e = std::min(n, i + kBlock); i < e; ++i)
+      if (keep(i)) out[at++] = static_cast<std::uint32_t>(i);
+  });
+  return offset[blocks];
+}
+
 std::string dims(const PlaneView& v) {
   return std::to_string(v.width) + "x" + std::to_string(v.height) + " (scale " + std::to_string(v.scale) + ")";
 }
@@ -104,36 +127,19 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   // and lists the display pixels that see a surface: the shader's invocations.
   std::vector<std::uint32_t> surface = ctx.pool().take_for_overwrite<std::uint32_t>(nf);
   std::size_t ns = 0;
-  // In blocks on every core: the first bad sample of each block and its surface count, then each
-  // block's surface pixels at their offset in the list (pixel order, as one loop would list them).
-  constexpr std::size_t kBlock = 1 << 14;
-  std::vector<std::size_t> block_bad, block_surface;
+  // In blocks on every core; the error names the first bad sample in pixel order.
   const auto up = [&](vk::Buffer& b, const PlaneView& v, std::size_t n, const char* name, const char* which, bool list) {
     std::vector<glm::vec4> nz = ctx.pool().take_for_overwrite<glm::vec4>(n);
     const std::size_t blocks = (n + kBlock - 1) / kBlock;
-    block_bad.assign(blocks, n);
-    block_surface.assign(blocks + 1, 0);
+    std::vector<std::size_t> block_bad(blocks, n);
     tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
-      std::size_t bad = n, count = 0;
       for (std::size_t i = k * kBlock, e = std::min(n, i + kBlock); i < e; ++i) {
-        const float z = v.depth[i];
-        nz[i] = glm::vec4(v.normal[i], z);
-        if (bad == n && !upsample_sample_ok(v, i)) bad = i;
-        count += std::isinf(z) ? 0 : 1;
+        nz[i] = glm::vec4(v.normal[i], v.depth[i]);
+        if (block_bad[k] == n && !upsample_sample_ok(v, i)) block_bad[k] = i;
       }
-      block_bad[k] = bad;
-      block_surface[k + 1] = count;
     });
     const std::size_t bad = blocks ? *std::min_element(block_bad.begin(), block_bad.end()) : n;
-    if (list && bad == n) {
-      for (std::size_t k = 0; k < blocks; ++k) block_surface[k + 1] += block_surface[k];
-      tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
-        std::size_t at = block_surface[k];
-        for (std::size_t i = k * kBlock, e = std::min(n, i + kBlock); i < e; ++i)
-          if (!std::isinf(v.depth[i])) surface[at++] = static_cast<std::uint32_t>(i);
-      });
-      ns = block_surface[blocks];
-    }
+    if (list && bad == n) ns = compact_in_blocks(n, [&](std::size_t i) { return !std::isinf(v.depth[i]); }, surface.data());
     if (bad < n) {
       ctx.pool().give(std::move(nz));
       ctx.pool().give(std::move(surface));
@@ -242,31 +248,15 @@ void vulkan_upsample_apply(render::FrameContext& ctx, const UpsampleWeights& w, 
   std::lock_guard<std::mutex> lock(g.m);
   // The coarse buffer's size: one past the largest tap; and the pixels with a tap, the shader's
   // invocations (the others keep their value, and cost no lane).
-  // In blocks on every core, as the weights' surface list.
-  constexpr std::size_t kBlock = 1 << 14;
-  const std::size_t blocks = (nf + kBlock - 1) / kBlock;
-  std::vector<std::size_t> offset(blocks + 1, 0);
-  std::vector<std::int32_t> block_top(blocks, -1);
-  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
-    std::int32_t t = -1;
-    std::size_t count = 0;
-    for (std::size_t i = k * kBlock, e = std::min(nf, i + kBlock); i < e; ++i) {
-      const auto& idx = w.index[i];
-      t = std::max({t, idx[0], idx[1], idx[2], idx[3]});
-      count += idx[0] >= 0 ? 1 : 0;
-    }
-    block_top[k] = t;
-    offset[k + 1] = count;
-  });
-  const std::int32_t top = blocks ? *std::max_element(block_top.begin(), block_top.end()) : -1;
-  for (std::size_t k = 0; k < blocks; ++k) offset[k + 1] += offset[k];
-  const std::size_t nl = offset[blocks];
-  std::vector<std::uint32_t> list = ctx.pool().take_for_overwrite<std::uint32_t>(nl);
-  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
-    std::size_t at = offset[k];
-    for (std::size_t i = k * kBlock, e = std::min(nf, i + kBlock); i < e; ++i)
-      if (w.index[i][0] >= 0) list[at++] = static_cast<std::uint32_t>(i);
-  });
+  const std::int32_t top = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, nf, kBlock), std::int32_t{-1},
+      [&](const tbb::blocked_range<std::size_t>& br, std::int32_t t) {
+        for (std::size_t i = br.begin(); i != br.end(); ++i) t = std::max({t, w.index[i][0], w.index[i][1], w.index[i][2], w.index[i][3]});
+        return t;
+      },
+      [](std::int32_t a, std::int32_t b) { return std::max(a, b); });
+  std::vector<std::uint32_t> list = ctx.pool().take_for_overwrite<std::uint32_t>(nf);
+  const std::size_t nl = compact_in_blocks(nf, [&](std::size_t i) { return w.index[i][0] >= 0; }, list.data());
   const std::size_t nc = static_cast<std::size_t>(top + 1), ch = static_cast<std::size_t>(channels);
   check_fits(dev, nf * ch * sizeof(float), std::to_string(channels) + " channels of " + std::to_string(nf) + " display pixels", "upsample");
   if (g.up_resident != w.index.data() || g.up_pixels != nf) {  // not the weights on the device: upload them
