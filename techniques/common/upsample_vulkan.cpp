@@ -123,8 +123,8 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   check_fits(dev, nf * 16, "the normals and depths of " + std::to_string(nf) + " display pixels", "upsample");
   // Each sample's normal and depth as one RGBA32F texel (upsample_weights.comp reads a sample with
   // one fetch). The same bytes cross to the device as the separate planes would (16 per sample).
-  // The same pass checks the samples, upsample.cpp's rule and messages (the coarse buffer first),
-  // and lists the display pixels that see a surface: the shader's invocations.
+  // The packing loop also checks the samples, upsample.cpp's rule and messages (the coarse buffer
+  // first); a second pass lists the display pixels that see a surface: the shader's invocations.
   std::vector<std::uint32_t> surface = ctx.pool().take_for_overwrite<std::uint32_t>(nf);
   std::size_t ns = 0;
   // In blocks on every core; the error names the first bad sample in pixel order.
