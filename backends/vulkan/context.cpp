@@ -14,6 +14,8 @@
 #include <cstring>
 #include <sstream>
 
+#include <tbb/parallel_for.h>
+
 #include "softgi/render/backend.hpp"
 #include "softgi/render/frame.hpp"
 
@@ -578,6 +580,25 @@ void Context::ensure_buffer(Buffer& b, VkDeviceSize bytes, VkBufferUsageFlags us
   b = create_buffer(bytes, usage, kind, name);
 }
 
+namespace {
+
+// Uploads and downloads of display-sized planes (tens of MB a frame) copy between host memory and a
+// mapping: in blocks on every core above a few MB, since one core's copy reaches about half of what
+// the memory moves with two (bench/README.md, "lavapipe: the G-buffer's planes stay on the device").
+void copy_bytes(void* dst, const void* src, std::size_t bytes) {
+  constexpr std::size_t kBlock = std::size_t{1} << 20, kParallelFrom = 4 * kBlock;
+  if (bytes < kParallelFrom) {
+    std::memcpy(dst, src, bytes);
+    return;
+  }
+  tbb::parallel_for(std::size_t{0}, (bytes + kBlock - 1) / kBlock, [&](std::size_t k) {
+    const std::size_t at = k * kBlock;
+    std::memcpy(static_cast<char*>(dst) + at, static_cast<const char*>(src) + at, std::min(kBlock, bytes - at));
+  });
+}
+
+}  // namespace
+
 void Context::upload(const Buffer& dst, const void* src, std::size_t bytes, std::size_t dst_offset) {
   if (bytes == 0) return;
   if (dst_offset + bytes > dst.size())
@@ -585,11 +606,11 @@ void Context::upload(const Buffer& dst, const void* src, std::size_t bytes, std:
                             " into buffer '" + dst.name() + "' of " + std::to_string(dst.size()) + " bytes");
   transfer_.upload += bytes;
   if (dst.mapped()) {
-    std::memcpy(static_cast<char*>(dst.mapped()) + dst_offset, src, bytes);
+    copy_bytes(static_cast<char*>(dst.mapped()) + dst_offset, src, bytes);
     return;
   }
   Buffer staging = create_buffer(bytes, 0, MemoryKind::Host, "staging upload");
-  std::memcpy(staging.mapped(), src, bytes);
+  copy_bytes(staging.mapped(), src, bytes);
   submit([&](Recorder& r) { r.copy(staging, dst, bytes, 0, dst_offset); }, "upload to '" + dst.name() + "'");
 }
 
@@ -600,7 +621,7 @@ void Context::download(const Buffer& src, void* dst, std::size_t bytes, std::siz
                             " from buffer '" + src.name() + "' of " + std::to_string(src.size()) + " bytes");
   transfer_.download += bytes;
   if (src.mapped()) {
-    std::memcpy(dst, static_cast<const char*>(src.mapped()) + src_offset, bytes);
+    copy_bytes(dst, static_cast<const char*>(src.mapped()) + src_offset, bytes);
     return;
   }
   Buffer staging = create_buffer(bytes, 0, MemoryKind::Host, "staging download");
@@ -608,7 +629,7 @@ void Context::download(const Buffer& src, void* dst, std::size_t bytes, std::siz
     r.copy(src, staging, bytes, src_offset, 0);
     r.barrier();
   }, "download from '" + src.name() + "'");
-  std::memcpy(dst, staging.mapped(), bytes);
+  copy_bytes(dst, staging.mapped(), bytes);
 }
 
 // Bytes per texel of the uncompressed formats softgi and its tests use (0: not known here, and the

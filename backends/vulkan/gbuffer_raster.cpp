@@ -47,6 +47,7 @@
 #include "gbuffer_shared.h"
 #include "softgi/backends/vulkan/backend.hpp"
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/backends/vulkan/gbuffer_device.hpp"
 #include "softgi/backends/vulkan/projection.hpp"
 #include "softgi/render/camera.hpp"
 #include "softgi/render/common_passes.hpp"
@@ -67,8 +68,10 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 // of near to far costs no precision, and 1e-6 clips only geometry closer to the eye than a
 // millionth of the scene's depth range.
 constexpr float kNearRelative = 1e-6f;
-// Target sets (attachments, framebuffer, readback) kept per buffer size: the display G-buffer and
-// one receiver buffer per frame, plus slack for a changed resolution.
+// Target sets (attachments, framebuffer, readback) kept per buffer size and pass: the display
+// G-buffer and one receiver buffer per frame, plus slack for a changed resolution. The display's
+// are its own even where a receiver buffer has its size, since its resolved planes serve later
+// passes of the frame (vulkan::DeviceGBuffer).
 constexpr std::size_t kMaxTargetSizes = 4;
 
 // std140 mirror of GbFrame (shaders/gbuffer/gbuffer_common.glsl).
@@ -96,7 +99,7 @@ constexpr std::array<VkFormat, gpu::kGbColorAttachments> kColorFormats = {
     VK_FORMAT_R32G32_SFLOAT,  // kGbOutBarycentric
 };
 constexpr std::array<std::uint32_t, gpu::kGbColorAttachments> kTexelBytes = {8, 8};
-// The resolve pass's outputs: position and depth, normal (vec4 each).
+// The resolve pass's outputs: position and depth, normal and depth (vec4 each).
 constexpr std::size_t kResolvedTexelBytes = 2 * sizeof(glm::vec4);
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
 
@@ -112,6 +115,7 @@ struct RasterPipeline {
 // copies, which the resolve pass reads) and the resolve pass's outputs.
 struct Targets {
   std::uint32_t width = 0, height = 0;
+  bool display = false;
   std::array<vk::Image, gpu::kGbColorAttachments> color;
   vk::Image depth;
   vk::Owned<VkFramebuffer> framebuffer;
@@ -132,6 +136,9 @@ struct RasterState {
   std::unique_ptr<vk::ComputePipeline> resolve;
   std::vector<std::unique_ptr<Targets>> targets;  // most recently used last
   vk::Buffer positions, normals, indices, frame, objects;
+  // The frame (FrameContext::id) whose display G-buffer display_targets resolved last, 0: none.
+  std::uint64_t display_frame = 0;
+  const Targets* display_targets = nullptr;
 };
 
 std::span<const std::uint32_t> words(const std::uint32_t* w, std::size_t bytes) { return {w, bytes / sizeof(std::uint32_t)}; }
@@ -169,10 +176,11 @@ std::unique_ptr<RasterPipeline> make_pipeline(vk::Context& ctx) {
   return p;
 }
 
-std::unique_ptr<Targets> make_targets(vk::Context& ctx, const RasterPipeline& pipe, std::uint32_t w, std::uint32_t h) {
+std::unique_ptr<Targets> make_targets(vk::Context& ctx, const RasterPipeline& pipe, std::uint32_t w, std::uint32_t h, bool display) {
   auto t = std::make_unique<Targets>();
   t->width = w;
   t->height = h;
+  t->display = display;
   const std::string size = std::to_string(w) + "x" + std::to_string(h);
   std::array<VkImageView, gpu::kGbColorAttachments + 1> views{};
   for (std::uint32_t a = 0; a < gpu::kGbColorAttachments; ++a) {
@@ -194,14 +202,18 @@ std::unique_ptr<Targets> make_targets(vk::Context& ctx, const RasterPipeline& pi
   return t;
 }
 
-Targets& targets_for(vk::Context& ctx, RasterState& st, std::uint32_t w, std::uint32_t h) {
-  auto it = std::find_if(st.targets.begin(), st.targets.end(), [&](const auto& t) { return t->width == w && t->height == h; });
+Targets& targets_for(vk::Context& ctx, RasterState& st, std::uint32_t w, std::uint32_t h, bool display) {
+  auto it = std::find_if(st.targets.begin(), st.targets.end(),
+                         [&](const auto& t) { return t->width == w && t->height == h && t->display == display; });
   if (it != st.targets.end()) {
     std::rotate(it, it + 1, st.targets.end());  // most recently used last
     return *st.targets.back();
   }
-  if (st.targets.size() >= kMaxTargetSizes) st.targets.erase(st.targets.begin());  // the submissions using it completed
-  st.targets.push_back(make_targets(ctx, *st.pipe, w, h));
+  if (st.targets.size() >= kMaxTargetSizes) {  // the submissions using it completed
+    if (st.display_targets == st.targets.front().get()) st.display_targets = nullptr;
+    st.targets.erase(st.targets.begin());
+  }
+  st.targets.push_back(make_targets(ctx, *st.pipe, w, h, display));
   return *st.targets.back();
 }
 
@@ -220,7 +232,9 @@ bool drawn(const scene::PosedObject& o) { return o.source && !o.source->triangle
 
 // The one rasterisation of the Vulkan backend: a buffer of ceil(W/s) x ceil(H/s) pixels whose pixel
 // (x, y) holds what the display camera sees through display point ((x + 0.5) s, (y + 0.5) s).
-render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, const char* who, RasterStats& stats) {
+// `display`: the frame's display G-buffer, whose resolved planes stay on the device for its later
+// passes (publish_display_planes).
+render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, const char* who, bool display, RasterStats& stats) {
   using clock = std::chrono::steady_clock;
   const render::PinholeCamera cam = render::make_pinhole_camera(fc.scene, fc.width, fc.height, who);
   const int bw = (fc.width + scale - 1) / scale, bh = (fc.height + scale - 1) / scale;
@@ -311,7 +325,8 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
     state->resolve = std::make_unique<vk::ComputePipeline>(ctx, words(gbuffer_gbuffer_resolve_comp, sizeof(gbuffer_gbuffer_resolve_comp)),
                                                            "gbuffer_resolve");
   const RasterPipeline& pipe = *state->pipe;
-  Targets& tg = targets_for(ctx, *state, static_cast<std::uint32_t>(bw), static_cast<std::uint32_t>(bh));
+  Targets& tg = targets_for(ctx, *state, static_cast<std::uint32_t>(bw), static_cast<std::uint32_t>(bh), display);
+  if (display) state->display_frame = 0;  // until this frame's planes are resolved and read back
 
   const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
   const std::size_t pos_bytes = positions.size() * sizeof(float), idx_bytes = indices.size() * sizeof(std::uint32_t);
@@ -452,6 +467,10 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
                            std::to_string(ids[i].x) + " primitive " + std::to_string(ids[i].y) + ", which the frame did not draw");
   }
   stats.readback_seconds = std::chrono::duration<double>(clock::now() - t1).count();
+  if (display && (gb.planes & render::kGBufferSurface)) {
+    state->display_frame = fc.id();
+    state->display_targets = &tg;
+  }
   // The readback targets read through their mapping: ids and barycentrics, and the resolved
   // position-depth and normal where the frame's G-buffer holds the surface planes.
   ctx.note_transfer(0, static_cast<std::size_t>(bw) * bh *
@@ -481,8 +500,9 @@ void raster_counters(render::PassRecord& rec, const RasterStats& st) {
 render::GBuffer produce_gbuffer(render::FrameContext& fc, int s, const char* pass, std::size_t& held) {
   RasterStats st;
   // The display G-buffer holds the planes the frame's passes read; a receiver buffer holds all.
-  const unsigned planes = s == 1 && std::string(pass) == "gbuffer" ? fc.gbuffer_planes() : render::kGBufferAll;
-  render::GBuffer gb = rasterise(fc, s, planes, pass, st);
+  const bool display = s == 1 && std::string(pass) == "gbuffer";
+  const unsigned planes = display ? fc.gbuffer_planes() : render::kGBufferAll;
+  render::GBuffer gb = rasterise(fc, s, planes, pass, display, st);
   raster_counters(fc.record(), st);
   held = st.held_bytes;
   return gb;
@@ -530,6 +550,26 @@ void gbuffer_raster_memory(const std::vector<const render::PassDesc*>& passes, c
   items.push_back({"gbuffer_raster indices", triangles * 3 * sizeof(std::uint32_t), render::MemoryPlace::Device, pass, false, true});
 }
 
-void register_gbuffer_raster_passes() { render::register_gbuffer_pass_impls(vulkan::kBackendName, produce_gbuffer); }
+namespace {
+
+// After the "gbuffer" pass's put: the resolved normal and depth of this frame's display G-buffer as
+// the device copy of render::kGBuffer, tied to the host planes just put.
+void publish_display_planes(render::FrameContext& fc) {
+  vk::Context& ctx = vk::context_of(fc);
+  auto state = ctx.cached<RasterState>("gbuffer_raster.state", [] { return std::make_shared<RasterState>(); });
+  std::lock_guard<std::mutex> lock(state->m);
+  if (state->display_frame != fc.id() || !state->display_targets) return;
+  const render::GBuffer& gb = fc.get<render::GBuffer>(render::kGBuffer);
+  const Targets& tg = *state->display_targets;
+  if (!(gb.planes & render::kGBufferSurface) || gb.width != static_cast<int>(tg.width) || gb.height != static_cast<int>(tg.height)) return;
+  fc.put_device<vk::DeviceGBuffer>(render::kGBuffer, vk::DeviceGBuffer{&tg.normal, &tg.position_depth, gb.width, gb.height, gb.depth.data(),
+                                                                        gb.normal.data(), gb.position.data()});
+}
+
+}  // namespace
+
+void register_gbuffer_raster_passes() {
+  render::register_gbuffer_pass_impls(vulkan::kBackendName, produce_gbuffer, publish_display_planes);
+}
 
 }  // namespace softgi::backends

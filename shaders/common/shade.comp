@@ -8,7 +8,9 @@
 // (kShadeVisNone: unshadowed, g = sqrt(4 pi) y_00), or is interpolated from a coarse field with
 // per-pixel taps (kShadeVisGather: image_splat's eq. 11 upsampling of O_p, paper 000 section 4.2).
 // Spherical lights (LIGHTS = 1): paper 004 section 7's single-lobe table L_H(theta, f), looked up and
-// turned to the receiver's frame as shexp::light_lh_world does.
+// turned to the receiver's frame as shexp::light_lh_world does. Positions and normals come from
+// six receiver planes (REC = kShadeRecPlanes) or, for a gather over display pixels, from the display
+// G-buffer's planes where the Vulkan G-buffer pass left them (kShadeRecPixels).
 #extension GL_GOOGLE_include_directive : require
 // [[unroll]]: loops whose trip counts are the specialisation constant N (registers, not scratch).
 #extension GL_EXT_control_flow_attributes : require
@@ -21,6 +23,7 @@ layout(constant_id = 0) const uint N = SH_PLAN_FIXED_ORDER;  // shading order
 #include "accum_math.glsl"
 layout(constant_id = 1) const uint VIS = kShadeVisReceiver;
 layout(constant_id = 2) const uint LIGHTS = 0;
+layout(constant_id = 3) const uint REC = kShadeRecPlanes;
 const bool VIS4 = (N * N) % 4u == 0u;
 layout(local_size_x = kShadeGroup) in;
 
@@ -42,6 +45,10 @@ layout(set = 0, binding = kShadeBindTapWeight) uniform samplerBuffer tap_weight;
 layout(set = 0, binding = kShadeBindCoarseRow) uniform isamplerBuffer coarse_row;
 layout(set = 0, binding = kShadeBindLightTable) uniform samplerBuffer ltab;
 layout(set = 0, binding = kShadeBindLights) uniform samplerBuffer lights;
+// REC = kShadeRecPixels: receiver i is display pixel tap_pixel[i], read from the G-buffer's planes
+// where the Vulkan G-buffer pass left them (the same floats the host planes hold).
+layout(set = 0, binding = kShadeBindPixelPosition) uniform samplerBuffer pixel_position;
+layout(set = 0, binding = kShadeBindPixelNormal) uniform samplerBuffer pixel_normal;
 layout(std430, set = 0, binding = kShadeBindStatus) buffer Status { uint clamped; };
 layout(push_constant) uniform Push {
   uint count;        // receivers in all (the planes of rec are this long)
@@ -117,8 +124,15 @@ void main() {
   if (i >= pc.end) return;
   const uint n2 = N * N;
   const int n = int(pc.count), ii = int(i);
-  const vec3 p = vec3(texelFetch(rec, ii).x, texelFetch(rec, n + ii).x, texelFetch(rec, 2 * n + ii).x);
-  const vec3 s = vec3(texelFetch(rec, 3 * n + ii).x, texelFetch(rec, 4 * n + ii).x, texelFetch(rec, 5 * n + ii).x);
+  vec3 p, s;
+  if (REC == kShadeRecPixels) {
+    const int px = texelFetch(tap_pixel, ii).x;
+    p = texelFetch(pixel_position, px).xyz;
+    s = texelFetch(pixel_normal, px).xyz;
+  } else {
+    p = vec3(texelFetch(rec, ii).x, texelFetch(rec, n + ii).x, texelFetch(rec, 2 * n + ii).x);
+    s = vec3(texelFetch(rec, 3 * n + ii).x, texelFetch(rec, 4 * n + ii).x, texelFetch(rec, 5 * n + ii).x);
+  }
   if ((pc.flags & kShadeFlagZeroNormalEmpty) != 0u && s == vec3(0.0)) {  // no surface (DirectShader::shade)
     outv[i] = vec4(0.0);
     return;

@@ -23,9 +23,9 @@ void main() {
   const uint i = gl_GlobalInvocationID.x;
   if (i >= pc.width * pc.height) return;
   const ivec2 id = ids[i];
-  if (id.x < 0) {
+  if (id.x < 0) {  // background: depth +inf, as the host G-buffer holds it
     position_depth[i] = vec4(0.0);
-    normal_out[i] = vec4(0.0);
+    normal_out[i] = vec4(0.0, 0.0, 0.0, uintBitsToFloat(0x7f800000u));
     return;
   }
   const uvec2 obj = objects[id.x];
@@ -59,6 +59,9 @@ void main() {
     }
   }
 
-  position_depth[i] = vec4(p, dot(p - frame.eye.xyz, frame.forward.xyz));
-  normal_out[i] = vec4(ns, 0.0);
+  // The depth twice: beside the position (the host's depth plane) and beside the normal, so that
+  // a later pass reads a pixel's normal and depth with one fetch (upsample_weights.comp's layout).
+  const float depth = dot(p - frame.eye.xyz, frame.forward.xyz);
+  position_depth[i] = vec4(p, depth);
+  normal_out[i] = vec4(ns, depth);
 }

@@ -84,6 +84,11 @@ SOFTGI_CONST_UINT(kShadeBindLightTable, 10u) // spherical lights: LightLobeTable
 SOFTGI_CONST_UINT(kShadeBindLights, 11u)     // spherical lights: 2 vec4 per light (centre, radius; radiance, 0)
 SOFTGI_CONST_UINT(kShadeBindStatus, 12u)     // uint: receivers whose shading was clamped at 0
 SOFTGI_CONST_UINT(kShadeBindCoarseRow, 13u)  // gather with kShadeFlagCoarseRow: int per coarse sample, its row of the field
+SOFTGI_CONST_UINT(kShadeBindPixelPosition, 14u)  // REC = kShadeRecPixels: vec4 per display pixel (position, depth)
+SOFTGI_CONST_UINT(kShadeBindPixelNormal, 15u)    // REC = kShadeRecPixels: vec4 per display pixel (normal, depth)
+// Where shade.comp reads a receiver's position and normal (specialisation constant REC).
+SOFTGI_CONST_UINT(kShadeRecPlanes, 0u)  // six planes px, py, pz, nx, ny, nz of `count` receivers
+SOFTGI_CONST_UINT(kShadeRecPixels, 1u)  // gather: the display G-buffer's planes at the receiver's pixel (tap_pixel)
 // Where shade.comp reads a receiver's visibility g (specialisation constant VIS).
 SOFTGI_CONST_UINT(kShadeVisNone, 0u)      // unshadowed: g = sqrt(4 pi) y_00
 SOFTGI_CONST_UINT(kShadeVisReceiver, 1u)  // n^2 floats per receiver

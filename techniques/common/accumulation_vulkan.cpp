@@ -1,5 +1,7 @@
 #include "accumulation_vulkan.hpp"
 
+#include "softgi/render/common_passes.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -357,6 +359,13 @@ void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const
     throw std::invalid_argument(pass + ": receiver " + std::to_string(status[gpu::kExpStatusLoopBudget] - 1) +
                                 ": its exponential needs more loop iterations than this Vulkan driver runs per invocation "
                                 "(llvmpipe's limit); lower 'order' or 'ps_degree', or use the cpu backend");
+}
+
+const vk::DeviceGBuffer* resident_display_planes(render::FrameContext& ctx, const float* depth, const glm::vec3* normal, int width,
+                                                 int height) {
+  const vk::DeviceGBuffer* d = ctx.device_copy<vk::DeviceGBuffer>(render::kGBuffer);
+  if (!d || !d->normal_depth || !d->position_depth || !depth || !normal) return nullptr;
+  return d->host_depth == depth && d->host_normal == normal && d->width == width && d->height == height ? d : nullptr;
 }
 
 }  // namespace softgi::techniques::common::gpu_passes

@@ -20,6 +20,7 @@
 
 #include "accumulation.hpp"
 #include "softgi/backends/vulkan/context.hpp"
+#include "softgi/backends/vulkan/gbuffer_device.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/sh/tables.hpp"
 #include "softgi_shared.h"
@@ -139,6 +140,12 @@ struct ResidentTaps {
 };
 ResidentTaps resident_upsample_taps(vk::Context& dev, const std::array<std::int32_t, 4>* index, std::size_t pixels);
 
+// The display G-buffer's planes on the device (vulkan::DeviceGBuffer, left by the Vulkan "gbuffer"
+// pass) when `depth` and `normal` are the host planes of width x height pixels that pass put in
+// this frame; null otherwise (planes from elsewhere are packed and uploaded).
+const vk::DeviceGBuffer* resident_display_planes(render::FrameContext& ctx, const float* depth, const glm::vec3* normal, int width,
+                                                 int height);
+
 // Column `column` of every row of a device field (`stride` floats per row, `rows` rows): read back
 // without the rest of the field (shaders/common/field_column.comp).
 std::vector<float> download_field_column(vk::Context& dev, const DeviceField& field, std::size_t stride, std::size_t column,
@@ -229,4 +236,9 @@ namespace softgi::techniques::common {
 // The shading of receivers on the GPU (GpuShade; shaders/common/shade.comp): the Vulkan backend's
 // ShadeKernel.
 long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA& rec, glm::vec3* out);
+// The same for a gather whose receivers are display pixels (in.gather->pixel[i] for receiver i < count)
+// of the display G-buffer whose planes `pixels` holds on the device: positions and normals are read
+// there, and no receiver plane crosses to the device.
+long long vulkan_shade_pixels(render::FrameContext& ctx, const GpuShade& in, const backends::vulkan::DeviceGBuffer& pixels,
+                              std::size_t count, glm::vec3* out);
 }  // namespace softgi::techniques::common

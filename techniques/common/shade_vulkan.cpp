@@ -12,6 +12,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include "accumulation_vulkan.hpp"
 #include "softgi/backends/vulkan/context.hpp"
@@ -51,15 +52,22 @@ void check_fits_shade(const vk::Context& dev, std::size_t bytes, const std::stri
 
 }  // namespace
 
-long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA& soa, glm::vec3* out) {
+namespace {
+
+// vulkan_shade for receivers from `soa`, or (pixels non-null) for `pixel_count` display pixels of the
+// G-buffer planes on the device.
+long long shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA& soa, const vk::DeviceGBuffer* pixels,
+                std::size_t pixel_count, glm::vec3* out) {
   if (!in.b) throw std::logic_error("shade on vulkan: no shading constants");
   const BatchShade& b = *in.b;
   vk::Context& dev = vk::context_of(ctx);
   ShadeState& g = shade_state(dev);
   std::lock_guard<std::mutex> lock(g.m);
   const int n = b.order, n2 = n * n;
-  const std::size_t count = soa.size();
+  const std::size_t count = pixels ? pixel_count : soa.size();
   if (count == 0) return 0;
+  if (pixels && !(in.gather && in.gather->pixel))
+    throw std::logic_error("shade on vulkan: receivers at display pixels without the gather's pixel list");
   if (count > std::numeric_limits<std::uint32_t>::max() / 8)
     throw std::invalid_argument("shade on vulkan: " + std::to_string(count) + " receivers exceed the 32-bit indexing");
   check_fits_shade(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " receivers", "shade");
@@ -76,7 +84,26 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
     throw std::logic_error("shade on vulkan: the device field to gather from is not of order " + std::to_string(n));
   const std::uint32_t vis_mode = ga ? gpu::kShadeVisGather : (b.g || dvis ? gpu::kShadeVisReceiver : gpu::kShadeVisNone);
   const vk::Buffer& basis = basis_constants(dev);
-  upload_receivers(dev, g.shade_rec, soa, "shade receivers", &g.rec_hash);
+  if (pixels) {
+    // Every receiver's pixel, checked here: the shader reads the planes unchecked.
+    const std::size_t np = static_cast<std::size_t>(pixels->width) * static_cast<std::size_t>(pixels->height);
+    const std::int32_t* px = in.gather->pixel;
+    const std::size_t bad = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, count, 1 << 14), count,
+        [&](const tbb::blocked_range<std::size_t>& br, std::size_t first) {
+          for (std::size_t i = br.begin(); i != br.end() && i < first; ++i)
+            if (px[i] < 0 || static_cast<std::size_t>(px[i]) >= np) return i;
+          return first;
+        },
+        [](std::size_t x, std::size_t y) { return std::min(x, y); });
+    if (bad < count)
+      throw std::logic_error("shade on vulkan: receiver " + std::to_string(bad) + " is display pixel " + std::to_string(px[bad]) + " of " +
+                             std::to_string(np));
+    // Bound, unread; a buffer from an earlier dispatch keeps its receivers (and rec_hash, their hash).
+    if (!g.shade_rec) dev.ensure_buffer(g.shade_rec, 6 * sizeof(float), kStorage, vk::MemoryKind::Device, "shade receivers");
+  } else {
+    upload_receivers(dev, g.shade_rec, soa, "shade receivers", &g.rec_hash);
+  }
   // Visibility: per receiver, or the coarse field of a gather (uploaded unless it is on the device).
   const float* vsrc = ga ? (dcoarse ? nullptr : ga->coarse) : dvis ? nullptr : b.g;
   const std::size_t vrows = ga ? (dcoarse ? dcoarse->floats / n2 : ga->coarse_count) : count;
@@ -162,8 +189,11 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   dev.ensure_buffer(g.shade_out, count * 4 * sizeof(float), kStorage, vk::MemoryKind::Host, "shading");
 
   vk::ComputePipeline& p = pipeline(dev, g.pipelines,
-                                    "common.shade.n" + std::to_string(n) + ".vis" + std::to_string(vis_mode) + (lights ? ".lights" : ""),
-                                    order_variant(spv::common_shade_comp_for(n), n, "shade"), {{0, static_cast<std::uint32_t>(n)}, {1, vis_mode}, {2, lights ? 1u : 0u}});
+                                    "common.shade.n" + std::to_string(n) + ".vis" + std::to_string(vis_mode) + (lights ? ".lights" : "") +
+                                        (pixels ? ".pixels" : ""),
+                                    order_variant(spv::common_shade_comp_for(n), n, "shade"),
+                                    {{0, static_cast<std::uint32_t>(n)}, {1, vis_mode}, {2, lights ? 1u : 0u},
+                                     {3, pixels ? gpu::kShadeRecPixels : gpu::kShadeRecPlanes}});
   struct Push {
     std::uint32_t count, first, end, flags, light_count, rows_theta, rows_f;
     float theta_floor;
@@ -185,7 +215,9 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
       vk::Bind::texels_at(gpu::kShadeBindCoarseRow, g.shade_coarse_row, VK_FORMAT_R32_SINT),
       vk::Bind::texels_at(gpu::kShadeBindLightTable, g.light_table, VK_FORMAT_R32_SFLOAT),
       vk::Bind::texels_at(gpu::kShadeBindLights, g.shade_lights, VK_FORMAT_R32G32B32A32_SFLOAT),
-      vk::Bind::buffer_at(gpu::kShadeBindStatus, g.shade_status)};
+      vk::Bind::buffer_at(gpu::kShadeBindStatus, g.shade_status),
+      vk::Bind::texels_at(gpu::kShadeBindPixelPosition, pixels ? *pixels->position_depth : g.shade_vis, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kShadeBindPixelNormal, pixels ? *pixels->normal_depth : g.shade_vis, VK_FORMAT_R32G32B32A32_SFLOAT)};
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
     rec.begin_timer("shade");
     dispatch_chunks<Push>(rec, p, binds, count, gpu::kShadeGroup, [&](std::uint32_t first, std::uint32_t end) {
@@ -194,9 +226,20 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
     rec.end_timer();
     rec.barrier();
   }, "shade");
-  std::vector<float> rgba(count * 4);
-  dev.download(g.shade_out, rgba.data(), rgba.size() * sizeof(float));
-  for (std::size_t i = 0; i < count; ++i) out[i] = glm::vec3(rgba[4 * i], rgba[4 * i + 1], rgba[4 * i + 2]);
+  // The shading read once, where it lies (through the mapping of the host buffer the shader wrote),
+  // on every core; a copy first would cost the frame a zero-filled vector and a second pass.
+  std::vector<float> rgba;
+  const float* shaded = static_cast<const float*>(g.shade_out.mapped());
+  if (shaded) {
+    dev.note_transfer(0, count * 4 * sizeof(float));
+  } else {
+    rgba.resize(count * 4);
+    dev.download(g.shade_out, rgba.data(), rgba.size() * sizeof(float));
+    shaded = rgba.data();
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1 << 14), [&](const tbb::blocked_range<std::size_t>& br) {
+    for (std::size_t i = br.begin(); i != br.end(); ++i) out[i] = glm::vec3(shaded[4 * i], shaded[4 * i + 1], shaded[4 * i + 2]);
+  });
   std::uint32_t clamped = 0;
   dev.download(g.shade_status, &clamped, sizeof clamped);
   // Summed over the pass's shading dispatches (image_splat shades surface pixels and misses apart).
@@ -204,6 +247,17 @@ long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const Rece
   double& total = ctx.record().counters["kernel_gpu_seconds"];
   total = secs < 0.0 ? secs : std::max(total, 0.0) + secs;
   return clamped;
+}
+
+}  // namespace
+
+long long vulkan_shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA& soa, glm::vec3* out) {
+  return shade(ctx, in, soa, nullptr, 0, out);
+}
+
+long long vulkan_shade_pixels(render::FrameContext& ctx, const GpuShade& in, const vk::DeviceGBuffer& pixels, std::size_t count,
+                              glm::vec3* out) {
+  return shade(ctx, in, ReceiverSoA{}, &pixels, count, out);
 }
 
 }  // namespace softgi::techniques::common

@@ -122,36 +122,46 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   check_fits(dev, nf * 16, "the eq. 11 weights of " + std::to_string(nf) + " display pixels", "upsample");
   check_fits(dev, nf * 16, "the normals and depths of " + std::to_string(nf) + " display pixels", "upsample");
   // Each sample's normal and depth as one RGBA32F texel (upsample_weights.comp reads a sample with
-  // one fetch). The same bytes cross to the device as the separate planes would (16 per sample).
+  // one fetch). The same bytes cross to the device as the separate planes would (16 per sample),
+  // except for display planes the Vulkan G-buffer pass left on the device in that layout
+  // (vulkan::DeviceGBuffer): those are bound where they are.
   // The packing loop also checks the samples, upsample.cpp's rule and messages (the coarse buffer
   // first); a second pass lists the display pixels that see a surface: the shader's invocations.
   std::vector<std::uint32_t> surface = ctx.pool().take_for_overwrite<std::uint32_t>(nf);
   std::size_t ns = 0;
-  // In blocks on every core; the error names the first bad sample in pixel order.
-  const auto up = [&](vk::Buffer& b, const PlaneView& v, std::size_t n, const char* name, const char* which, bool list) {
-    std::vector<glm::vec4> nz = ctx.pool().take_for_overwrite<glm::vec4>(n);
+  const vk::DeviceGBuffer* planes = resident_display_planes(ctx, fine.depth, fine.normal, fine.width, fine.height);
+  // In blocks on every core; the error names the first bad sample in pixel order. `resident`: the
+  // device holds v's texels already, so they are checked, not packed.
+  const auto up = [&](vk::Buffer& b, const PlaneView& v, std::size_t n, const char* name, const char* which, bool list, bool resident) {
+    std::vector<glm::vec4> nz;
+    if (!resident) nz = ctx.pool().take_for_overwrite<glm::vec4>(n);
     const std::size_t blocks = (n + kBlock - 1) / kBlock;
     std::vector<std::size_t> block_bad(blocks, n);
     tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
-      for (std::size_t i = k * kBlock, e = std::min(n, i + kBlock); i < e; ++i) {
-        nz[i] = glm::vec4(v.normal[i], v.depth[i]);
-        if (block_bad[k] == n && !upsample_sample_ok(v, i)) block_bad[k] = i;
-      }
+      const std::size_t i0 = k * kBlock, e = std::min(n, i0 + kBlock);
+      if (!resident)
+        for (std::size_t i = i0; i < e; ++i) nz[i] = glm::vec4(v.normal[i], v.depth[i]);
+      for (std::size_t i = i0; i < e; ++i)
+        if (!upsample_sample_ok(v, i)) {
+          block_bad[k] = i;
+          break;
+        }
     });
     const std::size_t bad = blocks ? *std::min_element(block_bad.begin(), block_bad.end()) : n;
     if (list && bad == n) ns = compact_in_blocks(n, [&](std::size_t i) { return !std::isinf(v.depth[i]); }, surface.data());
     if (bad < n) {
-      ctx.pool().give(std::move(nz));
+      if (!resident) ctx.pool().give(std::move(nz));
       ctx.pool().give(std::move(surface));
       upsample_fail(upsample_sample_error(v, which, static_cast<int>(bad % static_cast<std::size_t>(v.width)),
                                           static_cast<int>(bad / static_cast<std::size_t>(v.width))));
     }
+    if (resident) return;
     dev.ensure_buffer(b, n * sizeof(glm::vec4), kStorage, vk::MemoryKind::Device, name);
     dev.upload(b, nz.data(), n * sizeof(glm::vec4));
     ctx.pool().give(std::move(nz));
   };
-  up(g.coarse_nz, coarse, nc, "upsample receiver normals and depth", "coarse", false);
-  up(g.fine_nz, fine, nf, "upsample display normals and depth", "fine", true);
+  up(g.coarse_nz, coarse, nc, "upsample receiver normals and depth", "coarse", false, false);
+  up(g.fine_nz, fine, nf, "upsample display normals and depth", "fine", true, planes != nullptr);
   dev.ensure_buffer(g.surface, std::max<std::size_t>(ns, 1) * sizeof(std::uint32_t), kStorage, vk::MemoryKind::Device,
                     "upsample surface pixels");
   if (ns) dev.upload(g.surface, surface.data(), ns * sizeof(std::uint32_t));
@@ -183,7 +193,7 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
                   opt.normal_power,
                   static_cast<float>(opt.miss_threshold)};
   const std::vector<vk::Bind> binds = {
-      vk::Bind::texels_at(gpu::kUpBindFine, g.fine_nz, VK_FORMAT_R32G32B32A32_SFLOAT),
+      vk::Bind::texels_at(gpu::kUpBindFine, planes ? *planes->normal_depth : g.fine_nz, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kUpBindCoarse, g.coarse_nz, VK_FORMAT_R32G32B32A32_SFLOAT),
       vk::Bind::texels_at(gpu::kUpBindIndex, g.up_index, VK_FORMAT_R32G32B32A32_SINT),
       vk::Bind::texels_at(gpu::kUpBindWeight, g.up_weight, VK_FORMAT_R32G32B32A32_SFLOAT),
@@ -216,24 +226,35 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   w.miss = pool.take_for_overwrite<std::uint8_t>(nf);
   dev.download(g.up_index, w.index.data(), nf * 16);
   dev.download(g.up_weight, w.weight.data(), nf * 16);
-  std::vector<std::uint32_t> mm = pool.take_for_overwrite<std::uint32_t>(2 * nf);
-  dev.download(g.up_miss, mm.data(), nf * 8);
+  // The miss flags and measures are read once, where they lie: through the mapping of the host
+  // buffer the shader wrote (a copy first would cost the frame 8 bytes a pixel twice).
+  std::vector<std::uint32_t> mm;
+  const std::uint32_t* miss_words = static_cast<const std::uint32_t*>(g.up_miss.mapped());
+  if (miss_words) {
+    dev.note_transfer(0, nf * 8);
+  } else {
+    mm = pool.take_for_overwrite<std::uint32_t>(2 * nf);
+    dev.download(g.up_miss, mm.data(), nf * 8);
+    miss_words = mm.data();
+  }
   if (measure) measure->resize(nf);
   w.misses = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, nf, kBlock), std::size_t{0},
       [&](const tbb::blocked_range<std::size_t>& br, std::size_t misses) {
         for (std::size_t i = br.begin(); i != br.end(); ++i) {
-          w.miss[i] = mm[2 * i] ? 1 : 0;
+          w.miss[i] = miss_words[2 * i] ? 1 : 0;
           misses += w.miss[i];
-          if (measure) std::memcpy(&(*measure)[i], &mm[2 * i + 1], sizeof(float));
+          if (measure) std::memcpy(&(*measure)[i], &miss_words[2 * i + 1], sizeof(float));
         }
         return misses;
       },
       std::plus<std::size_t>());
-  pool.give(std::move(mm));
+  if (!mm.empty()) pool.give(std::move(mm));
   g.up_resident = w.index.data();
   g.up_pixels = nf;
   ctx.record().counters["weights_gpu_seconds"] = timer_seconds(res);
+  // 1: the display normals and depths were the G-buffer pass's on the device (not uploaded).
+  ctx.record().counters["fine_planes_resident"] = planes ? 1.0 : 0.0;
   return w;
 }
 

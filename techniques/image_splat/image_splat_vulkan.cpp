@@ -237,14 +237,6 @@ DirectKernels vulkan_direct_kernels(render::FrameContext& ctx) {
   k.surface = [c](const DirectShader& d, const render::GBuffer& fine, const Upsampled& up, glm::vec3* out) -> long long {
     const std::size_t ns = up.surface.size();
     if (ns == 0) return 0;
-    common::ReceiverSoA soa;
-    soa.resize(ns);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ns, 1 << 14), [&](const tbb::blocked_range<std::size_t>& br) {
-      for (std::size_t i = br.begin(); i != br.end(); ++i) {
-        const std::size_t p = static_cast<std::size_t>(up.surface[i]);
-        soa.set(i, fine.position[p], fine.normal[p]);
-      }
-    });
     const common::BatchShade bs = d.batch(nullptr);
     const std::size_t n2 = static_cast<std::size_t>(d.order) * d.order;
     common::GpuShade in{&bs, d.lights_table.get(), &d.lights, true, nullptr};
@@ -273,6 +265,21 @@ DirectKernels vulkan_direct_kernels(render::FrameContext& ctx) {
       ga.coarse_count = up.coarse_visibility.size() / n2;
       in.gather = &ga;
     }
+    // The surface pixels' positions and normals where the G-buffer pass left them on the device;
+    // packed from the host planes and uploaded otherwise.
+    const vk::DeviceGBuffer* planes =
+        in.gather ? resident_display_planes(*c, fine.depth.data(), fine.normal.data(), fine.width, fine.height) : nullptr;
+    if (planes && planes->host_position != fine.position.data()) planes = nullptr;
+    c->record().counters["receivers_resident"] = planes ? 1.0 : 0.0;
+    if (planes) return common::vulkan_shade_pixels(*c, in, *planes, ns, out);
+    common::ReceiverSoA soa;
+    soa.resize(ns);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ns, 1 << 14), [&](const tbb::blocked_range<std::size_t>& br) {
+      for (std::size_t i = br.begin(); i != br.end(); ++i) {
+        const std::size_t p = static_cast<std::size_t>(up.surface[i]);
+        soa.set(i, fine.position[p], fine.normal[p]);
+      }
+    });
     return common::vulkan_shade(*c, in, soa, out);
   };
   k.receivers = [c](const DirectShader& d, const common::ReceiverSoA& rec, const float* g, glm::vec3* out) -> long long {

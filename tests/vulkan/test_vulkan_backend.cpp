@@ -12,6 +12,7 @@
 #include <string>
 
 #include "../../techniques/common/accumulation_vulkan.hpp"
+#include "../../techniques/image_splat/image_splat_internal.hpp"
 #include "../../techniques/shexp/shexp_passes.hpp"
 #include "softgi/backends/cpu_backend.hpp"
 #include "softgi/backends/vulkan/backend.hpp"
@@ -26,6 +27,7 @@
 
 using namespace softgi;
 namespace sx = softgi::techniques::shexp;
+namespace is = softgi::techniques::image_splat;
 
 namespace {
 
@@ -217,6 +219,84 @@ TEST(VulkanBackend, ImageSplatOcclusionStaysOnTheDevice) {
     float peak = 0.0f;
     for (const auto& c : img.rgb) peak = std::max({peak, c.x, c.y, c.z});
     EXPECT_GT(peak, 0.0f);
+  }
+  ctx.reset();
+  EXPECT_EQ(log->problems(), 0u) << log->summary();
+}
+
+// The display G-buffer stays on the device after the Vulkan "gbuffer" pass (vulkan::DeviceGBuffer):
+// upsample reads the display normals and depths there, and shade_direct the surface pixels'
+// positions and normals. Given a copy of the G-buffer instead (other host planes: nothing resident),
+// the same passes pack and upload the planes; both ways give the same weights and image, bit for
+// bit, and the resident way uploads neither plane (16 bytes a display pixel for the weights, 24 a
+// surface pixel for the shading).
+TEST(VulkanBackend, ImageSplatReadsTheDisplayGBufferWhereItsPassLeftIt) {
+  auto ctx = softgi::testing::validated_context();
+  auto log = ctx->validation_log();
+  // character: skinned, shadows only; cornell: a spherical light, which reads the positions too.
+  for (const std::string name : {"character", "cornell"}) {
+    SCOPED_TRACE(name);
+    const scene::Scene sc = scene::make_builtin(name);
+    auto tech = render::create_technique("image_splat");
+    const render::ParamSet params = render::default_params(*tech);
+    render::RenderRequest req;
+    req.width = 64;
+    req.height = 48;
+    render::SteppedFrame frame(*tech, sc, params, req, ctx.get());
+    render::FrameContext& fc = frame.context();
+    const render::PassDesc *upsample = nullptr, *shade = nullptr;
+    // Bytes uploaded by a pass (the context's count: SteppedFrame records no transfers).
+    const auto run_counting = [&](const render::PassDesc& p) {
+      const std::size_t before = ctx->transfer_bytes().upload;
+      frame.run(p, backends::vulkan::kBackendName);
+      return ctx->transfer_bytes().upload - before;
+    };
+    for (const render::PassDesc* p : frame.passes()) {
+      frame.run(*p, backends::vulkan::kBackendName);
+      if (p->name == "upsample") upsample = p;
+      if (p->name == "shade_direct") {
+        shade = p;
+        break;
+      }
+    }
+    ASSERT_TRUE(upsample && shade);
+    // Again, so that neither count holds the tables uploaded once (upload_if_changed).
+    const std::size_t up_a_bytes = run_counting(*upsample), shade_a_bytes = run_counting(*shade);
+    const auto counters_of = [&](const std::string& pass) {
+      for (auto it = frame.result().passes.rbegin(); it != frame.result().passes.rend(); ++it)
+        if (it->name == pass) return *it;
+      ADD_FAILURE() << "no record of " << pass;
+      return render::PassRecord{};
+    };
+    const std::string up_res = upsample->writes.at(0), direct = shade->writes.at(0);
+    const auto resident_up = fc.get<std::shared_ptr<const is::Upsampled>>(up_res);
+    const Image resident_img = fc.get<Image>(direct);
+    const render::PassRecord up_a = counters_of("upsample"), shade_a = counters_of("shade_direct");
+    EXPECT_EQ(up_a.counters.at("fine_planes_resident"), 1.0);
+    EXPECT_EQ(shade_a.counters.at("receivers_resident"), 1.0);
+    const double pixels = req.width * req.height, surface = shade_a.counters.at("surface_pixels");
+    ASSERT_GT(surface, 0.0);
+    // The same passes from a copy of the G-buffer: put() drops the device copy.
+    render::GBuffer copy = fc.get<render::GBuffer>(render::kGBuffer);
+    fc.put<render::GBuffer>(render::kGBuffer, std::move(copy));
+    const std::size_t up_b_bytes = run_counting(*upsample), shade_b_bytes = run_counting(*shade);
+    const auto uploaded_up = fc.get<std::shared_ptr<const is::Upsampled>>(up_res);
+    const render::PassRecord up_b = counters_of("upsample"), shade_b = counters_of("shade_direct");
+    EXPECT_EQ(up_b.counters.at("fine_planes_resident"), 0.0);
+    EXPECT_EQ(shade_b.counters.at("receivers_resident"), 0.0);
+    ASSERT_NE(resident_up, uploaded_up);
+    EXPECT_TRUE(resident_up->w.index == uploaded_up->w.index) << "eq. 11 taps";
+    EXPECT_TRUE(resident_up->w.weight == uploaded_up->w.weight) << "eq. 11 weights";
+    EXPECT_TRUE(resident_up->w.miss == uploaded_up->w.miss) << "misses";
+    const Image& uploaded_img = fc.get<Image>(direct);
+    ASSERT_EQ(resident_img.rgb.size(), uploaded_img.rgb.size());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < resident_img.rgb.size(); ++i) differ += resident_img.rgb[i] != uploaded_img.rgb[i];
+    EXPECT_EQ(differ, 0u) << "direct image pixels";
+    EXPECT_GE(up_b_bytes, up_a_bytes + static_cast<std::size_t>(16 * pixels));
+    EXPECT_GE(shade_b_bytes, shade_a_bytes + static_cast<std::size_t>(24 * surface));
+    std::printf("[resident] %-9s upsample uploads %zu bytes resident, %zu from the host planes; shade_direct %zu and %zu\n",
+                name.c_str(), up_a_bytes, up_b_bytes, shade_a_bytes, shade_b_bytes);
   }
   ctx.reset();
   EXPECT_EQ(log->problems(), 0u) << log->summary();

@@ -116,12 +116,13 @@ void run_receiver_gbuffer_pass(FrameContext& ctx, const std::function<GBuffer(in
   ctx.put<GBuffer>(kReceiverGBuffer, std::move(gb));
 }
 
-void register_gbuffer_pass_impls(const std::string& backend, const GBufferProducer& produce) {
-  register_shared_pass_impl("gbuffer", backend, [produce](FrameContext& ctx) {
+void register_gbuffer_pass_impls(const std::string& backend, const GBufferProducer& produce, const GBufferPublisher& publish) {
+  register_shared_pass_impl("gbuffer", backend, [produce, publish](FrameContext& ctx) {
     std::size_t held = 0;
     GBuffer gb = produce(ctx, 1, "gbuffer", held);
     ctx.record().bytes = gb.bytes() + held;
     ctx.put<GBuffer>(kGBuffer, std::move(gb));
+    if (publish) publish(ctx);
   });
   register_shared_pass_impl("receiver_gbuffer", backend, [produce](FrameContext& ctx) {
     run_receiver_gbuffer_pass(ctx, [&](int s) {

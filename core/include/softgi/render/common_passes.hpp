@@ -42,9 +42,13 @@ void run_receiver_gbuffer_pass(FrameContext& ctx, const std::function<GBuffer(in
 // named `pass`, the backend's counters recorded; held_bytes: what the backend keeps for the next
 // frame (device buffers, BVHs), counted in the "gbuffer" pass's bytes.
 using GBufferProducer = std::function<GBuffer(FrameContext& ctx, int scale, const char* pass, std::size_t& held_bytes)>;
+// Called after the "gbuffer" pass has put the display G-buffer (kGBuffer): a device backend stores
+// its device copy there (FrameContext::put_device), which the host put() would have dropped.
+using GBufferPublisher = std::function<void(FrameContext& ctx)>;
 // Registers `backend`'s "gbuffer" (scale 1; bytes: the G-buffer plus held_bytes) and
 // "receiver_gbuffer" (run_receiver_gbuffer_pass) implementations around one renderer.
-void register_gbuffer_pass_impls(const std::string& backend, const GBufferProducer& produce);
+void register_gbuffer_pass_impls(const std::string& backend, const GBufferProducer& produce,
+                                 const GBufferPublisher& publish = {});
 // "compose": reads direct (required) and indirect (optional), writes final.
 void add_compose_pass(PassGraph& g);
 
