@@ -13,12 +13,17 @@
 // Also BM_Upsample/<scene>/<weights|apply>: image_splat's bilateral upsampling from a 256x256
 // receiver buffer to 1024x1024 on its own (BM_Upsample below), with its bytes moved and its share of
 // the memory bandwidth (BM_StreamTriad, run first).
+//
+// And BM_HostCopy/<memcpy|context>: the host copy a Vulkan upload or download of a display plane
+// makes into or out of mapped memory (32 MiB, about a 1024x1024 frame's eq. 11 taps and weights),
+// one std::memcpy against vulkan::copy_bytes (blocks on every core), with their share of the triad.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -26,6 +31,7 @@
 #include "../techniques/common/upsample.hpp"
 #include "bandwidth.hpp"
 #include "softgi/backends/cpu_backend.hpp"
+#include "softgi/backends/vulkan/context.hpp"
 #include "softgi/render/common_passes.hpp"
 #include "softgi/render/frame.hpp"
 #include "softgi/render/frame_pool.hpp"
@@ -152,10 +158,33 @@ void BM_Upsample(benchmark::State& state, const std::string& scene_name, bool ap
   state.counters["share_of_triad"] = benchmark::Counter(bytes * 1e-9 / bw, benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// Copies 32 MiB between two host arrays (first touched outside the timing); bytes moved: read once,
+// written once (64 MiB), against the 2-thread triad.
+void BM_HostCopy(benchmark::State& state, bool blocks) {
+  constexpr std::size_t kBytes = std::size_t{32} << 20;
+  std::vector<char> src(kBytes, 1), dst(kBytes, 0);
+  for (auto _ : state) {
+    if (blocks)
+      backends::vulkan::copy_bytes(dst.data(), src.data(), kBytes);
+    else
+      std::memcpy(dst.data(), src.data(), kBytes);
+    benchmark::DoNotOptimize(dst.data());
+    benchmark::ClobberMemory();
+  }
+  const double bytes = 2.0 * static_cast<double>(kBytes), bw = bench::bandwidth_gbps();
+  state.counters["GB/s"] = benchmark::Counter(bytes * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["triad_GB/s"] = bw;
+  state.counters["share_of_triad"] = benchmark::Counter(bytes * 1e-9 / bw, benchmark::Counter::kIsIterationInvariantRate);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   benchmark::RegisterBenchmark("BM_StreamTriad", softgi::bench::BM_StreamTriad)->Arg(2)->Iterations(5)->Unit(benchmark::kMillisecond)->UseRealTime();
+  for (const bool blocks : {false, true})
+    benchmark::RegisterBenchmark(blocks ? "BM_HostCopy/context" : "BM_HostCopy/memcpy", [blocks](benchmark::State& st) { BM_HostCopy(st, blocks); })
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
   for (const char* scene_name : {"spheres", "character", "crowd"})
     for (const bool apply : {false, true})
       benchmark::RegisterBenchmark((std::string("BM_Upsample/") + scene_name + (apply ? "/apply" : "/weights")).c_str(),

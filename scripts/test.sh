@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds and runs every test: the Release build through ctest, then the same suite built with
+# Builds and runs every test: the Release build through ctest (and its Vulkan suite once more with
+# the device's buffers unmapped, as a discrete GPU's are), then the same suite built with
 # AddressSanitizer and UndefinedBehaviorSanitizer (Debug), then each fuzz target (scripts/fuzz.sh)
 # for a short time. Fetches the CC0 asset set first so the tests that need it (bunny, HDR maps) run.
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -13,6 +14,13 @@ export SOFTGI_CACHE_DIR="${SOFTGI_CACHE_DIR:-$SOFTGI_ROOT/build/cache}"
 mkdir -p "$SOFTGI_CACHE_DIR"
 echo "== ctest (Release) =="
 ctest --test-dir "$SOFTGI_ROOT/build" --output-on-failure -j "$JOBS"
+# The Vulkan suite again with the device's buffers left unmapped, as a discrete GPU's are: uploads
+# and downloads through staging buffers and readbacks through host copies, the paths a CPU device
+# (lavapipe) never takes otherwise.
+if [ -x "$SOFTGI_ROOT/build/tests/softgi_tests_vulkan" ]; then
+  echo "== Vulkan tests, device memory unmapped (Release) =="
+  SOFTGI_VULKAN_VALIDATION=1 SOFTGI_VULKAN_UNMAPPED_DEVICE_MEMORY=1 "$SOFTGI_ROOT/build/tests/softgi_tests_vulkan" --gtest_brief=1
+fi
 softgi_build build-asan Debug -DSOFTGI_SANITIZE=ON -DSOFTGI_BUILD_BENCH=OFF -DSOFTGI_WERROR=ON
 echo "== ctest (Debug, ASan + UBSan) =="
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \

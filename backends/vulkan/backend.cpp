@@ -75,7 +75,7 @@ render::MemoryLimits VulkanBackend::memory_limits() const {
 void VulkanBackend::add_backend_memory(const std::vector<const render::PassDesc*>& passes, const scene::Scene& scene,
                                        const render::ParamSet& params, int width, int height,
                                        std::vector<render::MemoryItem>& items) const {
-  gbuffer_raster_memory(passes, scene, params, width, height, items);
+  gbuffer_raster_memory(passes, scene, params, width, height, !ctx_->device_buffers_mapped(), items);
 }
 
 void VulkanBackend::execute_pass(const render::PassDesc& pass, render::FrameContext& ctx) {

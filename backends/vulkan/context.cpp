@@ -350,6 +350,15 @@ Context::Context(const ContextOptions& options) : options_(options), fence_timeo
     }
   }
   validation_ = v == 1;
+  int unmapped = options.unmapped_device_memory;
+  if (unmapped < 0) {
+    const char* env = std::getenv("SOFTGI_VULKAN_UNMAPPED_DEVICE_MEMORY");
+    const std::string e = env ? env : "";
+    if (!e.empty() && e != "0" && e != "1")
+      throw std::invalid_argument("SOFTGI_VULKAN_UNMAPPED_DEVICE_MEMORY='" + e + "' (expected 0 or 1)");
+    unmapped = e == "1";
+  }
+  unmapped_device_ = unmapped == 1;
   if (validation_ && !layer_available(kValidationLayer))
     throw std::runtime_error(std::string("vulkan: validation requested but ") + kValidationLayer +
                              " is not installed (Debian: vulkan-validationlayers), or set SOFTGI_VULKAN_VALIDATION=0");
@@ -503,6 +512,13 @@ std::uint32_t Context::memory_type(std::uint32_t bits, VkMemoryPropertyFlags wan
   return static_cast<std::uint32_t>(best);
 }
 
+bool Context::device_buffers_mapped() const {
+  if (unmapped_device_) return false;
+  const VkMemoryPropertyFlags hv = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+  const std::uint32_t type = memory_type(~0u, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT | hv);
+  return (memory_.memoryTypes[type].propertyFlags & hv) == hv;
+}
+
 namespace {
 std::string size_text(VkDeviceSize b) {
   std::ostringstream os;
@@ -564,9 +580,10 @@ Buffer Context::create_buffer(VkDeviceSize bytes, VkBufferUsageFlags usage, Memo
   vkGetBufferMemoryRequirements(device_, b.buffer_, &req);
   bool host = false;
   const VkMemoryPropertyFlags hv = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
-  if (kind == MemoryKind::Device)
+  if (kind == MemoryKind::Device) {
     b.memory_ = allocate(req, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT | hv, host, what);
-  else
+    if (unmapped_device_) host = false;  // as a discrete GPU's (ContextOptions::unmapped_device_memory)
+  } else
     b.memory_ = allocate(req, hv, hv | VK_MEMORY_PROPERTY_HOST_CACHED_BIT, host, what);
   allocated_ += static_cast<std::size_t>(bytes);
   check(vkBindBufferMemory(device_, b.buffer_, b.memory_, 0), ("vkBindBufferMemory for " + what + " of " + mib(bytes)).c_str());
@@ -580,11 +597,6 @@ void Context::ensure_buffer(Buffer& b, VkDeviceSize bytes, VkBufferUsageFlags us
   b = create_buffer(bytes, usage, kind, name);
 }
 
-namespace {
-
-// Uploads and downloads of display-sized planes (tens of MB a frame) copy between host memory and a
-// mapping: in blocks on every core above a few MB, since one core's copy reaches about half of what
-// the memory moves with two (bench/README.md, "lavapipe: the G-buffer's planes stay on the device").
 void copy_bytes(void* dst, const void* src, std::size_t bytes) {
   constexpr std::size_t kBlock = std::size_t{1} << 20, kParallelFrom = 4 * kBlock;
   if (bytes < kParallelFrom) {
@@ -596,8 +608,6 @@ void copy_bytes(void* dst, const void* src, std::size_t bytes) {
     std::memcpy(static_cast<char*>(dst) + at, static_cast<const char*>(src) + at, std::min(kBlock, bytes - at));
   });
 }
-
-}  // namespace
 
 void Context::upload(const Buffer& dst, const void* src, std::size_t bytes, std::size_t dst_offset) {
   if (bytes == 0) return;

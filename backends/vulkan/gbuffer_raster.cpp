@@ -112,7 +112,9 @@ struct RasterPipeline {
 };
 
 // Per buffer size: attachments, framebuffer, host-visible readback buffers (the attachments'
-// copies, which the resolve pass reads) and the resolve pass's outputs.
+// copies, which the resolve pass reads) and the resolve pass's outputs, in device memory (later
+// passes of the frame read the display's there: vulkan::DeviceGBuffer) with host copies to read
+// them back through where that memory is not mapped (a discrete GPU).
 struct Targets {
   std::uint32_t width = 0, height = 0;
   bool display = false;
@@ -121,9 +123,11 @@ struct Targets {
   vk::Owned<VkFramebuffer> framebuffer;
   std::array<vk::Buffer, gpu::kGbColorAttachments> readback;
   vk::Buffer position_depth, normal;
+  vk::Buffer position_depth_host, normal_host;  // empty where position_depth and normal are mapped
   std::size_t bytes() const {
     const std::size_t n = static_cast<std::size_t>(width) * height;
     std::size_t b = n * (4 + kResolvedTexelBytes);  // depth, resolved planes
+    if (position_depth_host) b += n * kResolvedTexelBytes;
     for (std::size_t a = 0; a < kTexelBytes.size(); ++a) b += 2 * n * kTexelBytes[a];
     return b;
   }
@@ -192,9 +196,15 @@ std::unique_ptr<Targets> make_targets(vk::Context& ctx, const RasterPipeline& pi
     views[a] = t->color[a].view();
   }
   const VkDeviceSize plane = static_cast<VkDeviceSize>(w) * h * sizeof(glm::vec4);
-  t->position_depth = ctx.create_buffer(plane, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryKind::Host,
-                                        "gbuffer_raster resolved position " + size);
-  t->normal = ctx.create_buffer(plane, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryKind::Host, "gbuffer_raster resolved normal " + size);
+  const VkBufferUsageFlags resolved = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+  t->position_depth = ctx.create_buffer(plane, resolved, vk::MemoryKind::Device, "gbuffer_raster resolved position " + size);
+  t->normal = ctx.create_buffer(plane, resolved, vk::MemoryKind::Device, "gbuffer_raster resolved normal " + size);
+  if (!t->position_depth.mapped() || !t->normal.mapped()) {
+    t->position_depth_host = ctx.create_buffer(plane, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryKind::Host,
+                                               "gbuffer_raster resolved position readback " + size);
+    t->normal_host = ctx.create_buffer(plane, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryKind::Host,
+                                       "gbuffer_raster resolved normal readback " + size);
+  }
   t->depth = ctx.create_image(w, h, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, VK_IMAGE_ASPECT_DEPTH_BIT,
                               "gbuffer_raster depth " + size);
   views[gpu::kGbColorAttachments] = t->depth.view();
@@ -408,6 +418,11 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
                       vk::Bind::buffer_at(gpu::kGbBindBarycentric, tg.readback[gpu::kGbOutBarycentric]),
                       vk::Bind::buffer_at(gpu::kGbBindPositionDepth, tg.position_depth), vk::Bind::buffer_at(gpu::kGbBindNormal, tg.normal)},
                      push, state->resolve->groups_x(n));
+        if ((planes & render::kGBufferSurface) && tg.position_depth_host) {
+          r.barrier();  // resolve -> the copies the host reads
+          r.copy(tg.position_depth, tg.position_depth_host, n * sizeof(glm::vec4));
+          r.copy(tg.normal, tg.normal_host, n * sizeof(glm::vec4));
+        }
         r.end_timer();
         r.barrier();  // resolve -> host reads
       },
@@ -416,8 +431,8 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
     if (label == "rasterise") stats.raster_gpu_seconds = seconds;
 
   const auto t1 = clock::now();
-  const auto* pd = static_cast<const glm::vec4*>(tg.position_depth.mapped());
-  const auto* nm = static_cast<const glm::vec4*>(tg.normal.mapped());
+  const auto* pd = static_cast<const glm::vec4*>((tg.position_depth_host ? tg.position_depth_host : tg.position_depth).mapped());
+  const auto* nm = static_cast<const glm::vec4*>((tg.normal_host ? tg.normal_host : tg.normal).mapped());
   const auto* ids = static_cast<const glm::ivec2*>(tg.readback[gpu::kGbOutIds].mapped());
   const auto* bc = static_cast<const glm::vec2*>(tg.readback[gpu::kGbOutBarycentric].mapped());
   // Every pixel written once, background or hit, rows on every core. A pixel naming what the frame
@@ -511,7 +526,8 @@ render::GBuffer produce_gbuffer(render::FrameContext& fc, int s, const char* pas
 }  // namespace
 
 void gbuffer_raster_memory(const std::vector<const render::PassDesc*>& passes, const scene::Scene& scene,
-                           const render::ParamSet& params, int width, int height, std::vector<render::MemoryItem>& items) {
+                           const render::ParamSet& params, int width, int height, bool resolved_readback,
+                           std::vector<render::MemoryItem>& items) {
   bool display = false;
   int receiver_scale = 0;
   for (const render::PassDesc* p : passes) {
@@ -534,6 +550,12 @@ void gbuffer_raster_memory(const std::vector<const render::PassDesc*>& passes, c
     items.push_back({"gbuffer_raster depth " + size, n * sizeof(float), render::MemoryPlace::Device, pass, false, false});
     items.push_back({"gbuffer_raster resolved position " + size, n * sizeof(glm::vec4), render::MemoryPlace::Device, pass, false, false});
     items.push_back({"gbuffer_raster resolved normal " + size, n * sizeof(glm::vec4), render::MemoryPlace::Device, pass, false, false});
+    if (resolved_readback) {
+      items.push_back({"gbuffer_raster resolved position readback " + size, n * sizeof(glm::vec4), render::MemoryPlace::Device, pass, false,
+                       false});
+      items.push_back({"gbuffer_raster resolved normal readback " + size, n * sizeof(glm::vec4), render::MemoryPlace::Device, pass, false,
+                       false});
+    }
   };
   if (display) targets("gbuffer", 1);
   if (receiver_scale > 0) targets("receiver_gbuffer", receiver_scale);

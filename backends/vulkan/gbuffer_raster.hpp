@@ -11,8 +11,11 @@ namespace softgi::backends {
 
 // The device memory the rasteriser allocates for the frame's "gbuffer" and "receiver_gbuffer"
 // passes (attachments, readback buffers, geometry), for render::Backend::estimate_memory.
+// `resolved_readback`: the device's buffers are not mapped (Context::device_buffers_mapped), so the
+// resolved planes have host copies to read back through.
 void gbuffer_raster_memory(const std::vector<const render::PassDesc*>& passes, const scene::Scene& scene,
-                           const render::ParamSet& params, int width, int height, std::vector<render::MemoryItem>& items);
+                           const render::ParamSet& params, int width, int height, bool resolved_readback,
+                           std::vector<render::MemoryItem>& items);
 
 // Registers "gbuffer" and "receiver_gbuffer" for the Vulkan backend (render::register_shared_pass_impl).
 void register_gbuffer_raster_passes();

@@ -111,6 +111,11 @@ struct ContextOptions {
   // > 0: the per-invocation loop-iteration limit the shaders are written against, instead of the
   // driver's (DeviceInfo::loop_iteration_limit); a tighter one exercises the passes that respect it.
   std::uint32_t loop_iteration_limit = 0;
+  // MemoryKind::Device buffers left unmapped even where the device's memory is the host's
+  // (lavapipe), so that uploads and downloads go through staging copies and readbacks through
+  // host copies, as on a discrete GPU: a CPU device then runs the code paths of one. -1:
+  // $SOFTGI_VULKAN_UNMAPPED_DEVICE_MEMORY (0/1) when set, else off.
+  int unmapped_device_memory = -1;
 };
 
 // Every device the loader sees (through a temporary instance without layers).
@@ -396,6 +401,11 @@ struct SubmitResult {
   std::vector<std::pair<std::string, double>> timers;
 };
 
+// The host copy of Context::upload and download into and out of mapped memory: std::memcpy below
+// a few MB, above in 1 MB blocks on every core (a frame's display planes are tens of MB, and one
+// core's copy moves less than half of what two do: bench_gbuffer's BM_HostCopy).
+void copy_bytes(void* dst, const void* src, std::size_t bytes);
+
 // ---------------------------------------------------------------------------------------------
 class Context : public render::Device {
  public:
@@ -449,6 +459,9 @@ class Context : public render::Device {
   double wait_seconds_total() const { return wait_total_; }  // sum of SubmitResult::wait_seconds
   std::uint64_t submissions() const { return submissions_; }
   std::size_t allocated_bytes() const { return allocated_; }  // buffers alive
+  // Whether MemoryKind::Device buffers are host-visible (mapped) on this device: lavapipe and most
+  // integrated GPUs, whose device memory is the host's; a discrete GPU's is not.
+  bool device_buffers_mapped() const;
   // Bytes moved between host and device memory: every upload() and download(), and what callers
   // that write or read mapped memory themselves report through note_transfer().
   render::TransferBytes transfer_bytes() const { return transfer_; }
@@ -492,6 +505,7 @@ class Context : public render::Device {
   void destroy();
 
   ContextOptions options_;
+  bool unmapped_device_ = false;  // ContextOptions::unmapped_device_memory, resolved
   DeviceInfo info_;
   bool validation_ = false;
   std::shared_ptr<ValidationLog> log_ = std::make_shared<ValidationLog>();
