@@ -226,17 +226,11 @@ long long shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA
     rec.end_timer();
     rec.barrier();
   }, "shade");
-  // The shading read once, where it lies (through the mapping of the host buffer the shader wrote),
-  // on every core; a copy first would cost the frame a zero-filled vector and a second pass.
-  std::vector<float> rgba;
+  // The shading read once, where it lies (through the mapping of the host buffer the shader wrote,
+  // MemoryKind::Host), on every core; a copy first would cost the frame a zero-filled vector and a
+  // second pass.
   const float* shaded = static_cast<const float*>(g.shade_out.mapped());
-  if (shaded) {
-    dev.note_transfer(0, count * 4 * sizeof(float));
-  } else {
-    rgba.resize(count * 4);
-    dev.download(g.shade_out, rgba.data(), rgba.size() * sizeof(float));
-    shaded = rgba.data();
-  }
+  dev.note_transfer(0, count * 4 * sizeof(float));
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1 << 14), [&](const tbb::blocked_range<std::size_t>& br) {
     for (std::size_t i = br.begin(); i != br.end(); ++i) out[i] = glm::vec3(shaded[4 * i], shaded[4 * i + 1], shaded[4 * i + 2]);
   });

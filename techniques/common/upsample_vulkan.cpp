@@ -227,16 +227,9 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   dev.download(g.up_index, w.index.data(), nf * 16);
   dev.download(g.up_weight, w.weight.data(), nf * 16);
   // The miss flags and measures are read once, where they lie: through the mapping of the host
-  // buffer the shader wrote (a copy first would cost the frame 8 bytes a pixel twice).
-  std::vector<std::uint32_t> mm;
+  // buffer the shader wrote (MemoryKind::Host; a copy first would cost the frame 8 bytes a pixel twice).
   const std::uint32_t* miss_words = static_cast<const std::uint32_t*>(g.up_miss.mapped());
-  if (miss_words) {
-    dev.note_transfer(0, nf * 8);
-  } else {
-    mm = pool.take_for_overwrite<std::uint32_t>(2 * nf);
-    dev.download(g.up_miss, mm.data(), nf * 8);
-    miss_words = mm.data();
-  }
+  dev.note_transfer(0, nf * 8);
   if (measure) measure->resize(nf);
   w.misses = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, nf, kBlock), std::size_t{0},
@@ -249,7 +242,6 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
         return misses;
       },
       std::plus<std::size_t>());
-  if (!mm.empty()) pool.give(std::move(mm));
   g.up_resident = w.index.data();
   g.up_pixels = nf;
   ctx.record().counters["weights_gpu_seconds"] = timer_seconds(res);

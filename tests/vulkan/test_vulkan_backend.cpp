@@ -312,7 +312,7 @@ constexpr double kAtomicOrderTol = 1e-5;
 TEST(VulkanBackend, UnmappedDeviceMemoryGivesTheSameFrames) {
   backends::vulkan::ContextOptions o;
   o.validation = 1;
-  o.unmapped_device_memory = 0;  // whatever SOFTGI_VULKAN_UNMAPPED_DEVICE_MEMORY says
+  o.unmapped_device_memory = 0;  // mapped where the device allows, whatever SOFTGI_VULKAN_UNMAPPED_DEVICE_MEMORY says
   auto mapped = std::make_shared<backends::vulkan::Context>(o);
   o.unmapped_device_memory = 1;
   auto unmapped = std::make_shared<backends::vulkan::Context>(o);
