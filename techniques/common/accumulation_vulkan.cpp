@@ -11,6 +11,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 namespace spv {
 #include "softgi/shaders/common/field_column_comp.h"
 }  // namespace spv
@@ -359,6 +362,18 @@ void throw_exp_errors(const std::uint32_t (&status)[gpu::kExpStatusWords], const
     throw std::invalid_argument(pass + ": receiver " + std::to_string(status[gpu::kExpStatusLoopBudget] - 1) +
                                 ": its exponential needs more loop iterations than this Vulkan driver runs per invocation "
                                 "(llvmpipe's limit); lower 'order' or 'ps_degree', or use the cpu backend");
+}
+
+std::size_t first_bad_in_blocks(std::size_t n, std::size_t block, const std::function<std::size_t(std::size_t, std::size_t)>& first_in) {
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, n, std::max<std::size_t>(block, 1)), n,
+      [&](const tbb::blocked_range<std::size_t>& r, std::size_t first) {
+        // A later block cannot hold a smaller index than one already found.
+        if (r.begin() >= first) return first;
+        const std::size_t bad = first_in(r.begin(), r.end());
+        return bad < r.end() ? std::min(first, bad) : first;
+      },
+      [](std::size_t x, std::size_t y) { return std::min(x, y); });
 }
 
 const vk::DeviceGBuffer* resident_display_planes(render::FrameContext& ctx, const float* depth, const glm::vec3* normal, int width,

@@ -3,7 +3,6 @@
 // product plan, basis constants and light-lobe table are the CPU's own floats, uploaded once per
 // device (the table again when it changes) and kept in the context's cache.
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <limits>
 #include <map>
@@ -12,7 +11,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_reduce.h>
 
 #include "accumulation_vulkan.hpp"
 #include "softgi/backends/vulkan/context.hpp"
@@ -88,14 +86,11 @@ long long shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA
     // Every receiver's pixel, checked here: the shader reads the planes unchecked.
     const std::size_t np = static_cast<std::size_t>(pixels->width) * static_cast<std::size_t>(pixels->height);
     const std::int32_t* px = in.gather->pixel;
-    const std::size_t bad = tbb::parallel_reduce(
-        tbb::blocked_range<std::size_t>(0, count, 1 << 14), count,
-        [&](const tbb::blocked_range<std::size_t>& br, std::size_t first) {
-          for (std::size_t i = br.begin(); i != br.end() && i < first; ++i)
-            if (px[i] < 0 || static_cast<std::size_t>(px[i]) >= np) return i;
-          return first;
-        },
-        [](std::size_t x, std::size_t y) { return std::min(x, y); });
+    const std::size_t bad = first_bad_in_blocks(count, std::size_t{1} << 14, [&](std::size_t begin, std::size_t e) {
+      for (std::size_t i = begin; i < e; ++i)
+        if (px[i] < 0 || static_cast<std::size_t>(px[i]) >= np) return i;
+      return e;
+    });
     if (bad < count)
       throw std::logic_error("shade on vulkan: receiver " + std::to_string(bad) + " is display pixel " + std::to_string(px[bad]) + " of " +
                              std::to_string(np));
@@ -126,17 +121,12 @@ long long shade(render::FrameContext& ctx, const GpuShade& in, const ReceiverSoA
       return t >= 0 && (static_cast<std::size_t>(t) >= samples || (ga->coarse_row && ga->coarse_row[t] < 0));
     };
     // Over the display's pixels on every core; the error names the first pixel with a bad tap.
-    std::atomic<std::size_t> first_bad{ga->pixels};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ga->pixels, 1 << 14), [&](const tbb::blocked_range<std::size_t>& br) {
-      for (std::size_t p = br.begin(); p != br.end(); ++p)
-        if (bad_tap(ga->index[p][0]) || bad_tap(ga->index[p][1]) || bad_tap(ga->index[p][2]) || bad_tap(ga->index[p][3])) {
-          std::size_t seen = first_bad.load();
-          while (p < seen && !first_bad.compare_exchange_weak(seen, p)) {
-          }
-          return;
-        }
+    const std::size_t first_bad = first_bad_in_blocks(ga->pixels, std::size_t{1} << 14, [&](std::size_t begin, std::size_t e) {
+      for (std::size_t p = begin; p < e; ++p)
+        if (bad_tap(ga->index[p][0]) || bad_tap(ga->index[p][1]) || bad_tap(ga->index[p][2]) || bad_tap(ga->index[p][3])) return p;
+      return e;
     });
-    if (const std::size_t p = first_bad.load(); p < ga->pixels)
+    if (const std::size_t p = first_bad; p < ga->pixels)
       for (std::int32_t t : ga->index[p])
         if (bad_tap(t))
           throw std::logic_error("shade on vulkan: display pixel " + std::to_string(p) + " gathers coarse sample " + std::to_string(t) +

@@ -135,19 +135,13 @@ UpsampleWeights vulkan_upsample_weights(render::FrameContext& ctx, const PlaneVi
   const auto up = [&](vk::Buffer& b, const PlaneView& v, std::size_t n, const char* name, const char* which, bool list, bool resident) {
     std::vector<glm::vec4> nz;
     if (!resident) nz = ctx.pool().take_for_overwrite<glm::vec4>(n);
-    const std::size_t blocks = (n + kBlock - 1) / kBlock;
-    std::vector<std::size_t> block_bad(blocks, n);
-    tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t k) {
-      const std::size_t i0 = k * kBlock, e = std::min(n, i0 + kBlock);
+    const std::size_t bad = first_bad_in_blocks(n, kBlock, [&](std::size_t i0, std::size_t e) {
       if (!resident)
         for (std::size_t i = i0; i < e; ++i) nz[i] = glm::vec4(v.normal[i], v.depth[i]);
       for (std::size_t i = i0; i < e; ++i)
-        if (!upsample_sample_ok(v, i)) {
-          block_bad[k] = i;
-          break;
-        }
+        if (!upsample_sample_ok(v, i)) return i;
+      return e;
     });
-    const std::size_t bad = blocks ? *std::min_element(block_bad.begin(), block_bad.end()) : n;
     if (list && bad == n) ns = compact_in_blocks(n, [&](std::size_t i) { return !std::isinf(v.depth[i]); }, surface.data());
     if (bad < n) {
       if (!resident) ctx.pool().give(std::move(nz));
