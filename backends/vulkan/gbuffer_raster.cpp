@@ -140,9 +140,8 @@ struct RasterState {
   std::unique_ptr<vk::ComputePipeline> resolve;
   std::vector<std::unique_ptr<Targets>> targets;  // most recently used last
   vk::Buffer positions, normals, indices, frame, objects;
-  // The frame (FrameContext::id) whose display G-buffer display_targets resolved last, 0: none.
+  // The frame (FrameContext::id) whose display G-buffer the display targets resolved last, 0: none.
   std::uint64_t display_frame = 0;
-  const Targets* display_targets = nullptr;
 };
 
 std::span<const std::uint32_t> words(const std::uint32_t* w, std::size_t bytes) { return {w, bytes / sizeof(std::uint32_t)}; }
@@ -219,10 +218,7 @@ Targets& targets_for(vk::Context& ctx, RasterState& st, std::uint32_t w, std::ui
     std::rotate(it, it + 1, st.targets.end());  // most recently used last
     return *st.targets.back();
   }
-  if (st.targets.size() >= kMaxTargetSizes) {  // the submissions using it completed
-    if (st.display_targets == st.targets.front().get()) st.display_targets = nullptr;
-    st.targets.erase(st.targets.begin());
-  }
+  if (st.targets.size() >= kMaxTargetSizes) st.targets.erase(st.targets.begin());  // the submissions using it completed
   st.targets.push_back(make_targets(ctx, *st.pipe, w, h, display));
   return *st.targets.back();
 }
@@ -482,10 +478,7 @@ render::GBuffer rasterise(render::FrameContext& fc, int scale, unsigned planes, 
                            std::to_string(ids[i].x) + " primitive " + std::to_string(ids[i].y) + ", which the frame did not draw");
   }
   stats.readback_seconds = std::chrono::duration<double>(clock::now() - t1).count();
-  if (display && (gb.planes & render::kGBufferSurface)) {
-    state->display_frame = fc.id();
-    state->display_targets = &tg;
-  }
+  if (display && (gb.planes & render::kGBufferSurface)) state->display_frame = fc.id();
   // The readback targets read through their mapping: ids and barycentrics, and the resolved
   // position-depth and normal where the frame's G-buffer holds the surface planes.
   ctx.note_transfer(0, static_cast<std::size_t>(bw) * bh *
@@ -580,10 +573,14 @@ void publish_display_planes(render::FrameContext& fc) {
   vk::Context& ctx = vk::context_of(fc);
   auto state = ctx.cached<RasterState>("gbuffer_raster.state", [] { return std::make_shared<RasterState>(); });
   std::lock_guard<std::mutex> lock(state->m);
-  if (state->display_frame != fc.id() || !state->display_targets) return;
+  if (state->display_frame != fc.id()) return;
   const render::GBuffer& gb = fc.get<render::GBuffer>(render::kGBuffer);
-  const Targets& tg = *state->display_targets;
-  if (!(gb.planes & render::kGBufferSurface) || gb.width != static_cast<int>(tg.width) || gb.height != static_cast<int>(tg.height)) return;
+  // The display's target set of the G-buffer's size: the one this frame's rasterisation resolved into.
+  const auto it = std::find_if(state->targets.begin(), state->targets.end(), [&](const auto& t) {
+    return t->display && static_cast<int>(t->width) == gb.width && static_cast<int>(t->height) == gb.height;
+  });
+  if (it == state->targets.end() || !(gb.planes & render::kGBufferSurface)) return;
+  const Targets& tg = **it;
   fc.put_device<vk::DeviceGBuffer>(render::kGBuffer, vk::DeviceGBuffer{&tg.normal, &tg.position_depth, gb.width, gb.height, gb.depth.data(),
                                                                         gb.normal.data(), gb.position.data()});
 }

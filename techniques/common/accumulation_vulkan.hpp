@@ -86,12 +86,6 @@ void upload_if_changed(vk::Context& dev, vk::Buffer& buf, std::vector<float>& ho
 // what a device buffer was last filled with, so that inputs that did not change between frames stay
 // on the device.
 std::uint64_t content_hash(const void* data, std::size_t bytes, std::uint64_t seed = 0xcbf29ce484222325ull);
-
-// The host's checks of a GPU pass's inputs, on every core, naming the first bad element as one loop
-// would: `first_in(begin, end)` visits the block [begin, end) (and may fill it: the packing of the
-// input) and returns its first bad index, or end. Blocks of `block` indices run in parallel; the
-// result is the smallest bad index, n when there is none.
-std::size_t first_bad_in_blocks(std::size_t n, std::size_t block, const std::function<std::size_t(std::size_t, std::size_t)>& first_in);
 // `bytes` bytes into `b` (grown as needed; at least 16 bytes so that an empty input binds), uploaded
 // only when their hash differs from `hash` (the last upload's, updated) or `b` was reallocated.
 void upload_bytes_if_changed(vk::Context& dev, vk::Buffer& b, std::uint64_t& hash, const void* data, std::size_t bytes,
@@ -145,6 +139,12 @@ struct ResidentTaps {
   const vk::Buffer* weight = nullptr;
 };
 ResidentTaps resident_upsample_taps(vk::Context& dev, const std::array<std::int32_t, 4>* index, std::size_t pixels);
+
+// The host's checks of a GPU pass's inputs, on every core, naming the first bad element as one loop
+// would: `first_in(begin, end)` visits the block [begin, end) (and may fill it: the packing of the
+// input) and returns its first bad index, or end. Blocks of `block` indices run in parallel; the
+// result is the smallest bad index, n when there is none.
+std::size_t first_bad_in_blocks(std::size_t n, std::size_t block, const std::function<std::size_t(std::size_t, std::size_t)>& first_in);
 
 // The display G-buffer's planes on the device (vulkan::DeviceGBuffer, left by the Vulkan "gbuffer"
 // pass) when `depth` and `normal` are the host planes of width x height pixels that pass put in
