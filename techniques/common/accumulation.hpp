@@ -127,6 +127,33 @@ struct ProxyLightList {
 long long accumulate_proxy_lights(KernelIsa isa, const ProxyLightTables& tables, const ReceiverSoA& rec, std::size_t begin,
                                   std::size_t end, const ProxyLightList& lights, float* rgb, float* omega);
 
+// One receiver against a list of spheres, a sphere per lane: the transpose of accumulate_log, for
+// a technique that keeps each sphere's own term (paper 001's spherical lights, eqs. 21-23, where a
+// light is darkened by the lights in front of it). For sphere j in [0, count) adjusted by `rule` as
+// seen from (p, n) (apply_replacement_rule): alive[j] = 0 where the rule eliminates it or p is not
+// outside it; else 1, key[j] = |P'_j - p| - rho_j and g[j n^2 ..] its eq. 34 log vector
+// (sphere_zh_vector of `log`, order n; no band weights). With emission (L non-null), rgb[3 j + c] is
+// the sphere's SH intensity averaged over it as seen from p (paper 001 eq. 18), for every sphere:
+// rgb_c = sum_l w_l(theta) sqrt(4 pi/(2l+1)) sum_m y_lm(d) L_lm,c with theta = asin(r/|p - c|) of the
+// sphere as given (pi/2 from inside it) and d the unit direction from its centre to p in its own
+// frame (+z at the centre). Throws std::invalid_argument for a table order outside [3, 8], missing
+// arrays or an ISA this CPU lacks.
+struct SphereFan {
+  const float *cx = nullptr, *cy = nullptr, *cz = nullptr, *r = nullptr;
+  std::size_t count = 0;
+  // Emission (L null: none). Per sphere j an index id[j] into L (3 n^2 floats each, channel-major:
+  // the intensity in the sphere's own frame) and rot (9 floats each: the column-major 3 x 3 from that
+  // frame to the world); weight: weight_rows x n band weights w_l(theta_k), theta_k = k (pi/2) /
+  // (weight_rows - 1), linear in theta between rows.
+  const int* id = nullptr;
+  const float* L = nullptr;
+  const float* rot = nullptr;
+  const float* weight = nullptr;
+  int weight_rows = 0;
+};
+void sphere_fan(KernelIsa isa, const ZhTable& log, ReplacementRule rule, const glm::vec3& p, const glm::vec3& n, const SphereFan& spheres,
+                float* g, float* key, std::uint8_t* alive, float* rgb);
+
 // Floating-point operations per receiver-blocker pair of the kernel at this order and rule, counted
 // by running the kernel's own code on a counting number type (add, sub, mul, div, sqrt = 1,
 // fma = 2, a refined reciprocal square root = 2 for the sqrt and division it replaces; compares,

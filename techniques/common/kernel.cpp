@@ -3,8 +3,10 @@
 // AVX2+FMA (8 lanes) and as portable scalar code; the build uses no -march flag, so the vector
 // versions are compiled under `#pragma GCC target` and chosen at run time from the CPU's features.
 // GCC 12 reports its own AVX-512 intrinsics (_mm512_undefined_ps self-initialisation) as maybe
-// uninitialised once inlined; the warning is about the compiler header, not this code.
+// uninitialised once inlined (or, for the integer multiply and gathers, as uninitialised); the
+// warning is about the compiler header, not this code.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
 
 #include <algorithm>
@@ -128,6 +130,8 @@ struct Vec {
   static I iclamp(I i, int lo, int hi) { return i < lo ? lo : (i > hi ? hi : i); }
   // base[i] per lane (i a valid index).
   static F gather(const float* base, I i) { return base[i]; }
+  static I iload(const int* p) { return *p; }
+  static I imul(I a, int k) { return a * k; }
   static F rsqrt(F a) { return 1.0f / std::sqrt(a); }
   static bool all(M m) { return m; }
   static bool any(M m) { return m; }
@@ -142,6 +146,7 @@ struct Vec {
 #include "kernel_body.hpp"
 #include "batch_body.hpp"
 #include "proxy_light_body.hpp"
+#include "fan_body.hpp"
 }  // namespace kscalar
 
 // ---------------------------------------------------------------------------------------------
@@ -236,6 +241,8 @@ struct Vec {
   static F to_float(I i) { return _mm256_cvtepi32_ps(i); }
   static I iclamp(I i, int lo, int hi) { return _mm256_min_epi32(_mm256_max_epi32(i, _mm256_set1_epi32(lo)), _mm256_set1_epi32(hi)); }
   static F gather(const float* base, I i) { return _mm256_i32gather_ps(base, i, 4); }
+  static I iload(const int* p) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p)); }
+  static I imul(I a, int k) { return _mm256_mullo_epi32(a, _mm256_set1_epi32(k)); }
   // rsqrt (12 bits) and one Newton step y (1.5 - 0.5 x y^2): ~23 bits. rsqrt(0) = inf stays inf.
   static F rsqrt(F x) {
     const F y = _mm256_rsqrt_ps(x);
@@ -257,6 +264,7 @@ struct Vec {
 #include "kernel_body.hpp"
 #include "batch_body.hpp"
 #include "proxy_light_body.hpp"
+#include "fan_body.hpp"
 }  // namespace kavx2
 #pragma GCC pop_options
 
@@ -316,6 +324,8 @@ struct Vec {
   static F to_float(I i) { return _mm512_cvtepi32_ps(i); }
   static I iclamp(I i, int lo, int hi) { return _mm512_min_epi32(_mm512_max_epi32(i, _mm512_set1_epi32(lo)), _mm512_set1_epi32(hi)); }
   static F gather(const float* base, I i) { return _mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, i, base, 4); }
+  static I iload(const int* p) { return _mm512_loadu_si512(p); }
+  static I imul(I a, int k) { return _mm512_mullo_epi32(a, _mm512_set1_epi32(k)); }
   // rsqrt14 (14 bits) and one Newton step: ~28 bits, below float rounding.
   static F rsqrt(F x) {
     const F y = _mm512_rsqrt14_ps(x);
@@ -360,6 +370,7 @@ struct Vec {
 #include "kernel_body.hpp"
 #include "batch_body.hpp"
 #include "proxy_light_body.hpp"
+#include "fan_body.hpp"
 }  // namespace kavx512
 #pragma GCC pop_options
 
@@ -456,6 +467,26 @@ long long accumulate_proxy_lights(KernelIsa isa, const ProxyLightTables& t, cons
     case KernelIsa::Avx512: return kavx512::proxy_light_dispatch(order, t, rec, begin, end, lights, rgb, omega);
   }
   return 0;
+}
+
+void sphere_fan(KernelIsa isa, const ZhTable& log, ReplacementRule rule, const glm::vec3& p, const glm::vec3& n, const SphereFan& s,
+                float* g, float* key, std::uint8_t* alive, float* rgb) {
+  const int order = log.order;
+  if (order < 3 || order > kMaxAccOrder)
+    throw std::invalid_argument("sphere_fan: table order " + std::to_string(order) + " outside [3, 8]");
+  if (log.rows < 2) throw std::invalid_argument("sphere_fan: table has fewer than 2 rows");
+  if (s.count == 0) return;
+  if (!s.cx || !s.cy || !s.cz || !s.r || !g || !key || !alive) throw std::invalid_argument("sphere_fan: null sphere or output array");
+  if (s.L && (!s.id || !s.rot || !s.weight || s.weight_rows < 2 || !rgb))
+    throw std::invalid_argument("sphere_fan: emission without indices, rotations, a weight table of 2 rows or more, or an output");
+  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string("sphere_fan: this CPU cannot run ") + to_string(isa));
+  const float pn[6] = {p.x, p.y, p.z, n.x, n.y, n.z};
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: kscalar::fan_dispatch(order, log, rule, pn, s, g, key, alive, rgb); return;
+    case KernelIsa::Avx2: kavx2::fan_dispatch(order, log, rule, pn, s, g, key, alive, rgb); return;
+    case KernelIsa::Avx512: kavx512::fan_dispatch(order, log, rule, pn, s, g, key, alive, rgb); return;
+  }
 }
 
 bool exp_batch_supports(sh::ExpMethod m) {

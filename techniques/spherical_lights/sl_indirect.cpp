@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdint>
 #include <numeric>
+#include <stdexcept>
+#include <string>
 
 #include "sl_passes.hpp"
 #include "softgi/sh/sh.hpp"
@@ -64,70 +66,94 @@ float pair_visibility(const float* e0, const float* e1, const std::array<float, 
 }
 
 struct Scratch {
+  // The list's spheres for sphere_fan, made once per list: centres, radii, flat SL indices.
+  std::vector<float> cx, cy, cz, r;
+  std::vector<int> id;
+  common::SphereFan fan;
+  BatchExp be;
   std::vector<float> G;           // per SL: log vector of its (rule-adjusted) sphere, n^2
   std::vector<float> key;         // per SL: distance from p to its adjusted sphere
+  std::vector<std::uint8_t> alive;
+  std::vector<float> rgb;         // per SL: its average radiance towards p (eqs. 16-18)
   std::vector<int> active, order, position;
   std::vector<float> f, g;        // 2 log vectors per active SL and their exponentials
   std::vector<float> prefix;
   std::vector<float> object_distance;  // per object: distance of its centre from p (per-object blocking)
 };
 
-// Fills vbar / lbar for every SL at receiver (p, n). Returns nothing for an SL the rules eliminate
-// (vbar 0): it neither blocks nor lights p.
-void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list,
-                    const glm::vec3& p, const glm::vec3& n, Scratch& sc, std::vector<float>& vbar, std::vector<glm::vec3>& lbar,
-                    IndirectStats& st) {
-  const int order = s.order, n2 = order * order;
+// Scratch for the receivers of one SL list.
+void prepare(Scratch& sc, const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list) {
+  const int order = s.order;
+  if (t.log.order != order || t.weight.order != order || lc.order != order)
+    throw std::logic_error("spherical_lights accumulate_indirect: tables or intensities of another order than " + std::to_string(order));
+  const std::size_t n2 = static_cast<std::size_t>(order) * order;
+  if (pose.rotation.size() != pose.size() || lc.v.size() < pose.size() * 3 * n2)
+    throw std::logic_error("spherical_lights accumulate_indirect: " + std::to_string(pose.size()) + " SLs with " +
+                           std::to_string(pose.rotation.size()) + " rotations and " + std::to_string(lc.v.size()) + " intensity floats");
   const std::size_t m = list.sl.size();
+  sc.cx.resize(m);
+  sc.cy.resize(m);
+  sc.cz.resize(m);
+  sc.r.resize(m);
+  sc.id.resize(m);
+  for (std::size_t k = 0; k < m; ++k) {
+    const int slk = list.sl[k];
+    if (slk < 0 || static_cast<std::size_t>(slk) >= pose.size())
+      throw std::logic_error("spherical_lights accumulate_indirect: SL list entry " + std::to_string(slk) + " outside the " +
+                             std::to_string(pose.size()) + " SLs");
+    sc.cx[k] = pose.centre[slk].x;
+    sc.cy[k] = pose.centre[slk].y;
+    sc.cz[k] = pose.centre[slk].z;
+    sc.r[k] = pose.radius[slk];
+    sc.id[k] = slk;
+  }
+  static_assert(sizeof(glm::mat3) == 9 * sizeof(float), "sphere_fan reads rotations as 9 packed floats");
+  sc.fan = {};
+  sc.fan.cx = sc.cx.data();
+  sc.fan.cy = sc.cy.data();
+  sc.fan.cz = sc.cz.data();
+  sc.fan.r = sc.r.data();
+  sc.fan.count = m;
+  sc.fan.id = sc.id.data();
+  sc.fan.L = lc.v.data();
+  sc.fan.rot = pose.rotation.empty() ? nullptr : &pose.rotation[0][0][0];
+  sc.fan.weight = t.weight.w.data();
+  sc.fan.weight_rows = t.weight.rows;
   sc.G.resize(m * n2);
   sc.key.resize(m);
+  sc.alive.resize(m);
+  sc.rgb.resize(3 * m);
+  sc.be = BatchExp{};
+  sc.be.order = order;
+  sc.be.method = s.exp;
+  sc.be.tables = t.sh.get();
+  sc.be.plan = &ProductPlan::get(order);
+}
+
+// Fills vbar / lbar for every SL at receiver (p, n). Returns nothing for an SL the rules eliminate
+// (vbar 0): it neither blocks nor lights p. `sc` was prepared for `list`.
+void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, const SlList& list, const glm::vec3& p,
+                    const glm::vec3& n, Scratch& sc, std::vector<float>& vbar, std::vector<glm::vec3>& lbar, IndirectStats& st) {
+  const int order = s.order, n2 = order * order;
+  const std::size_t m = list.sl.size();
   sc.position.assign(m, -1);
   sc.active.clear();
   vbar.assign(m, 0.0f);
   lbar.assign(m, glm::vec3(0.0f));
-
-  std::array<float, sh::kMaxCoeffs> y{};
+  if (m == 0) return;
   const std::array<float, sh::kMaxCoeffs> hn = brdf_vector(order, n);
-  std::array<float, kMaxAccOrder> wrot{};
-  // The ZH rotation factors sqrt(4 pi / (2l + 1)), rounded as the loop below used them: a division
-  // and a square root per band and SL otherwise.
-  static const auto zh_factor = [] {
-    std::array<float, sh::kMaxOrder> f{};
-    for (int l = 0; l < sh::kMaxOrder; ++l) f[l] = static_cast<float>(sh::zh_rotation_factor(l));
-    return f;
-  }();
-
+  // Per SL, a lane each: the replacement rules of paper 004 section 6.2 (section 6.2 of paper 001,
+  // receiver points inside SLs, shared with SHEXP), the adjusted sphere's log vector and distance,
+  // and the average radiance (eqs. 16-18) over the SL itself, whose intensity is defined on its own
+  // sphere: theta and the direction of p from its centre, rotated into the SL's rest frame (section
+  // 7.1: w_theta rotated by the inverse rotation). A receiver inside the SL sees it at theta = pi/2.
+  common::sphere_fan(s.isa, t.log, s.rule, p, n, sc.fan, sc.G.data(), sc.key.data(), sc.alive.data(), sc.rgb.data());
   for (std::size_t k = 0; k < m; ++k) {
-    const int slk = list.sl[k];
-    const glm::vec3 c = pose.centre[slk];
-    const float r = pose.radius[slk];
-    // Section 6.2, receiver points inside SLs: the rules of paper 004 section 6.2, shared with SHEXP.
-    const AdjustedSphere adj = apply_replacement_rule(s.rule, p, n, c, r);
-    const float dist = glm::length(adj.center - p);
-    if (!(adj.radius > 0.0f) || !(dist > adj.radius)) {
+    if (!sc.alive[k]) {
       ++st.eliminated;
       continue;
     }
-    sphere_zh_vector(t.log, p, adj.center, adj.radius, nullptr, sc.G.data() + k * n2);
-    sc.key[k] = dist - adj.radius;
-    // Average radiance (eqs. 16-18) over the SL itself, whose intensity is defined on its own
-    // sphere: theta and the direction of p from its centre, rotated into the SL's rest frame (section
-    // 7.1: w_theta rotated by the inverse rotation). A receiver inside the SL sees it at theta = pi/2.
-    const glm::vec3 d = p - c;
-    const float D = glm::length(d);
-    const float theta = D > r ? std::asin(std::min(1.0f, r / D)) : static_cast<float>(sh::kPi / 2);
-    const glm::vec3 dl = D > 0.0f ? glm::transpose(pose.rotation[slk]) * (d / D) : glm::vec3(0.0f, 0.0f, 1.0f);
-    t.weight.lookup(theta, wrot.data());
-    sh::eval_basis(order, sh::Vec3<float>{dl.x, dl.y, dl.z}, y.data());
-    const float* L = lc.v.data() + static_cast<std::size_t>(slk) * 3 * n2;
-    glm::vec3 acc(0.0f);
-    for (int l = 0; l < order; ++l) {
-      const float wl = wrot[l] * zh_factor[l];
-      for (int mm = -l; mm <= l; ++mm) {
-        const int i = sh::index(l, mm);
-        acc += wl * y[i] * glm::vec3(L[i], L[n2 + i], L[2 * n2 + i]);
-      }
-    }
+    const glm::vec3 acc(sc.rgb[3 * k], sc.rgb[3 * k + 1], sc.rgb[3 * k + 2]);
     // Eq. 26: a parent of the hierarchy scaled by its reflection ratio.
     lbar[k] = list.ratio.empty() ? acc : acc * list.ratio[k];
     sc.active.push_back(static_cast<int>(k));
@@ -177,8 +203,9 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
       sc.prefix[q] += Gi[q];
     }
   }
-  const sh::ExpStats es = exponentiate(s, t, sc.f.data(), sc.g.data(), 2 * na);
-  const ProductPlan& plan = ProductPlan::get(order);
+  sh::ExpStats es;
+  exp_batch(s.isa, sc.be, sc.f.data(), sc.g.data(), 2 * na, 0, es);
+  const ProductPlan& plan = *sc.be.plan;
   st.exps += static_cast<long long>(2 * na);
   st.exp_flops += es.squares * square_flops(plan) + es.products * product_flops(plan);
   // Eq. 23: V = exp(S) - exp(S + G_i), the part of S_i's cap no closer SL covers; eq. 24: dotted
@@ -414,13 +441,14 @@ std::size_t SlCuts::bytes() const {
 void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list,
                          const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out, IndirectStats& stats) {
   Scratch sc;
+  prepare(sc, s, t, pose, lc, list);
   std::vector<float> vbar;
   std::vector<glm::vec3> lbar;
   for (std::size_t r = begin; r < end; ++r) {
     const glm::vec3 p(rec.px[r], rec.py[r], rec.pz[r]), n(rec.nx[r], rec.ny[r], rec.nz[r]);
     glm::vec3 e(0.0f);
     if (glm::dot(n, n) > 0.0f) {
-      receiver_terms(s, t, pose, lc, list, p, n, sc, vbar, lbar, stats);
+      receiver_terms(s, t, pose, list, p, n, sc, vbar, lbar, stats);
       for (std::size_t i = 0; i < vbar.size(); ++i) e += lbar[i] * vbar[i];
     }
     out[r - begin] = glm::max(e, glm::vec3(0.0f));
@@ -430,8 +458,9 @@ void accumulate_indirect(const Settings& s, const Tables& t, const SlPose& pose,
 void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const SlList& list, const glm::vec3& p,
                     const glm::vec3& n, std::vector<float>& vbar, std::vector<glm::vec3>& lbar) {
   Scratch sc;
+  prepare(sc, s, t, pose, lc, list);
   IndirectStats st;
-  receiver_terms(s, t, pose, lc, list, p, n, sc, vbar, lbar, st);
+  receiver_terms(s, t, pose, list, p, n, sc, vbar, lbar, st);
 }
 
 void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, const Intensity& lc, const glm::vec3& p,
