@@ -64,22 +64,35 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
   alignas(64) float sq[W], dcv[W], scv[W], av[W], bv[W];
   int s[W];
   int smax = 0;
-  // Per lane: one pass over the input (finite check, ||f^|| in double as sh::exp, transposition),
-  // then the scalar decisions of the method; the per-coefficient scaling runs vectorised below.
+  // The input transposed to coefficient-major through W x W blocks (rows padded to P floats), its
+  // finite check and ||f^||^2 in double, each lane summing its squares in the order sh::exp does
+  // (float products are exact in double, so the sums are sh::exp's bit for bit); then the scalar
+  // decisions of the method per lane; the per-coefficient scaling runs vectorised below.
+  const int P = (n2 + W - 1) / W * W;
+  alignas(64) float rows[sh::kMaxCoeffs * W];
+  for (int l = 0; l < W; ++l) {
+    const std::size_t src_lane = static_cast<std::size_t>(l) < cnt ? l : cnt - 1;
+    std::memcpy(rows + l * P, f_rm + src_lane * n2, sizeof(float) * n2);
+    for (int i = n2; i < P; ++i) rows[l * P + i] = 0.0f;
+  }
+  for (int k0 = 0; k0 < P; k0 += W) V::transpose(rows + k0, P, x + k0 * W);
+  alignas(64) float finite[W];
+  alignas(64) double norm2v[W];
+  {
+    F check = V::set(0.0f);  // NaN in a lane where a coefficient is NaN or infinite
+    for (int i = 0; i < n2; ++i) check = V::add(check, V::mul(V::load(x + i * W), V::set(0.0f)));
+    V::store(finite, check);
+    V::sum_squares_double(x, 1, n2, norm2v);
+  }
   for (int l = 0; l < W; ++l) {
     const std::size_t src_lane = static_cast<std::size_t>(l) < cnt ? l : cnt - 1;
     const float* src = f_rm + src_lane * n2;
-    double norm2 = 0.0, check = 0.0;
-    for (int i = 1; i < n2; ++i) {
-      norm2 += static_cast<double>(src[i]) * src[i];
-      check += 0.0 * src[i];  // NaN when any coefficient is NaN or infinite
-      x[i * W + l] = src[i];
-    }
-    if (!std::isfinite(check) || !std::isfinite(src[0]))
+    if (!(finite[l] == 0.0f))
       for (int i = 0; i < n2; ++i)
         if (!std::isfinite(src[i]))
           throw std::invalid_argument("exponentiate: receiver " + std::to_string(first + src_lane) + " has log coefficient " +
                                       std::to_string(i) + " = " + std::to_string(src[i]));
+    const double norm2 = norm2v[l];
     const double norm = std::sqrt(norm2);
     s[l] = e.method == sh::ExpMethod::OL || e.method == sh::ExpMethod::PS ? 0 : sh::paper_squarings(norm);
     smax = s[l] > smax ? s[l] : smax;
@@ -171,14 +184,25 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
     const auto more = V::lt(V::set(static_cast<float>(it)), lane_s);
     for (int i = 0; i < n2; ++i) V::store(g + i * W, V::select(more, V::load(t3 + i * W), V::load(g + i * W)));
   }
-  for (std::size_t l = 0; l < cnt; ++l) {
-    float* dst = g_rm + l * n2;
-    for (int i = 0; i < n2; ++i) {
-      dst[i] = g[i * W + l];
-      if (!std::isfinite(dst[i]))
-        throw std::overflow_error("exponentiate: receiver " + std::to_string(first + l) + ": result coefficient " +
-                                  std::to_string(i) + " overflowed");
+  // Back to receiver-major through W x W blocks, after the same finite check in lanes.
+  {
+    F check = V::set(0.0f);
+    for (int i = 0; i < n2; ++i) check = V::add(check, V::mul(V::load(g + i * W), V::set(0.0f)));
+    V::store(finite, check);
+    for (std::size_t l = 0; l < cnt; ++l)
+      if (!(finite[l] == 0.0f))
+        for (int i = 0; i < n2; ++i)
+          if (!std::isfinite(g[i * W + l]))
+            throw std::overflow_error("exponentiate: receiver " + std::to_string(first + l) + ": result coefficient " +
+                                      std::to_string(i) + " overflowed");
+    for (int i = n2 * W; i < P * W; ++i) g[i] = 0.0f;
+    for (int k0 = 0; k0 < P; k0 += W) {
+      V::transpose(g + k0 * W, W, rows);
+      const int m = n2 - k0 < W ? n2 - k0 : W;
+      for (std::size_t l = 0; l < cnt; ++l) std::memcpy(g_rm + l * n2 + k0, rows + l * W, sizeof(float) * m);
     }
+  }
+  for (std::size_t l = 0; l < cnt; ++l) {
     st.squarings += s[l];
     st.squares += s[l] + static_cast<int>(series_squares);
     st.products += static_cast<int>(series_products);

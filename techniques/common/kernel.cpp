@@ -14,6 +14,7 @@
 #include <memory>
 #include <cmath>
 #include <cstddef>
+#include <cstring>
 #include <limits>
 #include <mutex>
 #include <stdexcept>
@@ -113,6 +114,12 @@ struct Vec {
   static void store(float* p, F x) { *p = x; }
   // out[k W + l] = in[l stride + k] for a W x W block (here 1 x 1).
   static void transpose(const float* in, std::size_t, float* out) { out[0] = in[0]; }
+  // out[l] = sum over i in [from, to) of x[i W + l]^2 in double, in order of i.
+  static void sum_squares_double(const float* x, int from, int to, double* out) {
+    double a = 0.0;
+    for (int i = from; i < to; ++i) a += static_cast<double>(x[i]) * x[i];
+    out[0] = a;
+  }
   static F add(F a, F b) { return a + b; }
   static F sub(F a, F b) { return a - b; }
   static F mul(F a, F b) { return a * b; }
@@ -242,6 +249,17 @@ struct Vec {
   static I iclamp(I i, int lo, int hi) { return _mm256_min_epi32(_mm256_max_epi32(i, _mm256_set1_epi32(lo)), _mm256_set1_epi32(hi)); }
   static F gather(const float* base, I i) { return _mm256_i32gather_ps(base, i, 4); }
   static I iload(const int* p) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p)); }
+  static void sum_squares_double(const float* x, int from, int to, double* out) {
+    __m256d lo = _mm256_setzero_pd(), hi = _mm256_setzero_pd();
+    for (int i = from; i < to; ++i) {
+      const F v = load(x + i * 8);
+      const __m256d a = _mm256_cvtps_pd(_mm256_castps256_ps128(v)), b = _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1));
+      lo = _mm256_fmadd_pd(a, a, lo);
+      hi = _mm256_fmadd_pd(b, b, hi);
+    }
+    _mm256_storeu_pd(out, lo);
+    _mm256_storeu_pd(out + 4, hi);
+  }
   static I imul(I a, int k) { return _mm256_mullo_epi32(a, _mm256_set1_epi32(k)); }
   // rsqrt (12 bits) and one Newton step y (1.5 - 0.5 x y^2): ~23 bits. rsqrt(0) = inf stays inf.
   static F rsqrt(F x) {
@@ -325,6 +343,18 @@ struct Vec {
   static I iclamp(I i, int lo, int hi) { return _mm512_min_epi32(_mm512_max_epi32(i, _mm512_set1_epi32(lo)), _mm512_set1_epi32(hi)); }
   static F gather(const float* base, I i) { return _mm512_mask_i32gather_ps(_mm512_setzero_ps(), 0xFFFF, i, base, 4); }
   static I iload(const int* p) { return _mm512_loadu_si512(p); }
+  static void sum_squares_double(const float* x, int from, int to, double* out) {
+    __m512d lo = _mm512_setzero_pd(), hi = _mm512_setzero_pd();
+    for (int i = from; i < to; ++i) {
+      const F v = load(x + i * 16);
+      const __m512d a = _mm512_cvtps_pd(_mm512_castps512_ps256(v));
+      const __m512d b = _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(v), 1)));
+      lo = _mm512_fmadd_pd(a, a, lo);
+      hi = _mm512_fmadd_pd(b, b, hi);
+    }
+    _mm512_storeu_pd(out, lo);
+    _mm512_storeu_pd(out + 8, hi);
+  }
   static I imul(I a, int k) { return _mm512_mullo_epi32(a, _mm512_set1_epi32(k)); }
   // rsqrt14 (14 bits) and one Newton step: ~28 bits, below float rounding.
   static F rsqrt(F x) {

@@ -76,7 +76,8 @@ struct Scratch {
   std::vector<std::uint8_t> alive;
   std::vector<float> rgb;         // per SL: its average radiance towards p (eqs. 16-18)
   std::vector<int> active, order, position;
-  std::vector<float> f, g;        // 2 log vectors per active SL and their exponentials
+  std::vector<float> f, g;        // the active SLs' log vectors S and S + G, and their exponentials
+  std::vector<std::size_t> e0, e1;  // per active SL: which of them are its S and S + G
   std::vector<float> prefix;
   std::vector<float> object_distance;  // per object: distance of its centre from p (per-object blocking)
 };
@@ -186,34 +187,52 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
   for (std::size_t a = 0; a < na; ++a) sc.position[sc.order[a]] = static_cast<int>(a);
   sc.f.resize(2 * na * n2);
   sc.g.resize(2 * na * n2);
+  sc.e0.resize(na);
+  sc.e1.resize(na);
   sc.prefix.assign(n2, 0.0f);
+  // exp(S_i) of an SL that no intersecting SL before it reduces is exp(S + G) of the SL before it
+  // when that one had none either: S_{a+1} is then the prefix sum itself, formed by the same float
+  // additions as S_a + G_a, so the exponential is taken once and read twice (bit for bit the same).
+  std::size_t nf = 0;
+  bool prev_plain = false;
   for (std::size_t a = 0; a < na; ++a) {
     const int i = sc.order[a];
-    float* S = sc.f.data() + 2 * a * n2;
-    float* SG = S + n2;
-    for (int q = 0; q < n2; ++q) S[q] = sc.prefix[q];
     // Eq. 21: intersecting SLs of S_i's own object are not its blockers (their occlusion is in its
     // emission, section 4.2 rule 2).
-    for (int j : list.intersecting[i])
-      if (sc.position[j] >= 0 && sc.position[j] < static_cast<int>(a))
-        for (int q = 0; q < n2; ++q) S[q] -= sc.G[j * n2 + q];
+    bool plain = true;
+    for (int j : list.intersecting[i]) plain = plain && !(sc.position[j] >= 0 && sc.position[j] < static_cast<int>(a));
+    float* S;
+    if (plain && prev_plain) {
+      sc.e0[a] = sc.e1[a - 1];
+      S = sc.f.data() + sc.e1[a - 1] * n2;
+    } else {
+      sc.e0[a] = nf;
+      S = sc.f.data() + nf++ * n2;
+      for (int q = 0; q < n2; ++q) S[q] = sc.prefix[q];
+      if (!plain)
+        for (int j : list.intersecting[i])
+          if (sc.position[j] >= 0 && sc.position[j] < static_cast<int>(a))
+            for (int q = 0; q < n2; ++q) S[q] -= sc.G[j * n2 + q];
+    }
+    sc.e1[a] = nf;
+    float* SG = sc.f.data() + nf++ * n2;
     const float* Gi = sc.G.data() + i * n2;
     for (int q = 0; q < n2; ++q) {
       SG[q] = S[q] + Gi[q];
       sc.prefix[q] += Gi[q];
     }
+    prev_plain = plain;
   }
   sh::ExpStats es;
-  exp_batch(s.isa, sc.be, sc.f.data(), sc.g.data(), 2 * na, 0, es);
+  exp_batch(s.isa, sc.be, sc.f.data(), sc.g.data(), nf, 0, es);
   const ProductPlan& plan = *sc.be.plan;
-  st.exps += static_cast<long long>(2 * na);
+  st.exps += static_cast<long long>(nf);
   st.exp_flops += es.squares * square_flops(plan) + es.products * product_flops(plan);
   // Eq. 23: V = exp(S) - exp(S + G_i), the part of S_i's cap no closer SL covers; eq. 24: dotted
   // with the BRDF vector.
   for (std::size_t a = 0; a < na; ++a) {
     const int i = sc.order[a];
-    const float* e0 = sc.g.data() + 2 * a * n2;
-    float v = pair_visibility(e0, e0 + n2, hn, n2);
+    float v = pair_visibility(sc.g.data() + sc.e0[a] * n2, sc.g.data() + sc.e1[a] * n2, hn, n2);
     if (v < 0.0f) {
       // SH ringing of the two exponentials; a visibility is never negative.
       v = 0.0f;
