@@ -49,6 +49,10 @@ inline void product_soa(const ProductPlan& p, const float* f, const float* g, fl
   }
 }
 
+// 2^k as a double for |k| < 1023: std::ldexp(1.0, k) without its call (the squaring counts of
+// sh::paper_squarings stay far inside that range for float log vectors).
+inline double pow2(int k) { return std::bit_cast<double>(static_cast<std::uint64_t>(1023 + k) << 52); }
+
 // HYB, OL and PS*-p (section 4) for up to W receivers at once, with the rules of sh::exp_hyb,
 // sh::exp_ol and sh::exp_ps_star per lane (DC isolation, squaring count from ||f^||, DC factor
 // applied before the squarings). Lanes square as many times as the lane with most squarings; each
@@ -97,15 +101,15 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
     s[l] = e.method == sh::ExpMethod::OL || e.method == sh::ExpMethod::PS ? 0 : sh::paper_squarings(norm);
     smax = s[l] > smax ? s[l] : smax;
     sq[l] = static_cast<float>(s[l]);
-    const double dc = std::exp(static_cast<double>(src[0]) / sh::kSqrt4Pi / std::ldexp(1.0, s[l]));
+    const double dc = std::exp(static_cast<double>(src[0]) / sh::kSqrt4Pi / pow2(s[l]));
     if (!(dc <= static_cast<double>(std::numeric_limits<float>::max())))
       throw std::overflow_error("exponentiate: receiver " + std::to_string(first + src_lane) + ": DC coefficient " +
                                 std::to_string(src[0]) + " gives a mean log value whose exponential overflows");
     dcv[l] = static_cast<float>(dc);
-    scv[l] = static_cast<float>(std::ldexp(1.0, -s[l]));
+    scv[l] = static_cast<float>(pow2(-s[l]));
     if (e.method == sh::ExpMethod::HYB || e.method == sh::ExpMethod::OL) {
       double a = 1.0, b = 1.0;
-      e.tables->ol_lookup(std::ldexp(norm, -s[l]), a, b);  // eq. 23
+      e.tables->ol_lookup(norm * pow2(-s[l]), a, b);  // eq. 23
       av[l] = static_cast<float>(a * sh::kSqrt4Pi) * dcv[l];
       bv[l] = static_cast<float>(b);
     }

@@ -199,8 +199,13 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
     const int i = sc.order[a];
     // Eq. 21: intersecting SLs of S_i's own object are not its blockers (their occlusion is in its
     // emission, section 4.2 rule 2).
+    const int* position = sc.position.data();
     bool plain = true;
-    for (int j : list.intersecting[i]) plain = plain && !(sc.position[j] >= 0 && sc.position[j] < static_cast<int>(a));
+    for (int j : list.intersecting[i])
+      if (position[j] >= 0 && position[j] < static_cast<int>(a)) {
+        plain = false;
+        break;
+      }
     float* S;
     if (plain && prev_plain) {
       sc.e0[a] = sc.e1[a - 1];
@@ -211,7 +216,7 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
       for (int q = 0; q < n2; ++q) S[q] = sc.prefix[q];
       if (!plain)
         for (int j : list.intersecting[i])
-          if (sc.position[j] >= 0 && sc.position[j] < static_cast<int>(a))
+          if (position[j] >= 0 && position[j] < static_cast<int>(a))
             for (int q = 0; q < n2; ++q) S[q] -= sc.G[j * n2 + q];
     }
     sc.e1[a] = nf;

@@ -1,6 +1,8 @@
 // Precomputed tables: cap ZH closed forms against brute force, interpolation error that shrinks
 // with resolution as linear interpolation must (O(h^2)), OL coefficients and lookups.
 #include <gtest/gtest.h>
+#include <algorithm>
+#include <random>
 
 #include <cmath>
 
@@ -87,6 +89,41 @@ TEST(ShTablesTest, LookupMatchesDirectEvaluation) {
   EXPECT_NEAR(out[0], cap_visibility_zh(4, kPi / 2)[0], 1e-12);
   t.cap_visibility().lookup(std::nan(""), out);
   EXPECT_TRUE(std::isfinite(out[0]));
+}
+
+// ol_lookup's bucketed search against the definition: linear interpolation over the increasing prefix
+// of the sweep, its cell found by a search of the whole prefix. Exact equality: the same cell gives
+// the same arithmetic. Norms drawn at random over the range, on every sample, and one ulp either side.
+TEST(ShTablesTest, OlLookupFindsTheCellOfTheWholeSweep) {
+  for (int order : {3, 4, 6}) {
+    ShTables t(TableOptions{order, 256, TableParam::Theta, 0.02, false});
+    std::vector<double> xs, as, bs;
+    for (std::size_t k = 0; k < t.ol_norm().size(); ++k) {
+      if (!xs.empty() && !(t.ol_norm()[k] > xs.back())) break;
+      xs.push_back(t.ol_norm()[k]);
+      as.push_back(t.ol_a()[k]);
+      bs.push_back(t.ol_b()[k]);
+    }
+    ASSERT_GE(xs.size(), 2u);
+    std::vector<double> norms;
+    std::mt19937 rng(7u + order);
+    std::uniform_real_distribution<double> u(xs.front(), xs.back());
+    for (int i = 0; i < 20000; ++i) norms.push_back(u(rng));
+    for (double x : xs)
+      for (double v : {x, std::nextafter(x, 0.0), std::nextafter(x, 1e9)}) norms.push_back(v);
+    int checked = 0;
+    for (double norm : norms) {
+      if (!(norm > xs.front()) || norm >= xs.back()) continue;
+      const std::size_t k = static_cast<std::size_t>(std::upper_bound(xs.begin(), xs.end(), norm) - xs.begin()) - 1;
+      const double w = (norm - xs[k]) / (xs[k + 1] - xs[k]);
+      double a = 0.0, b = 0.0;
+      t.ol_lookup(norm, a, b);
+      ASSERT_EQ(a, as[k] + w * (as[k + 1] - as[k])) << "order " << order << ", norm " << norm;
+      ASSERT_EQ(b, bs[k] + w * (bs[k + 1] - bs[k])) << "order " << order << ", norm " << norm;
+      ++checked;
+    }
+    EXPECT_GT(checked, 20000);
+  }
 }
 
 TEST(ShTablesTest, OptimalLinearCoefficients) {

@@ -166,6 +166,19 @@ ShTables::ShTables(const TableOptions& opt) : opt_(opt) {
     ol_a_mono_.push_back(ol_a_[k]);
     ol_b_mono_.push_back(ol_b_[k]);
   }
+  // ol_lookup runs per exponential (millions a frame): instead of a binary search over the whole
+  // sweep it searches the cells that a bucket and its two neighbours reach. The neighbours cover
+  // the rounding of the bucket coordinate; the sample found is the binary search's.
+  if (ol_norm_mono_.size() >= 2) {
+    const std::size_t nb = ol_norm_mono_.size();
+    const double x0 = ol_norm_mono_.front();
+    ol_bucket_scale_ = static_cast<double>(nb) / (ol_norm_mono_.back() - x0);
+    ol_bucket_.resize(nb + 1);
+    for (std::size_t b = 0; b <= nb; ++b)
+      ol_bucket_[b] = static_cast<std::uint32_t>(
+          std::upper_bound(ol_norm_mono_.begin(), ol_norm_mono_.end(), x0 + static_cast<double>(b) / ol_bucket_scale_) -
+          ol_norm_mono_.begin());
+  }
   if (opt.measure_error) {
     // OL interpolation error: a, b looked up at the norm of a midpoint cap against that cap's own a, b.
     for (std::size_t k = 0; k + 1 < ol_norm_mono_.size(); ++k) {
@@ -191,7 +204,10 @@ void ShTables::ol_lookup(double norm, double& a, double& b) const {
     b = ol_b_mono_.back();
     return;
   }
-  std::size_t k = static_cast<std::size_t>(std::upper_bound(xs.begin(), xs.end(), norm) - xs.begin()) - 1;
+  const std::size_t nb = ol_bucket_.size() - 1;
+  const std::size_t bucket = std::min(static_cast<std::size_t>((norm - xs.front()) * ol_bucket_scale_), nb - 1);
+  const auto lo = xs.begin() + ol_bucket_[bucket > 0 ? bucket - 1 : 0], hi = xs.begin() + ol_bucket_[std::min(bucket + 2, nb)];
+  std::size_t k = static_cast<std::size_t>(std::upper_bound(lo, hi, norm) - xs.begin()) - 1;
   double w = (norm - xs[k]) / (xs[k + 1] - xs[k]);
   a = ol_a_mono_[k] + w * (ol_a_mono_[k + 1] - ol_a_mono_[k]);
   b = ol_b_mono_[k] + w * (ol_b_mono_[k + 1] - ol_b_mono_[k]);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <cstdint>
 #include <vector>
 
 #include "softgi/sh/sh.hpp"
@@ -100,6 +101,9 @@ class ShTables {
   Table1D cap_vis_, cap_log_, d_avg_, d_poly_, sl_w_, m_exact_;
   std::vector<double> ol_norm_, ol_a_, ol_b_;
   std::vector<double> ol_norm_mono_, ol_a_mono_, ol_b_mono_;
+  // Uniform buckets over the monotone norms: per bucket start, the first sample above it.
+  std::vector<std::uint32_t> ol_bucket_;
+  double ol_bucket_scale_ = 0.0;
   double ol_interp_error_ = 0.0;
 };
 
