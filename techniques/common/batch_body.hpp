@@ -72,6 +72,7 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
   // finite check and ||f^||^2 in double, each lane summing its squares in the order sh::exp does
   // (float products are exact in double, so the sums are sh::exp's bit for bit); then the scalar
   // decisions of the method per lane; the per-coefficient scaling runs vectorised below.
+  static_assert(sh::kMaxCoeffs % W == 0, "the padded rows and their transposes fit the coefficient buffers");
   const int P = (n2 + W - 1) / W * W;
   alignas(64) float rows[sh::kMaxCoeffs * W];
   for (int l = 0; l < W; ++l) {
