@@ -7,7 +7,7 @@
 // those spheres only. The lanes past cnt repeat the last sphere and are not stored.
 template <class V, int N>
 void fan_block(const ZhTable& log, ReplacementRule rule, const float* pn, const SphereFan& s, std::size_t j0, std::size_t cnt,
-               float* g, float* key, std::uint8_t* alive, float* rgb) {
+               const float* zh_factor, float* g, float* key, std::uint8_t* alive, float* rgb) {
   using F = typename V::F;
   using I = typename V::I;
   constexpr int W = V::W, N2 = N * N;
@@ -123,8 +123,7 @@ void fan_block(const ZhTable& log, ReplacementRule rule, const float* pn, const 
   F acc[3] = {zero, zero, zero};
   for (int l = 0; l < N; ++l) {
     const F a = V::gather(s.weight + l, w0), b = V::gather(s.weight + N + l, w0);
-    // sqrt(4 pi / (2l + 1)): the ZH rotation rule (sh::zh_rotate) of the weight about d.
-    const F wl = V::mul(V::fma(fr, V::sub(b, a), a), V::set(static_cast<float>(sh::zh_rotation_factor(l))));
+    const F wl = V::mul(V::fma(fr, V::sub(b, a), a), V::set(zh_factor[l]));
     F band[3] = {zero, zero, zero};
     for (int c = l * l; c < (l + 1) * (l + 1); ++c) {
       const F yc = V::load(y + c * W);
@@ -142,8 +141,14 @@ template <class V, int N>
 void fan_range(const ZhTable& log, ReplacementRule rule, const float* pn, const SphereFan& s, float* g, float* key,
                std::uint8_t* alive, float* rgb) {
   constexpr std::size_t W = V::W;
+  // sqrt(4 pi / (2l + 1)): the ZH rotation rule (sh::zh_rotate) of the emission's weight about d.
+  static const std::array<float, N> zh_factor = [] {
+    std::array<float, N> f{};
+    for (int l = 0; l < N; ++l) f[l] = static_cast<float>(sh::zh_rotation_factor(l));
+    return f;
+  }();
   for (std::size_t j = 0; j < s.count; j += W)
-    fan_block<V, N>(log, rule, pn, s, j, s.count - j < W ? s.count - j : W, g, key, alive, rgb);
+    fan_block<V, N>(log, rule, pn, s, j, s.count - j < W ? s.count - j : W, zh_factor.data(), g, key, alive, rgb);
 }
 
 inline void fan_dispatch(int order, const ZhTable& log, ReplacementRule rule, const float* pn, const SphereFan& s, float* g, float* key,

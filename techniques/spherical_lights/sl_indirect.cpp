@@ -195,11 +195,11 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
   // additions as S_a + G_a, so the exponential is taken once and read twice (bit for bit the same).
   std::size_t nf = 0;
   bool prev_plain = false;
+  const int* position = sc.position.data();
   for (std::size_t a = 0; a < na; ++a) {
     const int i = sc.order[a];
     // Eq. 21: intersecting SLs of S_i's own object are not its blockers (their occlusion is in its
     // emission, section 4.2 rule 2).
-    const int* position = sc.position.data();
     bool plain = true;
     for (int j : list.intersecting[i])
       if (position[j] >= 0 && position[j] < static_cast<int>(a)) {
