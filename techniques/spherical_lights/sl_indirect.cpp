@@ -45,16 +45,21 @@ std::array<float, sh::kMaxCoeffs> brdf_vector(int order, const glm::vec3& n) {
   return hn;
 }
 
-// The SH exponentials of `count` log vectors f into g (receiver-major, order^2 each) by the
-// technique's method; returns their squares and products.
-sh::ExpStats exponentiate(const Settings& s, const Tables& t, const float* f, float* g, std::size_t count) {
+// The batched SH exponentials by the technique's method and order.
+BatchExp batch_exp(const Settings& s, const Tables& t) {
   BatchExp be;
   be.order = s.order;
   be.method = s.exp;
   be.tables = t.sh.get();
   be.plan = &ProductPlan::get(s.order);
+  return be;
+}
+
+// The SH exponentials of `count` log vectors f into g (receiver-major, order^2 each) by the
+// technique's method; returns their squares and products.
+sh::ExpStats exponentiate(const Settings& s, const Tables& t, const float* f, float* g, std::size_t count) {
   sh::ExpStats es;
-  exp_batch(s.isa, be, f, g, count, 0, es);
+  exp_batch(s.isa, batch_exp(s, t), f, g, count, 0, es);
   return es;
 }
 
@@ -124,11 +129,7 @@ void prepare(Scratch& sc, const Settings& s, const Tables& t, const SlPose& pose
   sc.key.resize(m);
   sc.alive.resize(m);
   sc.rgb.resize(3 * m);
-  sc.be = BatchExp{};
-  sc.be.order = order;
-  sc.be.method = s.exp;
-  sc.be.tables = t.sh.get();
-  sc.be.plan = &ProductPlan::get(order);
+  sc.be = batch_exp(s, t);
 }
 
 // Fills vbar / lbar for every SL at receiver (p, n). Returns nothing for an SL the rules eliminate
