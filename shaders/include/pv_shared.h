@@ -12,9 +12,13 @@ namespace softgi::gpu {
 #endif
 
 // Workgroup size of every point_voxels shader but the scan (one invocation per proxy, ray, pixel,
-// bitset word or cell), and the scan's single workgroup.
+// bitset word or cell), the scan's single workgroup, and the sort's: each of its invocations
+// compares kPvSortPairs pairs per step, and a workgroup sorts or merges a block of
+// 2 kPvSortGroup kPvSortPairs keys in shared memory (16 KiB).
 SOFTGI_PV_CONST_UINT(kPvGroup, 64u)
 SOFTGI_PV_CONST_UINT(kPvScanGroup, 256u)
+SOFTGI_PV_CONST_UINT(kPvSortGroup, 256u)
+SOFTGI_PV_CONST_UINT(kPvSortPairs, 4u)
 
 // Every shader reads the grid at binding 0: vec4 (lo, disc radius), vec4 (cell size, patch area),
 // vec4 (1 / cell size, 0), ivec4 (dims, cells), uvec4 (proxies, 0, 0, 0).
@@ -22,17 +26,19 @@ SOFTGI_PV_CONST_UINT(kPvBindGrid, 0u)
 
 // Proxies, unsorted and sorted: struct { vec4 position; vec4 normal; vec4 albedo; uvec4 meta; },
 // meta = (environment ray seed, sampling index, voxel key, 0).
-// voxel_keys: key and histogram.
+// voxel_keys: key, histogram and the sort's (key, sampling index) pairs.
 SOFTGI_PV_CONST_UINT(kPvKeyBindProxies, 1u)
 SOFTGI_PV_CONST_UINT(kPvKeyBindCount, 2u)     // uint per cell (zeroed before)
+SOFTGI_PV_CONST_UINT(kPvKeyBindPairs, 3u)     // uvec2 per proxy, padded to a power of two with (~0, ~0)
 // voxel_scan: exclusive scan of the histogram (one workgroup).
 SOFTGI_PV_CONST_UINT(kPvScanBindCount, 1u)
 SOFTGI_PV_CONST_UINT(kPvScanBindStart, 2u)    // uint per cell + 1
-SOFTGI_PV_CONST_UINT(kPvScanBindCursor, 3u)   // uint per cell: next free slot
-SOFTGI_PV_CONST_UINT(kPvScanBindStatus, 4u)
-// voxel_scatter: proxies to their cell's slots.
+SOFTGI_PV_CONST_UINT(kPvScanBindStatus, 3u)
+// voxel_sort: the pairs in ascending order (a bitonic network, several dispatches).
+SOFTGI_PV_CONST_UINT(kPvSortBindPairs, 1u)
+// voxel_scatter: the proxies in the sorted pairs' order.
 SOFTGI_PV_CONST_UINT(kPvScatBindIn, 1u)
-SOFTGI_PV_CONST_UINT(kPvScatBindCursor, 2u)
+SOFTGI_PV_CONST_UINT(kPvScatBindPairs, 2u)
 SOFTGI_PV_CONST_UINT(kPvScatBindOut, 3u)
 
 // march: one invocation per (source, ray): the first voxel whose discs the ray hits.
@@ -53,18 +59,19 @@ SOFTGI_PV_CONST_UINT(kPvPhaseNew, 0u)
 SOFTGI_PV_CONST_UINT(kPvPhaseResume, 1u)
 SOFTGI_PV_CONST_UINT(kPvPhaseDone, 2u)
 
-// vpl_light: one invocation per sorted proxy: radiance from the lights and the environment rays,
-// then eqs. 2-3 into its voxel with atomics.
+// vpl_light: one invocation per sorted proxy: its radiance from the lights and the environment rays.
 SOFTGI_PV_CONST_UINT(kPvLitBindProxies, 1u)
 SOFTGI_PV_CONST_UINT(kPvLitBindItems, 2u)      // the proxies' environment rays (march items)
 SOFTGI_PV_CONST_UINT(kPvLitBindLights, 3u)     // per local light: vec4 (centre, radius), vec4 (radiance, 0)
 SOFTGI_PV_CONST_UINT(kPvLitBindCube, 4u)       // float: 6 size^2 depths per local light
 SOFTGI_PV_CONST_UINT(kPvLitBindSun, 5u)        // float: the directional map's header (kPvSunHeader floats), then size^2 depths
 SOFTGI_PV_CONST_UINT(kPvLitBindRadiance, 6u)   // vec4 per sorted proxy (out)
-SOFTGI_PV_CONST_UINT(kPvLitBindSh, 7u)         // uint (float bits) per cell: 12 SH sums (coefficient-major, RGB), centroid sums x, y, z, 0
-// vpl_finish: per cell, the centroid sums divided by the cell's count (SH buffer floats 12-14).
+// vpl_finish: per cell, eqs. 2-3 summed over its VPLs in sorted order: 12 SH sums (coefficient-major,
+// RGB), then the centroid (floats 12-14), 0.
 SOFTGI_PV_CONST_UINT(kPvFinBindStart, 1u)
 SOFTGI_PV_CONST_UINT(kPvFinBindSh, 2u)
+SOFTGI_PV_CONST_UINT(kPvFinBindProxies, 3u)
+SOFTGI_PV_CONST_UINT(kPvFinBindRadiance, 4u)
 // The directional map's header: dir.xyz, u.xyz, v.xyz, lo.xy, extent.xy, size.
 SOFTGI_PV_CONST_UINT(kPvSunHeader, 16u)
 SOFTGI_PV_CONST_UINT(kPvVoxelFloats, 16u)      // floats per cell of the SH buffer
@@ -111,6 +118,7 @@ SOFTGI_PV_CONST_UINT(kPvResolveBindOut, 1u)
 SOFTGI_PV_CONST_UINT(kPvStatusUnfinished, 0u)  // invocations that ran out of loop budget this dispatch
 SOFTGI_PV_CONST_UINT(kPvStatusCount, 1u)       // voxel_scan: occupied cells; march_lists / filter_lists: list entries; gather: voxels gathered
 SOFTGI_PV_CONST_UINT(kPvStatusUnmatched, 2u)   // gather: pixels with no neighbour on their surface
+SOFTGI_PV_CONST_UINT(kPvStatusLargest, 3u)     // voxel_scan: the most proxies in one cell
 SOFTGI_PV_CONST_UINT(kPvStatusWords, 4u)
 
 #undef SOFTGI_PV_CONST_UINT

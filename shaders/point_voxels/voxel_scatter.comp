@@ -1,20 +1,19 @@
 #version 450
-// The proxies into their cell's range (the sort by eq. 1's key): each takes the next free slot of
-// its cell. The order within a cell is the order the atomics grant slots in, not the sampling order
-// (the CPU's sort is stable): nothing downstream depends on it but the order of float sums.
+// The proxies in eq. 1's sorted order: slot s takes the proxy of the s-th sorted (key, sampling index)
+// pair (voxel_sort), so that each cell's range holds its proxies in sampling order, as the CPU's
+// stable sort does.
 #extension GL_GOOGLE_include_directive : require
 #include "pv_shared.h"
 #include "pv_common.glsl"
 
 layout(local_size_x = kPvGroup) in;
 layout(std430, set = 0, binding = kPvScatBindIn) readonly buffer In { Proxy uprox[]; };
-layout(std430, set = 0, binding = kPvScatBindCursor) buffer Cursor { uint cursor[]; };
+layout(std430, set = 0, binding = kPvScatBindPairs) readonly buffer Pairs { uvec2 pairs[]; };
 layout(std430, set = 0, binding = kPvScatBindOut) writeonly buffer Out { Proxy sprox[]; };
 layout(push_constant) uniform Push { uint first, end; } pc;
 
 void main() {
-  const uint i = pc.first + gl_GlobalInvocationID.x;
-  if (i >= pc.end) return;
-  const Proxy p = uprox[i];
-  sprox[atomicAdd(cursor[p.meta.z], 1u)] = p;
+  const uint s = pc.first + gl_GlobalInvocationID.x;
+  if (s >= pc.end) return;
+  sprox[s] = uprox[pairs[s].y];
 }

@@ -1,10 +1,8 @@
 #version 450
 // The proxies as VPLs (paper 002 Figure 2a): each sorted proxy's irradiance from the local lights
 // through their cube depth maps, the sun through its directional map and the sky through its marched
-// environment rays, its outgoing radiance albedo E / pi; then eqs. 2-3: its radiant intensity
-// L A max(0, n . w) projected to l <= 1 and added to its voxel's SH with atomics (Figure 2b), and
-// its position to the voxel's centroid sum. One invocation per sorted proxy of the batch. As
-// pass_light_vpls and accumulate_voxel_sh (point_voxels.cpp, pv_core.cpp).
+// environment rays, its outgoing radiance albedo E / pi (eqs. 2-3 are summed per voxel by
+// vpl_finish). One invocation per sorted proxy of the batch. As pass_light_vpls (point_voxels.cpp).
 #extension GL_GOOGLE_include_directive : require
 #include "pv_shared.h"
 #include "pv_common.glsl"
@@ -16,7 +14,6 @@ layout(std430, set = 0, binding = kPvLitBindLights) readonly buffer Lights { vec
 layout(std430, set = 0, binding = kPvLitBindCube) readonly buffer Cube { float cube[]; };
 layout(std430, set = 0, binding = kPvLitBindSun) readonly buffer Sun { float sun[]; };
 layout(std430, set = 0, binding = kPvLitBindRadiance) writeonly buffer Radiance { vec4 radiance[]; };
-layout(std430, set = 0, binding = kPvLitBindSh) buffer Sh { uint vsh[]; };
 layout(push_constant) uniform Push {
   uint first, end;       // sorted proxies of this dispatch
   uint first_item;       // the batch's first proxy: items hold (proxy - first_item) * env_rays + k
@@ -91,17 +88,6 @@ vec3 local_irradiance(uint l, vec3 p, vec3 n) {
   return lights[2u * l + 1u].xyz * (kPvPi * cr.w * cr.w / d2 * c);
 }
 
-// A float added to a float-bits word with compare-and-swap (float atomics are an extension).
-void atomic_add_float(uint index, float v) {
-  if (v == 0.0) return;
-  uint old = vsh[index];
-  for (;;) {
-    const uint prev = atomicCompSwap(vsh[index], old, floatBitsToUint(uintBitsToFloat(old) + v));
-    if (prev == old) break;
-    old = prev;
-  }
-}
-
 void main() {
   const uint i = pc.first + gl_GlobalInvocationID.x;
   if (i >= pc.end) return;
@@ -123,14 +109,4 @@ void main() {
   }
   const vec3 rad = prox[i].albedo.xyz * e / kPvPi;
   radiance[i] = vec4(rad, 0.0);
-  // Eqs. 2-3: the ZH of max(0, cos) turned to the normal, times sqrt(4 pi / (2l + 1)): pi, 2 pi / 3.
-  const vec4 y = pv_basis2(nn);
-  const vec3 la = rad * g_cell_a.w;
-  const uint base = prox[i].meta.z * kPvVoxelFloats;
-  const float k0 = kPvPi, k1 = 2.0 * kPvPi / 3.0;
-  for (uint c = 0u; c < 3u; ++c) {
-    atomic_add_float(base + c, la[c] * (k0 * y[0]));
-    for (uint m = 1u; m < 4u; ++m) atomic_add_float(base + 3u * m + c, la[c] * (k1 * y[m]));
-    atomic_add_float(base + 12u + c, p[c]);
-  }
 }

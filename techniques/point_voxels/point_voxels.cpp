@@ -670,7 +670,9 @@ std::vector<render::MemoryItem> memory_items(const scene::Scene& scene, const re
   device("point_voxels sorted proxies", n * 64, "voxelize");
   device("point_voxels cell ranges", (cells + 1) * 4, "voxelize");
   device("point_voxels voxel counts", cells * 4, "voxelize");
-  device("point_voxels scatter cursors", cells * 4, "voxelize");
+  std::size_t sorted = 2048;  // the sort's (key, sampling index) pairs, a power of two from one block (pv_vulkan.cpp)
+  while (sorted < n) sorted *= 2;
+  device("point_voxels sort keys", sorted * 8, "voxelize");
   device("point_voxels triangle corners", triangles * 3 * 16, "light_maps");
   device("point_voxels depth map texels", 6 * face, "light_maps");
   device("point_voxels cube depth maps", scene.lights.size() * 6 * face, "light_maps");

@@ -1,13 +1,14 @@
 // Point-proxy voxels' GPU passes on the Vulkan backend (paper 002, Chen et al. 2014): voxelisation
-// (eq. 1's keys, a histogram, a scan and a scatter into cell ranges: shaders/point_voxels/voxel_*.comp),
-// the VPLs' light and eqs. 2-3 with atomics (march.comp for the environment rays, vpl_light.comp,
-// vpl_finish.comp), sparse ray marching (march.comp, march_lists.comp), the visibility filter
+// (eq. 1's keys, a histogram, a scan, a sort of (key, sampling index) pairs and a scatter into cell
+// ranges: shaders/point_voxels/voxel_*.comp), the VPLs' light and eqs. 2-3 summed per cell in sorted
+// order (march.comp for the environment rays, vpl_light.comp, vpl_finish.comp), sparse ray marching (march.comp, march_lists.comp), the visibility filter
 // (filter_lists.comp, filter_fields.comp) and gathering (gather.comp). They read and write the same
 // frame resources as the host passes (point_voxels.cpp): each result stays on the device for the
 // next GPU pass and is read back only when a host pass or the caller asks for it. Per-pixel visible
 // voxel lists are bitsets over the grid's cells on the device (sorted and free of duplicates by
 // construction) and compressed rows on the host. Under a driver's loop-iteration limit (llvmpipe),
-// marching and gathering resume over several dispatches from the state each invocation saved.
+// marching and gathering resume over several dispatches from the state each invocation saved. The
+// sort and the per-cell sums follow the CPU's order, so that a frame is the same from run to run.
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
@@ -34,6 +35,7 @@ namespace spv {
 #include "softgi/shaders/point_voxels/voxel_keys_comp.h"
 #include "softgi/shaders/point_voxels/voxel_scan_comp.h"
 #include "softgi/shaders/point_voxels/voxel_scatter_comp.h"
+#include "softgi/shaders/point_voxels/voxel_sort_comp.h"
 #include "softgi/shaders/point_voxels/vpl_finish_comp.h"
 #include "softgi/shaders/point_voxels/vpl_light_comp.h"
 }  // namespace spv
@@ -88,6 +90,7 @@ struct DeviceVoxels {
   float radius = 0.0f, patch_area = 0.0f;
   double density = 0.0;
   float diagonal = 0.0f;
+  std::uint32_t largest = 0;  // the most proxies in one cell
 };
 // The device copy of kLightMaps: the lights without their depths (those are in GpuState::maps).
 struct DeviceLights {
@@ -110,7 +113,7 @@ struct GpuState {
   PipelineCache pipelines;
   vk::Buffer grid;
   std::uint64_t grid_hash = 0;
-  vk::Buffer uprox, count, cursor, scan_status;
+  vk::Buffer uprox, count, pairs, scan_status;
   std::uint64_t uprox_hash = 0;
   vk::Buffer sprox, start;
   std::uint64_t sprox_hash = 0, start_hash = 0;
@@ -182,6 +185,7 @@ DeviceVoxels device_voxels(const Voxels& v) {
   d.patch_area = v.proxies.patch_area;
   d.density = v.density;
   d.diagonal = v.diagonal;
+  for (std::size_t k = 0; k + 1 < v.grid.start.size(); ++k) d.largest = std::max(d.largest, v.grid.start[k + 1] - v.grid.start[k]);
   return d;
 }
 
@@ -457,8 +461,18 @@ void vulkan_voxelize(const Settings& s, FrameContext& ctx) {
   put_if_changed(dev, g.uprox, g.uprox_hash, up, "point_voxels proxies");
   put_grid(dev, g, d);
   const std::size_t uploaded = dev.transfer_bytes().upload - before;
+  // The sort's pairs: a power of two, at least one workgroup's block.
+  const std::size_t block = 2 * gpu::kPvSortGroup * gpu::kPvSortPairs;
+  std::size_t sorted = block;
+  while (sorted < n) sorted *= 2;
+  check_fits(dev, sorted * 2 * sizeof(std::uint32_t), "the sort keys of " + std::to_string(n) + " proxies", "voxelize");
+  const std::size_t max_groups = dev.device_info().limits.maxComputeWorkGroupCount[0];
+  if (sorted / block > max_groups)
+    throw std::invalid_argument("point_voxels voxelize on vulkan: sorting " + std::to_string(n) + " proxies needs " +
+                                std::to_string(sorted / block) + " workgroups in one dispatch, beyond the device's " +
+                                std::to_string(max_groups) + " (use fewer proxies, or --backend cpu)");
   ensure(dev, g.count, cells * 4, "point_voxels voxel counts");
-  ensure(dev, g.cursor, cells * 4, "point_voxels scatter cursors");
+  ensure(dev, g.pairs, sorted * 2 * sizeof(std::uint32_t), "point_voxels sort keys");
   ensure(dev, g.start, (cells + 1) * 4, "point_voxels cell ranges");
   ensure(dev, g.sprox, n * sizeof(GpuProxy), "point_voxels sorted proxies");
   ensure(dev, g.scan_status, gpu::kPvStatusWords * 4, "point_voxels scan status");
@@ -467,26 +481,44 @@ void vulkan_voxelize(const Settings& s, FrameContext& ctx) {
   vk::ComputePipeline& keys = pipeline(dev, g.pipelines, "pv.voxel_keys", words(spv::point_voxels_voxel_keys_comp), {});
   vk::ComputePipeline& scan = pipeline(dev, g.pipelines, "pv.voxel_scan", words(spv::point_voxels_voxel_scan_comp), {});
   vk::ComputePipeline& scatter = pipeline(dev, g.pipelines, "pv.voxel_scatter", words(spv::point_voxels_voxel_scatter_comp), {});
+  vk::ComputePipeline& sort = pipeline(dev, g.pipelines, "pv.voxel_sort", words(spv::point_voxels_voxel_sort_comp), {});
   struct Range {
     std::uint32_t first, end;
   };
+  struct SortStep {
+    std::uint32_t k, j;
+  };
+  const std::vector<vk::Bind> sort_binds = {vk::Bind::buffer_at(gpu::kPvSortBindPairs, g.pairs)};
+  const std::uint32_t blocks = static_cast<std::uint32_t>(sorted / block);
+  std::uint32_t sort_dispatches = 0;
   const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
     rec.fill(g.count, 0u);
+    rec.fill(g.pairs, 0xffffffffu);  // the padding sorts last
     rec.fill(g.scan_status, 0u);
     rec.barrier();
     rec.begin_timer("voxelize");
     dispatch(rec, keys, {vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid), vk::Bind::buffer_at(gpu::kPvKeyBindProxies, g.uprox),
-                         vk::Bind::buffer_at(gpu::kPvKeyBindCount, g.count)},
+                         vk::Bind::buffer_at(gpu::kPvKeyBindCount, g.count), vk::Bind::buffer_at(gpu::kPvKeyBindPairs, g.pairs)},
              n, Range{});
     rec.barrier();
     rec.dispatch(scan,
                  {vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid), vk::Bind::buffer_at(gpu::kPvScanBindCount, g.count),
-                  vk::Bind::buffer_at(gpu::kPvScanBindStart, g.start), vk::Bind::buffer_at(gpu::kPvScanBindCursor, g.cursor),
-                  vk::Bind::buffer_at(gpu::kPvScanBindStatus, g.scan_status)},
+                  vk::Bind::buffer_at(gpu::kPvScanBindStart, g.start), vk::Bind::buffer_at(gpu::kPvScanBindStatus, g.scan_status)},
                  static_cast<const void*>(nullptr), 0u, 1u);
-    rec.barrier();
+    // voxel_sort.comp's network: each block sorted in shared memory, then per merge k the steps
+    // j >= block one dispatch each and the rest in the blocks again.
+    const auto sort_step = [&](std::uint32_t k, std::uint32_t j) {
+      rec.dispatch(sort, sort_binds, SortStep{k, j}, blocks);  // a block's pairs per workgroup
+      rec.barrier();
+      ++sort_dispatches;
+    };
+    sort_step(0, 0);
+    for (std::size_t k = 2 * block; k <= sorted; k *= 2) {
+      for (std::size_t j = k / 2; j >= block; j /= 2) sort_step(static_cast<std::uint32_t>(k), static_cast<std::uint32_t>(j));
+      sort_step(static_cast<std::uint32_t>(k), 0);
+    }
     dispatch(rec, scatter, {vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid), vk::Bind::buffer_at(gpu::kPvScatBindIn, g.uprox),
-                            vk::Bind::buffer_at(gpu::kPvScatBindCursor, g.cursor), vk::Bind::buffer_at(gpu::kPvScatBindOut, g.sprox)},
+                            vk::Bind::buffer_at(gpu::kPvScatBindPairs, g.pairs), vk::Bind::buffer_at(gpu::kPvScatBindOut, g.sprox)},
              n, Range{});
     rec.end_timer();
     rec.barrier();
@@ -495,13 +527,16 @@ void vulkan_voxelize(const Settings& s, FrameContext& ctx) {
   // positions every frame, so the host copy's hash still stands for what the next frame needs.
   std::uint32_t status[gpu::kPvStatusWords];
   dev.download(g.scan_status, status, sizeof status);
+  d.largest = status[gpu::kPvStatusLargest];
 
   auto& rec = ctx.record();
   rec.counters["voxels"] = static_cast<double>(cells);
   rec.counters["voxels_occupied"] = status[gpu::kPvStatusCount];
+  rec.counters["largest_voxel"] = d.largest;
+  rec.counters["sort_dispatches"] = sort_dispatches;
   rec.counters["kernel_gpu_seconds"] = res.gpu_seconds;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
-  rec.bytes = n * sizeof(GpuProxy) * 2 + (cells * 3 + 1) * 4;
+  rec.bytes = n * sizeof(GpuProxy) * 2 + (cells * 2 + 1) * 4 + sorted * 8;
   ctx.put_deferred<std::shared_ptr<const Voxels>>(kVoxels, [d, &g, &dev]() {
     std::lock_guard<std::mutex> l(g.m);
     return read_voxels(dev, d, g.sprox, g.start, nullptr, nullptr);
@@ -590,7 +625,7 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
       vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid),          vk::Bind::buffer_at(gpu::kPvLitBindProxies, g.vprox),
       vk::Bind::buffer_at(gpu::kPvLitBindItems, g.items),     vk::Bind::buffer_at(gpu::kPvLitBindLights, g.lights),
       vk::Bind::buffer_at(gpu::kPvLitBindCube, g.maps.cube),  vk::Bind::buffer_at(gpu::kPvLitBindSun, g.maps.sun),
-      vk::Bind::buffer_at(gpu::kPvLitBindRadiance, g.radiance), vk::Bind::buffer_at(gpu::kPvLitBindSh, g.vsh)};
+      vk::Bind::buffer_at(gpu::kPvLitBindRadiance, g.radiance)};
   for (std::size_t first = 0; first < n; first += per_batch) {
     const std::size_t end = std::min(n, first + per_batch);
     if (k_rays) run_march(dev, g, march, march_binds, first, end, k_rays, true, lanes, d.frame.dims, run, "point_voxels light_vpls environment rays");
@@ -609,17 +644,28 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
     }, "point_voxels vpl_light");
     run.seconds += std::max(0.0, res.gpu_seconds);
   }
+  // Each cell's VPLs in runs the driver's loop limit allows (the VPL loop, and vpl_finish's 20
+  // iterations of writes), one dispatch per run, each going on from the sums of the one before.
+  std::uint32_t finish_dispatches = 0;
   {
-    struct Range {
-      std::uint32_t first, end;
+    struct FinishPush {
+      std::uint32_t first, end, from, len;
     };
+    const std::uint32_t budget = loop_budget(dev.device_info());
+    const std::uint32_t len = budget == std::numeric_limits<std::uint32_t>::max() ? budget : std::max<std::uint32_t>(1, budget - 32);
     const vk::SubmitResult res = dev.submit([&](vk::Recorder& rec) {
       rec.begin_timer("vpl_finish");
-      dispatch(rec, finish, {vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid), vk::Bind::buffer_at(gpu::kPvFinBindStart, g.vstart),
-                             vk::Bind::buffer_at(gpu::kPvFinBindSh, g.vsh)},
-               cells, Range{});
+      std::uint32_t from = 0;
+      do {
+        dispatch(rec, finish, {vk::Bind::buffer_at(gpu::kPvBindGrid, g.grid), vk::Bind::buffer_at(gpu::kPvFinBindStart, g.vstart),
+                               vk::Bind::buffer_at(gpu::kPvFinBindSh, g.vsh), vk::Bind::buffer_at(gpu::kPvFinBindProxies, g.vprox),
+                               vk::Bind::buffer_at(gpu::kPvFinBindRadiance, g.radiance)},
+                 cells, FinishPush{0, 0, from, len});
+        rec.barrier();
+        ++finish_dispatches;
+        from = len > d.largest - from ? d.largest : from + len;
+      } while (from < d.largest);
       rec.end_timer();
-      rec.barrier();
     }, "point_voxels vpl_finish");
     run.seconds += std::max(0.0, res.gpu_seconds);
   }
@@ -628,6 +674,7 @@ void vulkan_light_vpls(const Settings& s, FrameContext& ctx) {
   rec.counters["env_rays"] = static_cast<double>(n) * k_rays;
   rec.counters["march_dispatches"] = run.dispatches;
   rec.counters["march_lanes_discs"] = lanes ? 1.0 : 0.0;
+  rec.counters["finish_dispatches"] = finish_dispatches;
   rec.counters["kernel_gpu_seconds"] = run.seconds;
   rec.counters["upload_bytes"] = static_cast<double>(uploaded);
   rec.bytes = n * (sizeof(GpuProxy) + sizeof(glm::vec4)) + cells * (gpu::kPvVoxelFloats + 1) * 4;
