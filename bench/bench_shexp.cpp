@@ -4,6 +4,8 @@
 //    of the display-resolution passes' shares (gbuffer, to_image, compose in BM_Frame);
 //  - BM_Kernel/<order>/<isa>: the accumulation kernel's receiver-blocker pairs per second, achieved
 //    GFLOP/s and share of that peak;
+//  - BM_Products/<order>/<isa>/<0 squares, 1 products>: the batched SH squares and products, GFLOP/s
+//    and share of that peak;
 //  - BM_Figure8/<order>: SHEXP-HYB and -PS*-2 against product-space accumulation, 200 x 200 ground
 //    vertices and 60 spheres, no hierarchy (paper Figure 8: 3.4x at n = 4, 11x at n = 6);
 //  - BM_Figure9: product space, PS-21, OL, HYB, PS*-2 on the bunny (63 fitted spheres, 128 x 128
@@ -123,6 +125,59 @@ void BM_Kernel(benchmark::State& state) {
   state.counters["peak_GFLOP/s"] = peak;
   state.counters["share_of_peak"] = gflops / peak;
   state.SetLabel(std::string(sx::to_string(isa)) + (straddling ? " straddling" : " above"));
+}
+
+// --- batched SH squares and products -----------------------------------------------------------
+
+// square_batch / product_batch (the exponentials' squarings and the shading's products) over 65536
+// vectors of random coefficients in [-0.5, 0.5], on both cores in runs of 1024; arg 2: 0 squares,
+// 1 products. Flops per vector from the plan: a square's term is a multiply and a multiply-add (3),
+// a product's off-diagonal term two multiply-adds and a multiply (5) and its diagonal term 3, and
+// each output sums its four partial sums (3); the transposes into and out of the lanes are timed
+// but not counted.
+void BM_Products(benchmark::State& state) {
+  const int order = static_cast<int>(state.range(0));
+  const auto isa = static_cast<sx::KernelIsa>(state.range(1));
+  const bool product = state.range(2) != 0;
+  if (!sx::kernel_isa_supported(isa)) {
+    state.SkipWithError("this CPU cannot run this kernel");
+    return;
+  }
+  const int n2 = order * order;
+  constexpr std::size_t kVectors = 65536, kRun = 1024;
+  std::vector<float> f(kVectors * n2), g(kVectors * n2), out(kVectors * n2);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-0.5f, 0.5f);
+  for (float& v : f) v = u(rng);
+  for (float& v : g) v = u(rng);
+  const sx::ProductPlan& p = sx::ProductPlan::get(order);
+  double flops = 3.0 * n2;
+  for (int i = 0; i < n2; ++i) {
+    const int terms = p.sq_begin[i + 1] - p.sq_begin[i], off = p.pr_offdiag_end[i] - p.pr_begin[i];
+    flops += product ? 5.0 * off + 3.0 * (terms - off) : 3.0 * terms;
+  }
+  const double peak = peak_gflops();
+  double secs = 0.0;
+  for (auto _ : state) {
+    auto t0 = std::chrono::steady_clock::now();
+    tbb::parallel_for(std::size_t{0}, kVectors / kRun, [&](std::size_t r) {
+      const std::size_t at = r * kRun * n2;
+      if (product)
+        sx::product_batch(isa, order, f.data() + at, g.data() + at, out.data() + at, kRun);
+      else
+        sx::square_batch(isa, order, f.data() + at, out.data() + at, kRun);
+    });
+    benchmark::DoNotOptimize(out.data());
+    secs += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  const double vectors = static_cast<double>(kVectors) * static_cast<double>(state.iterations());
+  const double gflops = vectors * flops / secs * 1e-9;
+  state.counters["Mvectors/s"] = vectors / secs * 1e-6;
+  state.counters["GFLOP/s"] = gflops;
+  state.counters["flops/vector"] = flops;
+  state.counters["peak_GFLOP/s"] = peak;
+  state.counters["share_of_peak"] = gflops / peak;
+  state.SetLabel(std::string(sx::to_string(isa)) + (product ? " products" : " squares"));
 }
 
 // --- scenes -------------------------------------------------------------------------------------
@@ -550,6 +605,12 @@ void BM_Frame(benchmark::State& state, const std::string& scene_name, const std:
 
 
 BENCHMARK(BM_Kernel)
+    ->ArgsProduct({{3, 4, 5, 6, 8}, {static_cast<long>(sx::KernelIsa::Avx512)}, {0, 1}})
+    ->Args({4, static_cast<long>(sx::KernelIsa::Avx2), 0})
+    ->Args({4, static_cast<long>(sx::KernelIsa::Scalar), 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_Products)
     ->ArgsProduct({{3, 4, 5, 6, 8}, {static_cast<long>(sx::KernelIsa::Avx512)}, {0, 1}})
     ->Args({4, static_cast<long>(sx::KernelIsa::Avx2), 0})
     ->Args({4, static_cast<long>(sx::KernelIsa::Scalar), 0})

@@ -178,6 +178,13 @@ struct ProductPlan {
   static const ProductPlan& get(int order);  // cached, thread-safe
 };
 
+// out = f * f, and out = f * g (eq. 3), for `count` SH vectors of `order` (receiver-major, order^2
+// floats each), through ProductPlan::get(order) and the code exp_batch and shade_batch use: the plan's
+// terms written out for orders 1..6 (gen/sh_plan_cpp.cpp), a loop over them above. Throws
+// std::invalid_argument for an order outside 1..8 or an instruction set this CPU lacks.
+void square_batch(KernelIsa isa, int order, const float* f, float* out, std::size_t count);
+void product_batch(KernelIsa isa, int order, const float* f, const float* g, float* out, std::size_t count);
+
 struct BatchExp {
   int order = 0;
   sh::ExpMethod method = sh::ExpMethod::HYB;  // HYB, OL, PSStar or PS

@@ -2,9 +2,16 @@
 // SIMD wrapper V. Without include guard on purpose: kernel.cpp includes it once per instruction set
 // after kernel_body.hpp (see there). Expects in scope: ProductPlan, BatchExp, basis_consts().
 
-// out = f * f (eq. 3 with f = g), f and out [n^2][W] lane-major blocks.
+// square_fixed_<n>, product_fixed_<n> and their dispatch by order: the plan's terms written out
+// (generated at build time by gen/sh_plan_cpp.cpp, in this namespace for each instruction set).
+#include "sh_plan_unrolled.hpp"
+
+// out = f * f (eq. 3 with f = g), f and out [n^2][W] lane-major blocks. The orders written out go
+// through square_fixed: the same terms in the same order of operations as the loop below (the plan
+// is ProductPlan::get's, the only one there is), so the same floats, without the loop's index work.
 template <class V>
 inline void square_soa(const ProductPlan& p, const float* f, float* out) {
+  if (square_fixed<V>(p.order, f, out)) return;
   using F = typename V::F;
   constexpr int W = V::W;
   const int n2 = p.order * p.order;
@@ -21,9 +28,10 @@ inline void square_soa(const ProductPlan& p, const float* f, float* out) {
   }
 }
 
-// out = f * g (eq. 3), blocks as above.
+// out = f * g (eq. 3), blocks as above; written out where the order is (product_fixed), as squares.
 template <class V>
 inline void product_soa(const ProductPlan& p, const float* f, const float* g, float* out) {
+  if (product_fixed<V>(p.order, f, g, out)) return;
   using F = typename V::F;
   constexpr int W = V::W;
   const int n2 = p.order * p.order;
@@ -211,6 +219,38 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
     st.squarings += s[l];
     st.squares += s[l] + static_cast<int>(series_squares);
     st.products += static_cast<int>(series_products);
+  }
+}
+
+// square_batch and product_batch (g null: squares): W vectors at a time into the lanes and back
+// through W x W transposes, as exp_block's input and output.
+inline void product_dispatch(const ProductPlan& p, const float* f, const float* g, float* out, std::size_t count) {
+  constexpr int W = Vec::W;
+  const int n2 = p.order * p.order, P = (n2 + W - 1) / W * W;
+  alignas(64) float rows[sh::kMaxCoeffs * W], a[sh::kMaxCoeffs * W], b[sh::kMaxCoeffs * W], o[sh::kMaxCoeffs * W];
+  const auto lanes = [&](const float* src, std::size_t i, std::size_t cnt, float* dst) {
+    for (int l = 0; l < W; ++l) {
+      const std::size_t r = i + (static_cast<std::size_t>(l) < cnt ? l : cnt - 1);
+      std::memcpy(rows + l * P, src + r * n2, sizeof(float) * n2);
+      for (int k = n2; k < P; ++k) rows[l * P + k] = 0.0f;
+    }
+    for (int k0 = 0; k0 < P; k0 += W) Vec::transpose(rows + k0, P, dst + k0 * W);
+  };
+  for (std::size_t i = 0; i < count; i += W) {
+    const std::size_t cnt = count - i < static_cast<std::size_t>(W) ? count - i : W;
+    lanes(f, i, cnt, a);
+    if (g) {
+      lanes(g, i, cnt, b);
+      product_soa<Vec>(p, a, b, o);
+    } else {
+      square_soa<Vec>(p, a, o);
+    }
+    for (int k = n2 * W; k < P * W; ++k) o[k] = 0.0f;
+    for (int k0 = 0; k0 < P; k0 += W) {
+      Vec::transpose(o + k0 * W, W, rows);
+      const int m = n2 - k0 < W ? n2 - k0 : W;
+      for (std::size_t l = 0; l < cnt; ++l) std::memcpy(out + (i + l) * n2 + k0, rows + l * W, sizeof(float) * m);
+    }
   }
 }
 

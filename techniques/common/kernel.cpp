@@ -542,6 +542,31 @@ void exp_batch(KernelIsa isa, const BatchExp& e, const float* f, float* g, std::
   }
 }
 
+namespace {
+
+void products(const char* what, KernelIsa isa, int order, const float* f, const float* g, float* out, std::size_t count) {
+  if (order < 1 || order > kMaxAccOrder) throw std::invalid_argument(std::string(what) + ": order " + std::to_string(order) + " outside [1, 8]");
+  if (count == 0) return;
+  if (!kernel_isa_supported(isa)) throw std::invalid_argument(std::string(what) + ": this CPU cannot run " + to_string(isa));
+  const ProductPlan& p = ProductPlan::get(order);
+  FlushDenormals ftz;
+  switch (isa) {
+    case KernelIsa::Scalar: kscalar::product_dispatch(p, f, g, out, count); return;
+    case KernelIsa::Avx2: kavx2::product_dispatch(p, f, g, out, count); return;
+    case KernelIsa::Avx512: kavx512::product_dispatch(p, f, g, out, count); return;
+  }
+}
+
+}  // namespace
+
+void square_batch(KernelIsa isa, int order, const float* f, float* out, std::size_t count) {
+  products("square_batch", isa, order, f, nullptr, out, count);
+}
+
+void product_batch(KernelIsa isa, int order, const float* f, const float* g, float* out, std::size_t count) {
+  products("product_batch", isa, order, f, g, out, count);
+}
+
 BatchShade BatchShade::make(int order, const float* L, const float* hcoef, const float* gwin, const float* g) {
   BatchShade b;
   b.order = order;
@@ -637,56 +662,6 @@ void transfer_rows(KernelIsa isa, const ShadeTransfer& t, const float* g, std::s
     case KernelIsa::Avx2: kavx2::transfer_rows_dispatch(t, g, count, r); return;
     case KernelIsa::Avx512: kavx512::transfer_rows_dispatch(t, g, count, r); return;
   }
-}
-
-const ProductPlan& ProductPlan::get(int order) {
-  if (order < 1 || order > kMaxAccOrder) throw std::invalid_argument("ProductPlan: order " + std::to_string(order) + " outside [1, 8]");
-  static std::mutex m;
-  static std::array<std::unique_ptr<ProductPlan>, kMaxAccOrder + 1> cache;
-  std::lock_guard<std::mutex> lock(m);
-  if (cache[order]) return *cache[order];
-  auto p = std::make_unique<ProductPlan>();
-  p->order = order;
-  const int n2 = order * order;
-  struct Term {
-    int i, j, k;
-    double v;
-  };
-  std::vector<Term> prod;
-  // Every unique (a <= b <= c) entry gives one term per distinct output index (as sh::TripleProduct).
-  for (const auto& e : sh::TripleProduct::get(order).unique_entries()) {
-    const int idx[3] = {e.i, e.j, e.k};
-    for (int o = 0; o < 3; ++o) {
-      if (o > 0 && idx[o] == idx[o - 1]) continue;
-      int r0 = idx[(o + 1) % 3], r1 = idx[(o + 2) % 3];
-      if (r0 > r1) std::swap(r0, r1);
-      prod.push_back({idx[o], r0, r1, e.value});
-    }
-  }
-  std::stable_sort(prod.begin(), prod.end(), [](const Term& a, const Term& b) {
-    if (a.i != b.i) return a.i < b.i;
-    return (a.j == a.k) < (b.j == b.k);
-  });
-  p->pr_begin.assign(n2 + 1, 0);
-  p->pr_offdiag_end.assign(n2, 0);
-  p->sq_begin.assign(n2 + 1, 0);
-  for (const Term& t : prod) {
-    p->pr_j.push_back(static_cast<std::uint16_t>(t.j));
-    p->pr_k.push_back(static_cast<std::uint16_t>(t.k));
-    p->pr_v.push_back(static_cast<float>(t.v));
-    p->sq_j.push_back(static_cast<std::uint16_t>(t.j));
-    p->sq_k.push_back(static_cast<std::uint16_t>(t.k));
-    p->sq_v.push_back(static_cast<float>(t.j != t.k ? 2.0 * t.v : t.v));
-    ++p->pr_begin[t.i + 1];
-    if (t.j != t.k) ++p->pr_offdiag_end[t.i];
-  }
-  for (int i = 0; i < n2; ++i) {
-    p->pr_begin[i + 1] += p->pr_begin[i];
-    p->pr_offdiag_end[i] += p->pr_begin[i];
-  }
-  p->sq_begin = p->pr_begin;
-  cache[order] = std::move(p);
-  return *cache[order];
 }
 
 double kernel_flops_per_pair(int order, ReplacementRule rule, bool straddling) {

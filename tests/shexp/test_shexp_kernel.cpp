@@ -694,6 +694,73 @@ TEST_P(ShexpProduct, BatchedProductMatchesThePerReceiverProduct) {
 }
 INSTANTIATE_TEST_SUITE_P(Isa, ShexpProduct, kEveryIsa, isa_param_name);
 
+// The batched squares and products (every exponential's and the shading's) are the plan's sums in its
+// order of operations, bit for bit: four partial sums taking the terms in turn, a remainder into the
+// first (squares, off-diagonal terms) or second (diagonal terms), added as (s0 + s1) + (s2 + s3).
+// The vector instruction sets fuse each multiply-add, the scalar one rounds the product first. This
+// holds the code written out per order (orders 1..6) to the plan exactly, and orders 7 and 8 (the
+// loop over the plan) too; sh::TripleProduct, which the plan is built from, bounds both to the
+// rounding of a product in double.
+class ShexpPlanProducts : public IsaTest {};
+TEST_P(ShexpPlanProducts, SquaresAndProductsAreThePlanSummedInItsOrder) {
+  const KernelIsa isa = GetParam();
+  const bool fused = isa != KernelIsa::Scalar;
+  const auto madd = [fused](float a, float b, float c) { return fused ? std::fma(a, b, c) : a * b + c; };
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  constexpr std::size_t kCount = 37;  // not a multiple of any lane count
+  for (int order = 1; order <= 8; ++order) {
+    SCOPED_TRACE("order " + std::to_string(order));
+    const ProductPlan& p = ProductPlan::get(order);
+    const int n2 = order * order;
+    std::vector<float> f(kCount * n2), g(kCount * n2), sq(kCount * n2), pr(kCount * n2);
+    for (float& v : f) v = u(rng);
+    for (float& v : g) v = u(rng);
+    square_batch(isa, order, f.data(), sq.data(), kCount);
+    product_batch(isa, order, f.data(), g.data(), pr.data(), kCount);
+    const sh::TripleProduct& tp = sh::TripleProduct::get(order);
+    std::size_t sq_mismatch = 0, pr_mismatch = 0;
+    double worst = 0.0;
+    for (std::size_t r = 0; r < kCount; ++r) {
+      const float* a = f.data() + r * n2;
+      const float* b = g.data() + r * n2;
+      std::vector<double> ad(a, a + n2), bd(b, b + n2), exact(n2);
+      tp.product(ad.data(), bd.data(), exact.data());
+      for (int i = 0; i < n2; ++i) {
+        float s[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+        int t = p.sq_begin[i];
+        const int e = p.sq_begin[i + 1];
+        for (; t + 4 <= e; t += 4)
+          for (int q = 0; q < 4; ++q) s[q] = madd(p.sq_v[t + q], a[p.sq_j[t + q]] * a[p.sq_k[t + q]], s[q]);
+        for (; t < e; ++t) s[0] = madd(p.sq_v[t], a[p.sq_j[t]] * a[p.sq_k[t]], s[0]);
+        sq_mismatch += sq[r * n2 + i] != (s[0] + s[1]) + (s[2] + s[3]);
+        float o[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+        t = p.pr_begin[i];
+        const int m = p.pr_offdiag_end[i], pe = p.pr_begin[i + 1];
+        for (; t + 4 <= m; t += 4)
+          for (int q = 0; q < 4; ++q) {
+            const int j = p.pr_j[t + q], k = p.pr_k[t + q];
+            o[q] = madd(p.pr_v[t + q], madd(a[j], b[k], a[k] * b[j]), o[q]);
+          }
+        for (; t < m; ++t) o[0] = madd(p.pr_v[t], madd(a[p.pr_j[t]], b[p.pr_k[t]], a[p.pr_k[t]] * b[p.pr_j[t]]), o[0]);
+        for (; t + 4 <= pe; t += 4)
+          for (int q = 0; q < 4; ++q) o[q] = madd(p.pr_v[t + q], a[p.pr_j[t + q]] * b[p.pr_j[t + q]], o[q]);
+        for (; t < pe; ++t) o[1] = madd(p.pr_v[t], a[p.pr_j[t]] * b[p.pr_j[t]], o[1]);
+        pr_mismatch += pr[r * n2 + i] != (o[0] + o[1]) + (o[2] + o[3]);
+        worst = std::max(worst, std::abs(pr[r * n2 + i] - exact[i]));
+      }
+    }
+    EXPECT_EQ(sq_mismatch, 0u) << to_string(isa) << ": squares that are not the plan's floats";
+    EXPECT_EQ(pr_mismatch, 0u) << to_string(isa) << ": products that are not the plan's floats";
+    // Float sums of up to a few hundred terms of size <= 1 against the double tensor: 1e-4 is far
+    // above their rounding and far below any dropped or misplaced term (coefficients ~1e-2 or more).
+    EXPECT_LT(worst, 1e-4) << to_string(isa) << ": against sh::TripleProduct";
+  }
+  EXPECT_THROW(square_batch(isa, 9, nullptr, nullptr, 1), std::invalid_argument);
+  EXPECT_THROW(product_batch(isa, 0, nullptr, nullptr, nullptr, 1), std::invalid_argument);
+}
+INSTANTIATE_TEST_SUITE_P(Isa, ShexpPlanProducts, kEveryIsa, isa_param_name);
+
 // --- replacement rules (section 6.2) ----------------------------------------------------------------
 
 TEST(ShexpRules, CasesOfFigure5) {
