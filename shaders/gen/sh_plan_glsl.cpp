@@ -22,6 +22,7 @@
 #include <string>
 
 #include "accumulation.hpp"
+#include "gen/write_generated.hpp"
 
 namespace {
 
@@ -87,31 +88,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: %s square|product OUT.glsl\n", argv[0]);
     return 2;
   }
-  const char* out_path = argv[2];
   try {
-    const std::string text = generate(mode == "square");
-    std::ifstream old(out_path, std::ios::binary);
-    if (old) {
-      std::ostringstream have;
-      have << old.rdbuf();
-      if (have.str() == text) return 0;
-    }
-    const std::string tmp = std::string(out_path) + ".tmp";
-    {
-      std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-      out << text;
-      if (!out.flush()) {
-        std::fprintf(stderr, "%s: cannot write %s\n", argv[0], tmp.c_str());
-        return 1;
-      }
-    }
-    if (std::rename(tmp.c_str(), out_path) != 0) {
-      std::fprintf(stderr, "%s: cannot rename %s to %s\n", argv[0], tmp.c_str(), out_path);
-      return 1;
-    }
+    return softgi::gen::write_generated(argv[0], argv[2], generate(mode == "square"));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
     return 1;
   }
-  return 0;
 }
+

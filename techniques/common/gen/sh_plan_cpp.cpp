@@ -15,11 +15,11 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
-#include <fstream>
 #include <sstream>
 #include <string>
 
 #include "../accumulation.hpp"
+#include "write_generated.hpp"
 
 namespace {
 
@@ -101,32 +101,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: %s OUT.hpp\n", argv[0]);
     return 2;
   }
-  const char* out_path = argv[1];
   try {
-    const std::string text = generate();
-    std::ifstream old(out_path, std::ios::binary);
-    if (old) {
-      std::ostringstream have;
-      have << old.rdbuf();
-      if (have.str() == text) return 0;
-    }
-    // Written beside and renamed, so that an interrupted build never leaves half a header.
-    const std::string tmp = std::string(out_path) + ".tmp";
-    {
-      std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-      out << text;
-      if (!out.flush()) {
-        std::fprintf(stderr, "%s: cannot write %s\n", argv[0], tmp.c_str());
-        return 1;
-      }
-    }
-    if (std::rename(tmp.c_str(), out_path) != 0) {
-      std::fprintf(stderr, "%s: cannot rename %s to %s\n", argv[0], tmp.c_str(), out_path);
-      return 1;
-    }
+    return softgi::gen::write_generated(argv[0], argv[1], generate());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
     return 1;
   }
-  return 0;
 }
