@@ -5,11 +5,11 @@
 // are padded to a power of two N >= kBlock with (~0, ~0), which sort last.
 // The network: for k = 2, 4, ..., N and j = k / 2, ..., 1, the keys lo and lo + j (lo with bit j
 // clear) are put in ascending order where lo & k is 0 and descending otherwise. Steps whose pairs
-// cross a block (j >= kBlock) are one dispatch each (push j > 0); the others are run by each workgroup on its own block in shared memory (push j = 0): every
-// step of k = 2 ... kBlock when k is 0, else the steps j = kBlock / 2 ... 1 of merge k. Each
-// invocation takes kPvSortPairs pairs per step: on llvmpipe a barrier costs a switch per invocation,
-// and a dispatch a fixed set-up, so fewer invocations and blocks as large as shared memory allows
-// make the sort cheaper. Every loop has a fixed trip count (the loop limits in docs/backends.md).
+// cross a block (j >= kBlock) are one dispatch each (push j > 0); the others are run by each
+// workgroup on its own block in shared memory (push j = 0): every step of k = 2 ... kBlock when k is
+// 0, else the steps j = kBlock / 2 ... 1 of merge k. Each invocation takes kPvSortPairs pairs per
+// step, so that a block holds 2048 keys (16 KiB of shared memory) and fewer steps cross blocks.
+// Every loop has a fixed trip count (the loop limits in docs/backends.md).
 #extension GL_GOOGLE_include_directive : require
 #include "pv_shared.h"
 

@@ -4,10 +4,10 @@
 // product_soa) and with the plan's float values bit for bit, so that they compute the same floats:
 //   square_fixed_<n>(f, o):     o = f * f (symmetric terms merged);
 //   product_fixed_<n>(f, g, o): o = f * g (off-diagonal terms v (f_j g_k + f_k g_j), then diagonal v f_j g_j).
-// Why generated code rather than the loop: the loop loads two 16-bit indices, scales them and loads
-// each term's value, about three times the work of the term itself; written out, each term is a
-// multiply and a multiply-add with its constant, 2.7x faster for an order-4 square on AVX-512
-// (bench/README.md). Orders 1..kMaxWritten are written out; higher orders keep the loop (their
+// Why generated code rather than the loop: per term the loop loads two 16-bit indices, scales them
+// and broadcasts the term's value around the multiply and multiply-add the term needs; written out,
+// each term is those two instructions with its constant (bench/README.md, "SH squares and products
+// written out per order"). Orders 1..kMaxWritten are written out; higher orders keep the loop (their
 // functions would be tens of thousands of lines for each instruction set).
 //
 //   softgi_sh_plan_cpp OUT.hpp   (rewrites OUT only when its content changes)
