@@ -57,6 +57,34 @@ inline void product_soa(const ProductPlan& p, const float* f, const float* g, fl
   }
 }
 
+// Up to W vectors of n2 floats (receiver-major from src; lanes past cnt repeat the last) into
+// [P][W] lane-major dst, P = n2 rounded up to W (the rows past n2 zero), through W x W transposes;
+// `rows` is scratch of P W floats.
+template <class V>
+inline void lanes_in(const float* src, std::size_t cnt, int n2, float* rows, float* dst) {
+  constexpr int W = V::W;
+  const int P = (n2 + W - 1) / W * W;
+  for (int l = 0; l < W; ++l) {
+    const std::size_t r = static_cast<std::size_t>(l) < cnt ? l : cnt - 1;
+    std::memcpy(rows + l * P, src + r * n2, sizeof(float) * n2);
+    for (int i = n2; i < P; ++i) rows[l * P + i] = 0.0f;
+  }
+  for (int k0 = 0; k0 < P; k0 += W) V::transpose(rows + k0, P, dst + k0 * W);
+}
+
+// The reverse: lanes [0, cnt) of [P][W] src (its rows past n2 zeroed here) to receiver-major dst.
+template <class V>
+inline void lanes_out(float* src, std::size_t cnt, int n2, float* rows, float* dst) {
+  constexpr int W = V::W;
+  const int P = (n2 + W - 1) / W * W;
+  for (int i = n2 * W; i < P * W; ++i) src[i] = 0.0f;
+  for (int k0 = 0; k0 < P; k0 += W) {
+    V::transpose(src + k0 * W, W, rows);
+    const int m = n2 - k0 < W ? n2 - k0 : W;
+    for (std::size_t l = 0; l < cnt; ++l) std::memcpy(dst + l * n2 + k0, rows + l * W, sizeof(float) * m);
+  }
+}
+
 // 2^k as a double for |k| < 1023: std::ldexp(1.0, k) without its call (the squaring counts of
 // sh::paper_squarings stay far inside that range for float log vectors).
 inline double pow2(int k) { return std::bit_cast<double>(static_cast<std::uint64_t>(1023 + k) << 52); }
@@ -76,19 +104,13 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
   alignas(64) float sq[W], dcv[W], scv[W], av[W], bv[W];
   int s[W];
   int smax = 0;
-  // The input transposed to coefficient-major through W x W blocks (rows padded to P floats), its
+  // The input transposed to coefficient-major through W x W blocks (lanes_in), its
   // finite check and ||f^||^2 in double, each lane summing its squares in the order sh::exp does
   // (float products are exact in double, so the sums are sh::exp's bit for bit); then the scalar
   // decisions of the method per lane; the per-coefficient scaling runs vectorised below.
   static_assert(sh::kMaxCoeffs % W == 0, "the padded rows and their transposes fit the coefficient buffers");
-  const int P = (n2 + W - 1) / W * W;
   alignas(64) float rows[sh::kMaxCoeffs * W];
-  for (int l = 0; l < W; ++l) {
-    const std::size_t src_lane = static_cast<std::size_t>(l) < cnt ? l : cnt - 1;
-    std::memcpy(rows + l * P, f_rm + src_lane * n2, sizeof(float) * n2);
-    for (int i = n2; i < P; ++i) rows[l * P + i] = 0.0f;
-  }
-  for (int k0 = 0; k0 < P; k0 += W) V::transpose(rows + k0, P, x + k0 * W);
+  lanes_in<V>(f_rm, cnt, n2, rows, x);
   alignas(64) float finite[W];
   alignas(64) double norm2v[W];
   {
@@ -208,12 +230,7 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
           if (!std::isfinite(g[i * W + l]))
             throw std::overflow_error("exponentiate: receiver " + std::to_string(first + l) + ": result coefficient " +
                                       std::to_string(i) + " overflowed");
-    for (int i = n2 * W; i < P * W; ++i) g[i] = 0.0f;
-    for (int k0 = 0; k0 < P; k0 += W) {
-      V::transpose(g + k0 * W, W, rows);
-      const int m = n2 - k0 < W ? n2 - k0 : W;
-      for (std::size_t l = 0; l < cnt; ++l) std::memcpy(g_rm + l * n2 + k0, rows + l * W, sizeof(float) * m);
-    }
+    lanes_out<V>(g, cnt, n2, rows, g_rm);
   }
   for (std::size_t l = 0; l < cnt; ++l) {
     st.squarings += s[l];
@@ -222,35 +239,21 @@ void exp_block(const BatchExp& e, const float* f_rm, std::size_t cnt, float* g_r
   }
 }
 
-// square_batch and product_batch (g null: squares): W vectors at a time into the lanes and back
-// through W x W transposes, as exp_block's input and output.
+// square_batch and product_batch (g null: squares): W vectors at a time into the lanes and back.
 inline void product_dispatch(const ProductPlan& p, const float* f, const float* g, float* out, std::size_t count) {
   constexpr int W = Vec::W;
-  const int n2 = p.order * p.order, P = (n2 + W - 1) / W * W;
+  const int n2 = p.order * p.order;
   alignas(64) float rows[sh::kMaxCoeffs * W], a[sh::kMaxCoeffs * W], b[sh::kMaxCoeffs * W], o[sh::kMaxCoeffs * W];
-  const auto lanes = [&](const float* src, std::size_t i, std::size_t cnt, float* dst) {
-    for (int l = 0; l < W; ++l) {
-      const std::size_t r = i + (static_cast<std::size_t>(l) < cnt ? l : cnt - 1);
-      std::memcpy(rows + l * P, src + r * n2, sizeof(float) * n2);
-      for (int k = n2; k < P; ++k) rows[l * P + k] = 0.0f;
-    }
-    for (int k0 = 0; k0 < P; k0 += W) Vec::transpose(rows + k0, P, dst + k0 * W);
-  };
   for (std::size_t i = 0; i < count; i += W) {
     const std::size_t cnt = count - i < static_cast<std::size_t>(W) ? count - i : W;
-    lanes(f, i, cnt, a);
+    lanes_in<Vec>(f + i * n2, cnt, n2, rows, a);
     if (g) {
-      lanes(g, i, cnt, b);
+      lanes_in<Vec>(g + i * n2, cnt, n2, rows, b);
       product_soa<Vec>(p, a, b, o);
     } else {
       square_soa<Vec>(p, a, o);
     }
-    for (int k = n2 * W; k < P * W; ++k) o[k] = 0.0f;
-    for (int k0 = 0; k0 < P; k0 += W) {
-      Vec::transpose(o + k0 * W, W, rows);
-      const int m = n2 - k0 < W ? n2 - k0 : W;
-      for (std::size_t l = 0; l < cnt; ++l) std::memcpy(out + (i + l) * n2 + k0, rows + l * W, sizeof(float) * m);
-    }
+    lanes_out<Vec>(o, cnt, n2, rows, out + i * n2);
   }
 }
 
