@@ -36,7 +36,9 @@ void main() {
   }
   // The ZH of max(0, cos) turned to the normal, times sqrt(4 pi / (2l + 1)): pi, 2 pi / 3.
   const float k0 = kPvPi, k1 = 2.0 * kPvPi / 3.0;
-  const uint run_end = min(e, b + pc.from + pc.len);
+  // Without a limit pc.len is ~0u: the run's end is taken without forming b + from + len.
+  const uint left = e - (b + pc.from);
+  const uint run_end = left > pc.len ? b + pc.from + pc.len : e;
   for (uint i = b + pc.from; i < run_end; ++i) {
     c += prox[i].position.xyz;
     const vec4 y = pv_basis2(prox[i].normal.xyz);
