@@ -399,6 +399,7 @@ Context::Context(const ContextOptions& options) : options_(options), fence_timeo
     physical_ = pds[sel];
     info_ = infos[sel];
     if (options.loop_iteration_limit > 0) info_.loop_iteration_limit = options.loop_iteration_limit;
+    if (options.assume_no_loop_limit) info_.loop_iteration_limit = 0;
     const int qf = pick_queue_family(physical_, nullptr);
     if (qf < 0) throw std::runtime_error("vulkan: device '" + info_.name + "' has no compute queue");
     queue_family_ = static_cast<std::uint32_t>(qf);

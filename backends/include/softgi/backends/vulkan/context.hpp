@@ -111,6 +111,12 @@ struct ContextOptions {
   // > 0: the per-invocation loop-iteration limit the shaders are written against, instead of the
   // driver's (DeviceInfo::loop_iteration_limit); a tighter one exercises the passes that respect it.
   std::uint32_t loop_iteration_limit = 0;
+  // True: the shaders are run as on a device without a loop limit (DeviceInfo::loop_iteration_limit
+  // 0, the budgets the passes pass their shaders at their largest), even where the driver has one.
+  // This lets a CPU device run the code paths of a GPU's budgets; a loop that goes past the driver's
+  // real limit is then cut silently, so it is only for work whose loops all fit within that limit.
+  // Takes precedence over loop_iteration_limit.
+  bool assume_no_loop_limit = false;
   // MemoryKind::Device buffers left unmapped even where the device's memory is the host's
   // (lavapipe), so that uploads and downloads go through staging copies and readbacks through
   // host copies, as on a discrete GPU: a CPU device then runs the code paths of one. -1:
