@@ -8,6 +8,8 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "sl_passes.hpp"
 #include "softgi/sh/sh.hpp"
@@ -251,54 +253,97 @@ void receiver_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
 
 }  // namespace
 
-glm::vec3 local_lights_term(const Settings& s, const Tables& t, const SlPose* pose, const std::vector<scene::SphericalLight>& lights,
-                            const glm::vec3& p, const glm::vec3& n) {
+namespace {
+
+// Section 7.3's local lights over receivers k < count, pn(k) giving (p, n): the term of each added
+// to out[k]. The receivers' exponentials are taken in one batch and the lists' storage is reused
+// across receivers; the sort moves spheres, and log vectors are made only for the spheres before
+// the farthest light. Per receiver the floats are those of the definition in sl_passes.hpp.
+template <class PN>
+void local_lights_run(const Settings& s, const Tables& t, const SlPose* pose, const std::vector<scene::SphericalLight>& lights,
+                      std::size_t count, PN pn, glm::vec3* out) {
   const int order = s.order, n2 = order * order;
-  if (lights.empty() || !(glm::dot(n, n) > 0.0f)) return glm::vec3(0.0f);
-  const std::array<float, sh::kMaxCoeffs> hn = brdf_vector(order, n);
+  if (lights.empty() || count == 0) return;
   // Every leaf SL and every light, rule-adjusted, by distance from p: a light is darkened by every
   // sphere before it (eq. 23; lights belong to no object, so nothing is left out).
   struct Entry {
     float key;
     int light;  // -1: a leaf SL (a blocker only)
-    std::array<float, sh::kMaxCoeffs> G;
+    glm::vec3 centre;
+    float radius;
+  };
+  struct Pair {
+    std::size_t receiver;
+    int light;
   };
   std::vector<Entry> e;
-  auto add = [&](const glm::vec3& c, float r, int light) {
-    const AdjustedSphere adj = apply_replacement_rule(s.rule, p, n, c, r);
-    const float dist = glm::length(adj.center - p);
-    if (!(adj.radius > 0.0f) || !(dist > adj.radius)) return;
-    Entry x;
-    x.key = dist - adj.radius;
-    x.light = light;
-    sphere_zh_vector(t.log, p, adj.center, adj.radius, nullptr, x.G.data());
-    e.push_back(x);
-  };
-  if (pose)
-    for (std::size_t i = 0; i < pose->leaves; ++i) add(pose->centre[i], pose->radius[i], -1);
-  for (std::size_t k = 0; k < lights.size(); ++k) add(lights[k].position, lights[k].radius, static_cast<int>(k));
-  std::stable_sort(e.begin(), e.end(), [](const Entry& a, const Entry& b) { return a.key < b.key; });
-  std::vector<float> f, g, prefix(n2, 0.0f);
-  std::vector<int> which;
-  for (const Entry& x : e) {
-    if (x.light >= 0) {
-      which.push_back(x.light);
-      f.insert(f.end(), prefix.begin(), prefix.end());
-      for (int q = 0; q < n2; ++q) f.push_back(prefix[q] + x.G[q]);
+  std::vector<float> f, g, prefix(static_cast<std::size_t>(n2)), G(static_cast<std::size_t>(n2));
+  std::vector<Pair> pairs;
+  std::vector<std::array<float, sh::kMaxCoeffs>> hn;
+  const std::size_t leaves = pose ? pose->leaves : 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    const auto [p, n] = pn(k);
+    if (!(glm::dot(n, n) > 0.0f)) continue;
+    e.clear();
+    auto add = [&](const glm::vec3& c, float r, int light) {
+      const AdjustedSphere adj = apply_replacement_rule(s.rule, p, n, c, r);
+      const float dist = glm::length(adj.center - p);
+      if (!(adj.radius > 0.0f) || !(dist > adj.radius)) return;
+      e.push_back(Entry{dist - adj.radius, light, adj.center, adj.radius});
+    };
+    for (std::size_t i = 0; i < leaves; ++i) add(pose->centre[i], pose->radius[i], -1);
+    for (std::size_t j = 0; j < lights.size(); ++j) add(lights[j].position, lights[j].radius, static_cast<int>(j));
+    std::stable_sort(e.begin(), e.end(), [](const Entry& a, const Entry& b) { return a.key < b.key; });
+    // Spheres past the farthest light darken nothing: their log vectors are not needed.
+    std::size_t last = e.size();
+    while (last > 0 && e[last - 1].light < 0) --last;
+    if (last == 0) continue;
+    hn.push_back(brdf_vector(order, n));
+    std::fill(prefix.begin(), prefix.end(), 0.0f);
+    for (std::size_t a = 0; a < last; ++a) {
+      sphere_zh_vector(t.log, p, e[a].centre, e[a].radius, nullptr, G.data());
+      if (e[a].light >= 0) {
+        pairs.push_back(Pair{k, e[a].light});
+        f.insert(f.end(), prefix.begin(), prefix.end());
+        for (int q = 0; q < n2; ++q) f.push_back(prefix[q] + G[q]);
+      }
+      for (int q = 0; q < n2; ++q) prefix[q] += G[q];
     }
-    for (int q = 0; q < n2; ++q) prefix[q] += x.G[q];
   }
-  if (which.empty()) return glm::vec3(0.0f);
+  if (pairs.empty()) return;
   g.resize(f.size());
-  exponentiate(s, t, f.data(), g.data(), 2 * which.size());
-  glm::vec3 out(0.0f);
-  for (std::size_t a = 0; a < which.size(); ++a) {
-    const float* e0 = g.data() + 2 * a * n2;
-    const float v = pair_visibility(e0, e0 + n2, hn, n2);
-    // A light's surface emits its radiance uniformly: its average radiance (eq. 16) is that radiance.
-    out += std::max(v, 0.0f) * lights[which[a]].radiance;
+  exponentiate(s, t, f.data(), g.data(), 2 * pairs.size());
+  // Per receiver, its lights' terms summed from zero in list order, then added to out.
+  std::size_t h = 0;
+  for (std::size_t a = 0; a < pairs.size();) {
+    const std::size_t k = pairs[a].receiver;
+    glm::vec3 term(0.0f);
+    for (; a < pairs.size() && pairs[a].receiver == k; ++a) {
+      const float* e0 = g.data() + 2 * a * n2;
+      const float v = pair_visibility(e0, e0 + n2, hn[h], n2);
+      // A light's surface emits its radiance uniformly: its average radiance (eq. 16) is that radiance.
+      term += std::max(v, 0.0f) * lights[pairs[a].light].radiance;
+    }
+    out[k] += term;
+    ++h;
   }
+}
+
+}  // namespace
+
+glm::vec3 local_lights_term(const Settings& s, const Tables& t, const SlPose* pose, const std::vector<scene::SphericalLight>& lights,
+                            const glm::vec3& p, const glm::vec3& n) {
+  glm::vec3 out(0.0f);
+  local_lights_run(s, t, pose, lights, 1, [&](std::size_t) { return std::pair<glm::vec3, glm::vec3>(p, n); }, &out);
   return out;
+}
+
+void add_local_lights(const Settings& s, const Tables& t, const SlPose* pose, const std::vector<scene::SphericalLight>& lights,
+                      const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out) {
+  local_lights_run(s, t, pose, lights, end - begin, [&](std::size_t k) {
+    const std::size_t i = begin + k;
+    return std::pair<glm::vec3, glm::vec3>(glm::vec3(rec.px[i], rec.py[i], rec.pz[i]), glm::vec3(rec.nx[i], rec.ny[i], rec.nz[i]));
+  }, out);
 }
 
 namespace {

@@ -218,6 +218,10 @@ void indirect_terms(const Settings& s, const Tables& t, const SlPose& pose, cons
 // a pose (no proxies), the lights' own caps.
 glm::vec3 local_lights_term(const Settings& s, const Tables& t, const SlPose* pose, const std::vector<scene::SphericalLight>& lights,
                             const glm::vec3& p, const glm::vec3& n);
+// local_lights_term of receivers [begin, end) of rec, each added to out[i - begin]: the same floats,
+// the receivers' exponentials in one batch.
+void add_local_lights(const Settings& s, const Tables& t, const SlPose* pose, const std::vector<scene::SphericalLight>& lights,
+                      const ReceiverSoA& rec, std::size_t begin, std::size_t end, glm::vec3* out);
 
 // Section 7.3: the cut of every object's SL hierarchy for a receiver cluster bounded by (pR, rR)
 // (nodes with r < sin(theta_max)(|c - pR| - rR) taken whole, paper 004 eq. 36), the intersecting

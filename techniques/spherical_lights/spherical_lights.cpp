@@ -548,9 +548,7 @@ void pass_shade(State& st, const Settings& s, FrameContext& ctx, Stage stage, co
     const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
     const SlPose* pose = ctx.has(kSlPose) ? ctx.get<std::shared_ptr<const SlPose>>(kSlPose).get() : nullptr;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rec.size(), 64), [&](const tbb::blocked_range<std::size_t>& br) {
-      for (std::size_t i = br.begin(); i != br.end(); ++i)
-        out->value[i] += local_lights_term(s, t, pose, ctx.posed.lights, glm::vec3(rec.px[i], rec.py[i], rec.pz[i]),
-                                           glm::vec3(rec.nx[i], rec.ny[i], rec.nz[i]));
+      add_local_lights(s, t, pose, ctx.posed.lights, rec, br.begin(), br.end(), out->value.data() + br.begin());
     });
   }
   auto& r = ctx.record();
