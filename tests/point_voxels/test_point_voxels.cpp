@@ -663,9 +663,9 @@ TEST(Gathering, Eq7WeightsTheGlossyTermTowardsTheReflectionVector) {
 
 // The near case summed in lanes over VPL planes against the VPLs one at a time: random VPLs in a
 // 3 x 2 x 2 grid (voxels of 0 to a few dozen VPLs, so a voxel's last lanes run into its neighbour's
-// VPLs and, for the last voxel, into the planes' padding), random diffuse receivers, some facing
-// away, some sitting on a VPL (d = 0). Glossy receivers take the one-at-a-time path whatever is
-// given; far voxels are the SH case either way.
+// VPLs and, for the last voxel, into the planes' padding), random receivers, some facing away, some
+// sitting on a VPL (d = 0), some glossy (the Phong lobe, and eq. 7's weights; their powers and
+// Gaussians in lanes are 2^(ns log2 c) and a polynomial 2^x); far voxels are the SH case either way.
 TEST(Gathering, ProxyPlanesSumTheNearVplsAsOneAtATime) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
@@ -692,22 +692,45 @@ TEST(Gathering, ProxyPlanesSumTheNearVplsAsOneAtATime) {
                              {&lit_later.px, &planes.px}, {&lit_later.nz, &planes.nz}})
     EXPECT_EQ(*a, *b);
   EXPECT_THROW(set_radiance(lit_later, unlit), std::invalid_argument);
-  int compared = 0;
+  int compared = 0, glossy_compared = 0, eq7_compared = 0;
+  float worst_glossy = 0.0f;
+  std::uint32_t largest = 0;  // VPLs of the fullest voxel
+  for (std::size_t c = 0; c < grid.cells(); ++c) largest = std::max(largest, grid.start[c + 1] - grid.start[c]);
   for (int k = 0; k < 200; ++k) {
     Receiver r;
     r.position = k % 10 == 0 ? p.position[static_cast<std::size_t>(k) % p.size()] : glm::vec3(1.5f * u(rng), u(rng), u(rng));
     r.normal = glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 0.1f));
-    r.glossy = k % 7 == 0 ? 0.5f : 0.0f;
-    r.ns = 20.0f;
-    r.reflect = r.normal;
+    r.glossy = k % 3 == 0 ? 0.5f : 0.0f;
+    r.ns = k % 2 == 0 ? 20.0f : 200.0f;
+    r.eq7_sigma = k % 9 == 0 ? eq7_sigma(r.ns, 1.0f) : 0.0f;
+    r.reflect = k % 4 == 0 ? r.normal : glm::normalize(glm::vec3(u(rng), u(rng), u(rng)) + glm::vec3(0.0f, 0.0f, 0.1f));
     for (std::int32_t v = 0; v < static_cast<std::int32_t>(grid.cells()); ++v)
       for (const float near : {1e6f, 0.5f}) {
         Gathered one, lanes;
         gather_voxel(grid, p, v, r, near, 0.75f, one);
         gather_voxel(grid, p, v, r, near, 0.75f, lanes, &planes);
         if (r.glossy > 0.0f) {
-          ASSERT_EQ(lanes.irradiance, one.irradiance);
-          ASSERT_EQ(lanes.glossy, one.glossy);
+          // Every term is non-negative, so each sum bounds its terms. c^ns has condition number ns
+          // in c: the lanes' cosine c comes from w |w|^-1 where the one-at-a-time loop divides by
+          // |w|, a couple of ulps (2^-23 relative each) apart, and 2^(ns log2 c) rounds log2 c to its
+          // own ulps, which the power multiplies by ns as well; the series add a few ulps: (2 ns + 8)
+          // 2^-23 of a term. Eq. 7's Gaussian exp(-x^2 / 2) of x = |1 - c^ns| / sigma multiplies that
+          // by up to 1 + 1 / sigma^2 (its derivative in c^ns, relative, is at most x / sigma).
+          const float pow_rel = (2.0f * r.ns + 8.0f) * 0x1p-23f;
+          const float eq7_rel = r.eq7_sigma > 0.0f ? pow_rel * (1.0f + 1.0f / (r.eq7_sigma * r.eq7_sigma)) : 0.0f;
+          // Non-negative terms summed in another order, each cosine off by an ulp or so: a float's
+          // half ulp per term added, and a few ulps per term.
+          const float order_rel = static_cast<float>(largest + 8) * 0x1p-24f;
+          for (int c = 0; c < 3; ++c) {
+            ASSERT_NEAR(lanes.irradiance[c], one.irradiance[c], order_rel * one.irradiance[c] + 1e-7f) << "receiver " << k << ", voxel " << v;
+            ASSERT_NEAR(lanes.glossy[c], one.glossy[c], (order_rel + pow_rel) * one.glossy[c] + 1e-7f) << "receiver " << k << ", voxel " << v;
+            ASSERT_NEAR(lanes.weighted[c], one.weighted[c], (order_rel + pow_rel + eq7_rel) * one.weighted[c] + 1e-7f)
+                << "receiver " << k << ", voxel " << v;
+            if (one.glossy[c] > 1e-4f) worst_glossy = std::max(worst_glossy, std::abs(lanes.glossy[c] - one.glossy[c]) / one.glossy[c]);
+          }
+          ASSERT_EQ(lanes.eq7, one.eq7) << "receiver " << k << ", voxel " << v;
+          glossy_compared += one.glossy != glm::vec3(0.0f);
+          eq7_compared += one.weighted != glm::vec3(0.0f);
           continue;
         }
         // Positive terms summed in another order: a few ulps per VPL of the sum (1e-5 relative for
@@ -728,6 +751,10 @@ TEST(Gathering, ProxyPlanesSumTheNearVplsAsOneAtATime) {
       }
   }
   EXPECT_GT(compared, 500);
+  EXPECT_GT(glossy_compared, 100);
+  EXPECT_GT(eq7_compared, 20);
+  std::printf("near VPLs in lanes: %d diffuse, %d glossy and %d eq. 7 sums compared (fullest voxel %u VPLs); worst glossy "
+              "difference %.3g relative (of sums above 1e-4)\n", compared, glossy_compared, eq7_compared, largest, static_cast<double>(worst_glossy));
   PosedProxies fewer = p;
   fewer.position.pop_back();
   fewer.normal.pop_back();
