@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 #include "softgi/sh/sh.hpp"
 
@@ -25,9 +27,12 @@ float angular_radius(const glm::vec3& p, const scene::Sphere& s) {
 }
 }  // namespace
 
-BlockerList make_cut(const std::vector<const proxies::SphereHierarchy*>& trees,
-                     const std::vector<std::vector<scene::Sphere>>& leaves, const ZhTable& log_table, const glm::vec3& pR,
-                     float rR, const glm::vec3& pstar, const CutOptions& opt, CutStats* stats) {
+namespace {
+
+// The cut of make_cut and make_cut_posed: sphere_of(t, id) is node id of tree t's sphere this frame.
+template <class SphereOf>
+BlockerList cut(const std::vector<const proxies::SphereHierarchy*>& trees, SphereOf sphere_of, const ZhTable& log_table,
+                const glm::vec3& pR, float rR, const glm::vec3& pstar, const CutOptions& opt, CutStats* stats) {
   const int n = log_table.order;
   const int n2 = n * n;
   BlockerList out;
@@ -40,12 +45,6 @@ BlockerList make_cut(const std::vector<const proxies::SphereHierarchy*>& trees,
     const proxies::SphereHierarchy* tree = trees[t];
     if (!tree || tree->root() < 0) continue;
     const auto& nodes = tree->nodes();
-    // A leaf's own sphere where the caller passes the leaf list, else its bound (the same sphere).
-    auto sphere_of = [&](const proxies::SphereNode& nd) -> const scene::Sphere& {
-      if (nd.children.empty() && nd.leaf >= 0 && t < leaves.size() && nd.leaf < static_cast<int>(leaves[t].size()))
-        return leaves[t][nd.leaf];
-      return nd.bound;
-    };
     stack.assign(1, tree->root());
     while (!stack.empty()) {
       const int id = stack.back();
@@ -53,7 +52,7 @@ BlockerList make_cut(const std::vector<const proxies::SphereHierarchy*>& trees,
       ++st.nodes_visited;
       const proxies::SphereNode& node = nodes[id];
       const bool leaf = node.children.empty();
-      const scene::Sphere& s = sphere_of(node);
+      const scene::Sphere& s = sphere_of(t, id);
       // eq. 36: the node subtends less than theta_max over the whole receiver cluster.
       const bool small = s.radius < sin_max * (glm::length(s.center - pR) - rR);
       if (!leaf && !small) {
@@ -74,12 +73,12 @@ BlockerList make_cut(const std::vector<const proxies::SphereHierarchy*>& trees,
         const int d = detail.back();
         detail.pop_back();
         const proxies::SphereNode& dn = nodes[d];
-        if (!dn.children.empty() && !(opt.theta_min > 0.0 && angular_radius(pstar, dn.bound) < opt.theta_min)) {
+        if (!dn.children.empty() && !(opt.theta_min > 0.0 && angular_radius(pstar, sphere_of(t, d)) < opt.theta_min)) {
           for (int ch : dn.children) detail.push_back(ch);
           continue;
         }
         ++st.detail_spheres;
-        const scene::Sphere& ds = sphere_of(dn);
+        const scene::Sphere& ds = sphere_of(t, d);
         sphere_zh_vector(log_table, pstar, ds.center, ds.radius, nullptr, tmp.data());
         for (int i = 0; i < n2; ++i) fd[i] += tmp[i];
       }
@@ -104,6 +103,32 @@ BlockerList make_cut(const std::vector<const proxies::SphereHierarchy*>& trees,
     stats->detail_spheres += st.detail_spheres;
   }
   return out;
+}
+
+}  // namespace
+
+BlockerList make_cut(const std::vector<const proxies::SphereHierarchy*>& trees,
+                     const std::vector<std::vector<scene::Sphere>>& leaves, const ZhTable& log_table, const glm::vec3& pR,
+                     float rR, const glm::vec3& pstar, const CutOptions& opt, CutStats* stats) {
+  // A leaf's own sphere where the caller passes the leaf list, else its bound (the same sphere).
+  auto sphere_of = [&](std::size_t t, int id) -> const scene::Sphere& {
+    const proxies::SphereNode& nd = trees[t]->nodes()[static_cast<std::size_t>(id)];
+    if (nd.children.empty() && nd.leaf >= 0 && t < leaves.size() && nd.leaf < static_cast<int>(leaves[t].size()))
+      return leaves[t][nd.leaf];
+    return nd.bound;
+  };
+  return cut(trees, sphere_of, log_table, pR, rR, pstar, opt, stats);
+}
+
+BlockerList make_cut_posed(const std::vector<const proxies::SphereHierarchy*>& trees,
+                           const std::vector<std::vector<scene::Sphere>>& node_spheres, const ZhTable& log_table, const glm::vec3& pR,
+                           float rR, const glm::vec3& pstar, const CutOptions& opt, CutStats* stats) {
+  for (std::size_t t = 0; t < trees.size(); ++t)
+    if (trees[t] && (t >= node_spheres.size() || node_spheres[t].size() != trees[t]->nodes().size()))
+      throw std::invalid_argument("make_cut_posed: tree " + std::to_string(t) + " has " + std::to_string(trees[t]->nodes().size()) +
+                                  " nodes and " + std::to_string(t < node_spheres.size() ? node_spheres[t].size() : 0) + " posed spheres");
+  auto sphere_of = [&](std::size_t t, int id) -> const scene::Sphere& { return node_spheres[t][static_cast<std::size_t>(id)]; };
+  return cut(trees, sphere_of, log_table, pR, rR, pstar, opt, stats);
 }
 
 }  // namespace softgi::techniques::common

@@ -29,6 +29,23 @@ struct CutStats {
 BlockerList make_cut(const std::vector<const proxies::SphereHierarchy*>& trees, const std::vector<std::vector<scene::Sphere>>& leaves,
                      const ZhTable& log_table, const glm::vec3& pR, float rR, const glm::vec3& pstar,
                      const CutOptions& opt, CutStats* stats);
+// make_cut over trees whose nodes moved apart from their build-time bounds: node_spheres[t][id] is
+// node id of tree t as posed this frame (leaves and inner nodes; a tree may be null, and is skipped).
+// The rest as make_cut. Throws std::invalid_argument where a tree's node count and its posed spheres
+// differ.
+BlockerList make_cut_posed(const std::vector<const proxies::SphereHierarchy*>& trees,
+                           const std::vector<std::vector<scene::Sphere>>& node_spheres, const ZhTable& log_table, const glm::vec3& pR,
+                           float rR, const glm::vec3& pstar, const CutOptions& opt, CutStats* stats);
+// Per receiver cluster, the blocker list its receivers sum: lists[list_of_cluster[c]].
+struct ClusterCuts {
+  std::vector<BlockerList> lists;
+  std::vector<int> list_of_cluster;
+  std::size_t bytes() const {
+    std::size_t b = list_of_cluster.size() * sizeof(int);
+    for (const auto& l : lists) b += l.bytes();
+    return b;
+  }
+};
 // Every leaf of every set, W = 1 (no hierarchy).
 BlockerList flat_list(const std::vector<std::vector<scene::Sphere>>& sets, int order);
 

@@ -71,15 +71,7 @@ struct HierarchyRes {
   std::vector<const proxies::SphereHierarchy*> trees;  // one per proxy set (null where empty)
 };
 
-struct Cuts {
-  std::vector<BlockerList> lists;
-  std::vector<int> list_of_cluster;
-  std::size_t bytes() const {
-    std::size_t b = list_of_cluster.size() * sizeof(int);
-    for (const auto& l : lists) b += l.bytes();
-    return b;
-  }
-};
+using Cuts = common::ClusterCuts;
 
 struct Field {  // per receiver, order^2 floats
   int order = 0;

@@ -13,6 +13,7 @@
 #include <glm/glm.hpp>
 
 #include "../common/accumulation.hpp"
+#include "../common/cuts.hpp"
 #include "../common/receivers.hpp"
 #include "softgi/proxies/hierarchy.hpp"
 #include "sl_precompute.hpp"
@@ -38,6 +39,7 @@ inline constexpr const char* kSampleVisibility = "sl.sample_visibility";
 inline constexpr const char* kSampleRadiance = "sl.sample_radiance";  // L_p per sample point (section 5.1)
 inline constexpr const char* kIntensity = "sl.intensity";      // L^c_S per SL (section 5.2, eq. 11)
 inline constexpr const char* kSlCuts = "sl.cuts";              // per receiver cluster, the SLs it sums (section 7.3)
+inline constexpr const char* kShadowCuts = "sl.shadow_cuts";   // per receiver cluster, its shadows' blockers (section 7.3)
 inline constexpr const char* kReceivers = "sl.receivers";
 inline constexpr const char* kLogVisibility = "sl.log_visibility";
 inline constexpr const char* kVisibility = "sl.visibility";
@@ -65,6 +67,7 @@ struct Settings {
   bool indirect = true;
   int clusters = 0;  // receiver clusters (0 = automatic)
   bool hierarchy = true;  // section 7.3
+  bool shadow_hierarchy = false;  // section 7.3: the vertices' shadows from cuts (paper 004's, with ratio vectors)
   bool reflection_ratios = true;  // eq. 25
   bool lights_as_sls = true;      // section 7.3 local lights; false: paper 004's analytic lights
   double theta_max = 0.0;

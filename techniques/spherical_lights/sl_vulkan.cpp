@@ -125,8 +125,23 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx, Stage stage
   check_fits(dev, count * n2 * sizeof(float), "the log vectors of " + std::to_string(count) + " " + stage_name(stage), pass);
   check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " " + stage_name(stage), pass);
 
-  const PackedBlockers packed = pack_blocker_lists({pose.blockers}, n, 1, 1.0f, "spherical_lights", "order");
-  const std::vector<std::uint32_t> rlist(std::max<std::size_t>(1, count), 0u);  // every receiver reads the one list
+  // Every receiver reads the one list of every leaf, or (section 7.3) its cluster's cut.
+  std::shared_ptr<const ClusterCuts> cuts;
+  if (stage == Stage::Receivers && ctx.has(kShadowCuts)) cuts = ctx.get<std::shared_ptr<const ClusterCuts>>(kShadowCuts);
+  std::vector<std::uint32_t> rlist(std::max<std::size_t>(1, count), 0u);
+  double pairs = static_cast<double>(count) * static_cast<double>(nb);
+  if (cuts) {
+    const auto& receivers = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+    pairs = 0.0;
+    for (std::size_t c = 0; c < receivers.clusters.size(); ++c) {
+      const ReceiverCluster& rc = receivers.clusters[c];
+      const int l = cuts->list_of_cluster[c];
+      for (std::size_t i = rc.begin; i < rc.end; ++i) rlist[i] = static_cast<std::uint32_t>(l);
+      pairs += static_cast<double>(rc.end - rc.begin) * static_cast<double>(cuts->lists[static_cast<std::size_t>(l)].size());
+    }
+  }
+  const PackedBlockers packed = cuts ? pack_blocker_lists(cuts->lists, n, 1, 1.0f, "spherical_lights", "order")
+                                     : pack_blocker_lists({pose.blockers}, n, 1, 1.0f, "spherical_lights", "order");
   upload_tables(dev, g, tp);
   const vk::Buffer& basis = basis_constants(dev);
   const std::size_t uploaded = sb.inputs.upload(dev, rec, rlist, packed, std::string("spherical_lights ") + stage_name(stage));
@@ -142,7 +157,6 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx, Stage stage
 
   auto& r = ctx.record();
   const double secs = timer_seconds(res);
-  const double pairs = static_cast<double>(count) * static_cast<double>(nb);
   r.counters["receivers"] = static_cast<double>(count);
   r.counters["blockers"] = static_cast<double>(nb);
   r.counters["blocker_chunks"] = chunks;

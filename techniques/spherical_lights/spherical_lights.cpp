@@ -50,6 +50,10 @@ Settings read_settings(const render::ParamSet& p) {
   s.clusters = p.get_int("receiver_clusters");
   s.hierarchy = p.get_bool("hierarchy");
   s.reflection_ratios = p.get_bool("reflection_ratios");
+  s.shadow_hierarchy = p.get_bool("shadow_hierarchy");
+  if (s.shadow_hierarchy && !s.hierarchy)
+    throw std::invalid_argument("spherical_lights: shadow_hierarchy=true needs hierarchy=true (the shadows are cut from the SL "
+                                "hierarchies)");
   s.theta_max = p.get_float("theta_max_deg") * sh::kPi / 180.0;
   s.pre.order = s.order;
   s.pre.geodesic_frequency = p.get_int("geodesic_frequency");
@@ -456,11 +460,27 @@ void pass_accumulate(const Settings& s, FrameContext& ctx, Stage stage) {
   f->order = s.order;
   f->v.assign(nr * n2, 0.0f);
   const auto t0 = std::chrono::steady_clock::now();
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nr, 256), [&](const tbb::blocked_range<std::size_t>& br) {
-    accumulate_log(s.isa, t.log, s.rule, rec, br.begin(), br.end(), pose.blockers, f->v.data());
-  });
+  double pairs = 0.0;
+  if (stage == Stage::Receivers && ctx.has(kShadowCuts)) {
+    // Section 7.3: each receiver cluster sums its cut (one task per cluster, as SHEXP's kernel).
+    const auto& cuts = *ctx.get<std::shared_ptr<const ClusterCuts>>(kShadowCuts);
+    const auto& receivers = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, receivers.clusters.size(), 1), [&](const tbb::blocked_range<std::size_t>& cr) {
+      for (std::size_t c = cr.begin(); c != cr.end(); ++c) {
+        const ReceiverCluster& rc = receivers.clusters[c];
+        accumulate_log(s.isa, t.log, s.rule, rec, rc.begin, rc.end, cuts.lists[cuts.list_of_cluster[c]], f->v.data());
+      }
+    });
+    for (std::size_t c = 0; c < receivers.clusters.size(); ++c)
+      pairs += static_cast<double>(receivers.clusters[c].end - receivers.clusters[c].begin) *
+               static_cast<double>(cuts.lists[cuts.list_of_cluster[c]].size());
+  } else {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nr, 256), [&](const tbb::blocked_range<std::size_t>& br) {
+      accumulate_log(s.isa, t.log, s.rule, rec, br.begin(), br.end(), pose.blockers, f->v.data());
+    });
+    pairs = static_cast<double>(nr) * static_cast<double>(pose.blockers.size());
+  }
   const double secs = common::seconds_since(t0);
-  const double pairs = static_cast<double>(nr) * static_cast<double>(pose.blockers.size());
   auto& r = ctx.record();
   r.counters["receivers"] = static_cast<double>(nr);
   r.counters["blockers"] = static_cast<double>(pose.blockers.size());
@@ -647,6 +667,62 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const SlCuts>>(kSlCuts, cuts);
 }
 
+// Section 7.3: "receiver points far away from an object use a coarser hierarchy level to calculate
+// shadows", the cut made "as in [RWS*06]": per receiver cluster, paper 004's cut (eq. 36) of each
+// object's SL hierarchy as posed this frame, with the ratio vectors of eq. 37 at its central
+// receiver p*; objects without a hierarchy (one SL) give their leaf.
+void pass_shadow_cut(const Settings& s, FrameContext& ctx) {
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
+  const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+  std::vector<const proxies::SphereHierarchy*> trees(pose.trees.size(), nullptr);
+  std::vector<std::vector<scene::Sphere>> node_spheres(pose.trees.size());
+  std::vector<char> has_tree(pose.trees.size(), 0);
+  for (std::size_t o = 0; o < pose.trees.size(); ++o) {
+    if (!pose.trees[o]) continue;
+    trees[o] = pose.trees[o].get();
+    has_tree[o] = 1;
+    for (const int sl : pose.node_sl[o]) node_spheres[o].push_back(scene::Sphere{pose.centre[sl], pose.radius[sl]});
+  }
+  CutOptions opt;
+  opt.theta_max = s.theta_max;
+  opt.ratio_vectors = true;
+  const int nc = static_cast<int>(r.clusters.size());
+  auto cuts = std::make_shared<ClusterCuts>();
+  cuts->lists.resize(nc);
+  cuts->list_of_cluster.resize(nc);
+  tbb::combinable<CutStats> stats;
+  tbb::parallel_for(0, nc, [&](int c) {
+    const ReceiverCluster& rc = r.clusters[c];
+    BlockerList l = make_cut_posed(trees, node_spheres, t.log, rc.centre, rc.radius, rc.star, opt, &stats.local());
+    for (std::size_t i = 0; i < pose.leaves; ++i)
+      if (!has_tree[static_cast<std::size_t>(pose.object[i])]) l.push(pose.centre[i], pose.radius[i], nullptr);
+    cuts->lists[c] = std::move(l);
+    cuts->list_of_cluster[c] = c;
+  });
+  CutStats total;
+  stats.combine_each([&](const CutStats& cs) {
+    total.leaves += cs.leaves;
+    total.inner += cs.inner;
+    total.nodes_visited += cs.nodes_visited;
+    total.detail_spheres += cs.detail_spheres;
+  });
+  std::size_t sum = 0, mx = 0;
+  for (const auto& l : cuts->lists) {
+    sum += l.size();
+    mx = std::max(mx, l.size());
+  }
+  auto& rec = ctx.record();
+  rec.counters["clusters"] = nc;
+  rec.counters["cut_mean"] = nc ? static_cast<double>(sum) / nc : 0.0;
+  rec.counters["cut_max"] = static_cast<double>(mx);
+  rec.counters["leaf_sls"] = static_cast<double>(pose.leaves);
+  rec.counters["inner_in_cuts"] = static_cast<double>(total.inner);
+  rec.counters["detail_spheres"] = static_cast<double>(total.detail_spheres);
+  rec.bytes = cuts->bytes();
+  ctx.put<std::shared_ptr<const ClusterCuts>>(kShadowCuts, cuts);
+}
+
 void pass_indirect(const Settings& s, FrameContext& ctx) {
   const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
   const auto& lc = *ctx.get<std::shared_ptr<const Intensity>>(kIntensity);
@@ -775,6 +851,9 @@ class SphericalLights final : public render::Technique {
                                    "jittered stratified directions of the intensity projection, strata^2 in all (section 5.2, eqs. 9-10)")
                     .with_ladder({"16", "32", "64", "96"}));
     d.push_back(common::params::hierarchy("SL hierarchies cut per receiver cluster with reflection ratios (section 7.3, eqs. 25-26)"));
+    d.push_back(ParamDesc::boolean("shadow_hierarchy", false,
+                                   "the vertices' shadows from each receiver cluster's cut of the SL hierarchies with paper 004's ratio "
+                                   "vectors (section 7.3, as the paper; needs hierarchy); off: every leaf SL"));
     d.push_back(common::params::theta_max_deg());
     d.push_back(ParamDesc::boolean("reflection_ratios", true, "eq. 25 reflection ratios on the parents of a cut (off: t = 1)"));
     d.push_back(common::params::receiver_clusters());
@@ -844,8 +923,12 @@ class SphericalLights final : public render::Technique {
     // registered backend's kernels.
     auto add_stage = [&](Stage stage, const std::string& suffix, const std::string& what) {
       const char* receivers = stage == Stage::Samples ? kSlPose : kReceivers;
-      g.add({"accumulate_log" + suffix, {receivers, kTables, kSlPose}, {}, {log_resource(stage)},
-             "sum of every SL's log visibility at the " + what + " (eqs. 6-7; paper 004 eq. 34, rules of section 6.2)",
+      const bool cut = stage == Stage::Receivers && s.shadow_hierarchy;
+      g.add({"accumulate_log" + suffix, {receivers, kTables, kSlPose}, cut ? std::vector<std::string>{kShadowCuts} : std::vector<std::string>{},
+             {log_resource(stage)},
+             (cut ? "sum of each receiver cluster's cut of the SL hierarchies as log visibility at the "
+                  : "sum of every SL's log visibility at the ") +
+                 what + " (eqs. 6-7; paper 004 eq. 34, rules of section 6.2)",
              common::with_kernels<DeviceKernels>(cpu([s, stage](FrameContext& c) { pass_accumulate(s, c, stage); }), kernels,
                                                  [s, stage](const DeviceKernels& k) -> render::PassFn {
                                                    if (!k.accumulate) return {};
@@ -868,6 +951,10 @@ class SphericalLights final : public render::Technique {
                                                    return [st, s, stage, f = k.shade](FrameContext& c) { pass_shade(*st, s, c, stage, &f); };
                                                  })});
     };
+    if (s.shadow_hierarchy)
+      g.add({"shadow_cut", {kReceivers, kTables, kSlPose}, {}, {kShadowCuts},
+             "per receiver cluster: cut of the SL hierarchies for the shadows (section 7.3; paper 004 eqs. 36-37)",
+             cpu([s](FrameContext& c) { pass_shadow_cut(s, c); })});
     add_stage(Stage::Receivers, "", "vertices");
     g.add({"to_image", {render::kGBuffer, kReceivers, kDirectShading}, {}, {render::kDirect}, "per-vertex direct radiance through the G-buffer",
            cpu([](FrameContext& c) { pass_to_image(c, false); })});

@@ -290,6 +290,58 @@ Diff diff(const std::vector<double>& a, const std::vector<double>& ref) {
 constexpr double kHierarchyMeanTol = 0.01;
 constexpr double kHierarchyMaxTol = 0.08;
 
+// make_cut_posed takes every node's sphere as posed this frame (spherical lights pose their parent
+// SLs themselves). Given the spheres make_cut reads (the leaves and the build-time bounds) it is
+// make_cut to the bit; given them all moved by T, with the cluster moved by T, it is the same cut
+// moved by T (the spheres as given, ratio vectors within 1e-4: the log vectors at p* + T are the
+// ones at p* up to the rounding of the translated coordinates); a cut that read the build-time bounds of the inner nodes would test them against
+// receivers 40 m away.
+TEST(ShexpHierarchy, PosedCutIsTheCutOfTheSpheresAsGiven) {
+  const int order = 4;
+  sh::TableOptions o;
+  o.order = order;
+  o.measure_error = false;
+  sh::ShTables tables(o);
+  const ZhTable t = make_zh_table(tables.cap_log(), order, true);
+  Crowd c = make_crowd(1);
+  std::vector<proxies::SphereHierarchy> trees;
+  for (const auto& set : c.sets) trees.push_back(proxies::SphereHierarchy::build(set, 4));
+  std::vector<const proxies::SphereHierarchy*> tp;
+  for (const auto& tr : trees) tp.push_back(&tr);
+  const glm::vec3 T(40.0f, 0.0f, -25.0f);
+  std::vector<std::vector<scene::Sphere>> rest(trees.size()), moved(trees.size());
+  for (std::size_t k = 0; k < trees.size(); ++k)
+    for (const auto& nd : trees[k].nodes()) {
+      const scene::Sphere sp = nd.children.empty() ? c.sets[k][static_cast<std::size_t>(nd.leaf)] : nd.bound;
+      rest[k].push_back(sp);
+      moved[k].push_back(scene::Sphere{sp.center + T, sp.radius});
+    }
+  CutOptions opt;
+  int inner = 0;
+  for (const auto& rc : c.clusters) {
+    const BlockerList a = make_cut(tp, c.sets, t, rc.centre, rc.radius, rc.star, opt, nullptr);
+    const BlockerList b = make_cut_posed(tp, rest, t, rc.centre, rc.radius, rc.star, opt, nullptr);
+    EXPECT_EQ(a.cx, b.cx);
+    EXPECT_EQ(a.r, b.r);
+    EXPECT_EQ(a.w, b.w);
+    const BlockerList m = make_cut_posed(tp, moved, t, rc.centre + T, rc.radius, rc.star + T, opt, nullptr);
+    ASSERT_EQ(m.size(), a.size());
+    for (std::size_t j = 0; j < a.size(); ++j) {
+      EXPECT_EQ(m.r[j], a.r[j]);
+      EXPECT_EQ(m.cx[j], a.cx[j] + T.x);  // the caller's sphere, pushed as given
+      EXPECT_EQ(m.cz[j], a.cz[j] + T.z);
+    }
+    ASSERT_EQ(m.w.size(), a.w.size());
+    for (std::size_t j = 0; j < a.w.size(); ++j) EXPECT_NEAR(m.w[j], a.w[j], 1e-4f * std::max(1.0f, std::abs(a.w[j])));
+    for (std::size_t j = 0; j < a.size(); ++j) inner += a.w[j * order] != 1.0f;
+  }
+  EXPECT_GT(inner, 0) << "cuts with inner nodes, whose spheres the posed cut must take from the caller";
+  std::vector<std::vector<scene::Sphere>> short_list = rest;
+  short_list[0].pop_back();
+  EXPECT_THROW(make_cut_posed(tp, short_list, t, c.clusters[0].centre, c.clusters[0].radius, c.clusters[0].star, opt, nullptr),
+               std::invalid_argument);
+}
+
 TEST(ShexpHierarchy, RatioVectorsKeepTheCutCloseToTheFlatList) {
   const int order = 4;
   sh::TableOptions o;

@@ -80,8 +80,13 @@ struct Case {
   const char* blocking;
   const char* exp;
   const char* hierarchy;  // section 7.3: cluster cuts with reflection ratios, or every leaf
+  const char* shadow_hierarchy = "false";  // section 7.3: the vertices' shadows from cluster cuts too
 };
-const Case kCases[] = {{"per_sphere", "hyb", "true"}, {"per_object", "hyb", "true"}, {"per_sphere", "ol", "true"}, {"per_sphere", "hyb", "false"}};
+const Case kCases[] = {{"per_sphere", "hyb", "true"},
+                       {"per_object", "hyb", "true"},
+                       {"per_sphere", "ol", "true"},
+                       {"per_sphere", "hyb", "false"},
+                       {"per_sphere", "hyb", "true", "true"}};
 
 // The passes with a Vulkan implementation and their tolerances.
 const std::map<std::string, double> kPassTol = {
@@ -102,6 +107,7 @@ render::ParamSet params_for(render::Technique& tech, const Case& cs) {
   p.set("blocking", cs.blocking);
   p.set("exp", cs.exp);
   p.set("hierarchy", cs.hierarchy);
+  p.set("shadow_hierarchy", cs.shadow_hierarchy);
   return p;
 }
 
@@ -123,7 +129,7 @@ TEST_P(SphericalLightsParity, EveryVulkanPassMatchesTheCpuPass) {
   const scene::Scene sc = scene::make_builtin(name);
   std::unique_ptr<render::Technique> tech = sl::create();
   for (const Case& cs : kCases) {
-    SCOPED_TRACE(name + ", " + cs.blocking + ", " + cs.exp + ", hierarchy " + cs.hierarchy);
+    SCOPED_TRACE(name + ", " + cs.blocking + ", " + cs.exp + ", hierarchy " + cs.hierarchy + ", shadow hierarchy " + cs.shadow_hierarchy);
     const render::ParamSet params = params_for(*tech, cs);
     // Frame 1: pass by pass from the CPU's inputs.
     std::vector<float> cpu_final;
