@@ -40,6 +40,8 @@ inline constexpr const char* kSampleRadiance = "sl.sample_radiance";  // L_p per
 inline constexpr const char* kIntensity = "sl.intensity";      // L^c_S per SL (section 5.2, eq. 11)
 inline constexpr const char* kSlCuts = "sl.cuts";              // per receiver cluster, the SLs it sums (section 7.3)
 inline constexpr const char* kShadowCuts = "sl.shadow_cuts";   // per receiver cluster, its shadows' blockers (section 7.3)
+// Per SlData object, the blockers of its SLs' sample points (section 7.3; list_of_cluster per object).
+inline constexpr const char* kSampleShadowCuts = "sl.sample_shadow_cuts";
 inline constexpr const char* kReceivers = "sl.receivers";
 inline constexpr const char* kLogVisibility = "sl.log_visibility";
 inline constexpr const char* kVisibility = "sl.visibility";

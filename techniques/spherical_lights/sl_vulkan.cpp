@@ -125,19 +125,26 @@ void vulkan_accumulate(const Settings& s, render::FrameContext& ctx, Stage stage
   check_fits(dev, count * n2 * sizeof(float), "the log vectors of " + std::to_string(count) + " " + stage_name(stage), pass);
   check_fits(dev, count * 6 * sizeof(float), "the positions and normals of " + std::to_string(count) + " " + stage_name(stage), pass);
 
-  // Every receiver reads the one list of every leaf, or (section 7.3) its cluster's cut.
+  // Every receiver reads the one list of every leaf, or (section 7.3) its cluster's cut: a vertex
+  // its Lloyd cluster's, a sample point its object's.
+  const char* cut_resource = stage == Stage::Samples ? kSampleShadowCuts : kShadowCuts;
   std::shared_ptr<const ClusterCuts> cuts;
-  if (stage == Stage::Receivers && ctx.has(kShadowCuts)) cuts = ctx.get<std::shared_ptr<const ClusterCuts>>(kShadowCuts);
+  if (ctx.has(cut_resource)) cuts = ctx.get<std::shared_ptr<const ClusterCuts>>(cut_resource);
   std::vector<std::uint32_t> rlist(std::max<std::size_t>(1, count), 0u);
   double pairs = static_cast<double>(count) * static_cast<double>(nb);
   if (cuts) {
-    const auto& receivers = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
     pairs = 0.0;
-    for (std::size_t c = 0; c < receivers.clusters.size(); ++c) {
-      const ReceiverCluster& rc = receivers.clusters[c];
-      const int l = cuts->list_of_cluster[c];
-      for (std::size_t i = rc.begin; i < rc.end; ++i) rlist[i] = static_cast<std::uint32_t>(l);
-      pairs += static_cast<double>(rc.end - rc.begin) * static_cast<double>(cuts->lists[static_cast<std::size_t>(l)].size());
+    auto assign = [&](std::size_t begin, std::size_t end, int cluster) {
+      const int l = cuts->list_of_cluster[static_cast<std::size_t>(cluster)];
+      for (std::size_t i = begin; i < end; ++i) rlist[i] = static_cast<std::uint32_t>(l);
+      pairs += static_cast<double>(end - begin) * static_cast<double>(cuts->lists[static_cast<std::size_t>(l)].size());
+    };
+    if (stage == Stage::Samples) {
+      for (std::size_t i = 0; i < pose.size(); ++i) assign(pose.sample_begin[i], pose.sample_begin[i + 1], pose.object[i]);
+    } else {
+      const auto& receivers = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
+      for (std::size_t c = 0; c < receivers.clusters.size(); ++c)
+        assign(receivers.clusters[c].begin, receivers.clusters[c].end, static_cast<int>(c));
     }
   }
   const PackedBlockers packed = cuts ? pack_blocker_lists(cuts->lists, n, 1, 1.0f, "spherical_lights", "order")

@@ -461,7 +461,18 @@ void pass_accumulate(const Settings& s, FrameContext& ctx, Stage stage) {
   f->v.assign(nr * n2, 0.0f);
   const auto t0 = std::chrono::steady_clock::now();
   double pairs = 0.0;
-  if (stage == Stage::Receivers && ctx.has(kShadowCuts)) {
+  if (stage == Stage::Samples && ctx.has(kSampleShadowCuts)) {
+    // Each SL's sample points sum the cut of its object (one task per SL).
+    const auto& cuts = *ctx.get<std::shared_ptr<const ClusterCuts>>(kSampleShadowCuts);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pose.size(), 4), [&](const tbb::blocked_range<std::size_t>& sr) {
+      for (std::size_t i = sr.begin(); i != sr.end(); ++i)
+        accumulate_log(s.isa, t.log, s.rule, rec, pose.sample_begin[i], pose.sample_begin[i + 1],
+                       cuts.lists[static_cast<std::size_t>(cuts.list_of_cluster[static_cast<std::size_t>(pose.object[i])])], f->v.data());
+    });
+    for (std::size_t i = 0; i < pose.size(); ++i)
+      pairs += static_cast<double>(pose.sample_begin[i + 1] - pose.sample_begin[i]) *
+               static_cast<double>(cuts.lists[static_cast<std::size_t>(cuts.list_of_cluster[static_cast<std::size_t>(pose.object[i])])].size());
+  } else if (stage == Stage::Receivers && ctx.has(kShadowCuts)) {
     // Section 7.3: each receiver cluster sums its cut (one task per cluster, as SHEXP's kernel).
     const auto& cuts = *ctx.get<std::shared_ptr<const ClusterCuts>>(kShadowCuts);
     const auto& receivers = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
@@ -671,22 +682,43 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
 // shadows", the cut made "as in [RWS*06]": per receiver cluster, paper 004's cut (eq. 36) of each
 // object's SL hierarchy as posed this frame, with the ratio vectors of eq. 37 at its central
 // receiver p*; objects without a hierarchy (one SL) give their leaf.
+// The SL hierarchies as posed this frame, for make_cut_posed: per SlData object its tree and every
+// node's SL sphere; the leaves of objects without a tree are added to every cut.
+struct PosedTrees {
+  std::vector<const proxies::SphereHierarchy*> trees;
+  std::vector<std::vector<scene::Sphere>> node_spheres;
+  std::vector<char> has_tree;
+  explicit PosedTrees(const SlPose& pose)
+      : trees(pose.trees.size(), nullptr), node_spheres(pose.trees.size()), has_tree(pose.trees.size(), 0) {
+    for (std::size_t o = 0; o < pose.trees.size(); ++o) {
+      if (!pose.trees[o]) continue;
+      trees[o] = pose.trees[o].get();
+      has_tree[o] = 1;
+      for (const int sl : pose.node_sl[o]) node_spheres[o].push_back(scene::Sphere{pose.centre[sl], pose.radius[sl]});
+    }
+  }
+  BlockerList cut(const SlPose& pose, const Tables& t, const CutOptions& opt, const glm::vec3& centre, float radius,
+                  const glm::vec3& star, CutStats* stats) const {
+    BlockerList l = make_cut_posed(trees, node_spheres, t.log, centre, radius, star, opt, stats);
+    for (std::size_t i = 0; i < pose.leaves; ++i)
+      if (!has_tree[static_cast<std::size_t>(pose.object[i])]) l.push(pose.centre[i], pose.radius[i], nullptr);
+    return l;
+  }
+};
+
+CutOptions shadow_cut_options(const Settings& s) {
+  CutOptions opt;
+  opt.theta_max = s.theta_max;
+  opt.ratio_vectors = true;
+  return opt;
+}
+
 void pass_shadow_cut(const Settings& s, FrameContext& ctx) {
   const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
   const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
   const auto& r = *ctx.get<std::shared_ptr<const Receivers>>(kReceivers);
-  std::vector<const proxies::SphereHierarchy*> trees(pose.trees.size(), nullptr);
-  std::vector<std::vector<scene::Sphere>> node_spheres(pose.trees.size());
-  std::vector<char> has_tree(pose.trees.size(), 0);
-  for (std::size_t o = 0; o < pose.trees.size(); ++o) {
-    if (!pose.trees[o]) continue;
-    trees[o] = pose.trees[o].get();
-    has_tree[o] = 1;
-    for (const int sl : pose.node_sl[o]) node_spheres[o].push_back(scene::Sphere{pose.centre[sl], pose.radius[sl]});
-  }
-  CutOptions opt;
-  opt.theta_max = s.theta_max;
-  opt.ratio_vectors = true;
+  const PosedTrees posed(pose);
+  const CutOptions opt = shadow_cut_options(s);
   const int nc = static_cast<int>(r.clusters.size());
   auto cuts = std::make_shared<ClusterCuts>();
   cuts->lists.resize(nc);
@@ -694,10 +726,7 @@ void pass_shadow_cut(const Settings& s, FrameContext& ctx) {
   tbb::combinable<CutStats> stats;
   tbb::parallel_for(0, nc, [&](int c) {
     const ReceiverCluster& rc = r.clusters[c];
-    BlockerList l = make_cut_posed(trees, node_spheres, t.log, rc.centre, rc.radius, rc.star, opt, &stats.local());
-    for (std::size_t i = 0; i < pose.leaves; ++i)
-      if (!has_tree[static_cast<std::size_t>(pose.object[i])]) l.push(pose.centre[i], pose.radius[i], nullptr);
-    cuts->lists[c] = std::move(l);
+    cuts->lists[c] = posed.cut(pose, t, opt, rc.centre, rc.radius, rc.star, &stats.local());
     cuts->list_of_cluster[c] = c;
   });
   CutStats total;
@@ -721,6 +750,60 @@ void pass_shadow_cut(const Settings& s, FrameContext& ctx) {
   rec.counters["detail_spheres"] = static_cast<double>(total.detail_spheres);
   rec.bytes = cuts->bytes();
   ctx.put<std::shared_ptr<const ClusterCuts>>(kShadowCuts, cuts);
+}
+
+// The first pass's receivers are the SLs' sample points, which have no Lloyd clusters: each
+// object's sample points (those of all its SLs, leaves and parents) are one cluster, bounded about
+// their centroid, p* the sample point nearest it; its cut as pass_shadow_cut's.
+void pass_sample_shadow_cut(const Settings& s, FrameContext& ctx) {
+  const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
+  const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
+  const PosedTrees posed(pose);
+  const CutOptions opt = shadow_cut_options(s);
+  const std::size_t objects = pose.trees.size();
+  std::vector<glm::dvec3> sum(objects, glm::dvec3(0.0));
+  std::vector<std::size_t> count(objects, 0);
+  const ReceiverSoA& smp = pose.samples;
+  auto at = [&](std::size_t k) { return glm::vec3(smp.px[k], smp.py[k], smp.pz[k]); };
+  for (std::size_t i = 0; i < pose.size(); ++i) {
+    const auto o = static_cast<std::size_t>(pose.object[i]);
+    for (std::size_t k = pose.sample_begin[i]; k < pose.sample_begin[i + 1]; ++k) sum[o] += glm::dvec3(at(k));
+    count[o] += pose.sample_begin[i + 1] - pose.sample_begin[i];
+  }
+  std::vector<glm::vec3> centre(objects, glm::vec3(0.0f)), star(objects, glm::vec3(0.0f));
+  std::vector<float> radius(objects, 0.0f), nearest(objects, std::numeric_limits<float>::infinity());
+  for (std::size_t o = 0; o < objects; ++o)
+    if (count[o] > 0) centre[o] = glm::vec3(sum[o] / static_cast<double>(count[o]));
+  for (std::size_t i = 0; i < pose.size(); ++i) {
+    const auto o = static_cast<std::size_t>(pose.object[i]);
+    for (std::size_t k = pose.sample_begin[i]; k < pose.sample_begin[i + 1]; ++k) {
+      const float d = glm::length(at(k) - centre[o]);
+      radius[o] = std::max(radius[o], d);
+      if (d < nearest[o]) {
+        nearest[o] = d;
+        star[o] = at(k);
+      }
+    }
+  }
+  auto cuts = std::make_shared<ClusterCuts>();
+  cuts->lists.resize(objects);
+  cuts->list_of_cluster.resize(objects);
+  tbb::parallel_for(std::size_t(0), objects, [&](std::size_t o) {
+    if (count[o] > 0) cuts->lists[o] = posed.cut(pose, t, opt, centre[o], radius[o], star[o], nullptr);
+    cuts->list_of_cluster[o] = static_cast<int>(o);
+  });
+  std::size_t sum_l = 0, mx = 0;
+  for (const auto& l : cuts->lists) {
+    sum_l += l.size();
+    mx = std::max(mx, l.size());
+  }
+  auto& rec = ctx.record();
+  rec.counters["clusters"] = static_cast<double>(objects);
+  rec.counters["cut_mean"] = objects ? static_cast<double>(sum_l) / static_cast<double>(objects) : 0.0;
+  rec.counters["cut_max"] = static_cast<double>(mx);
+  rec.counters["leaf_sls"] = static_cast<double>(pose.leaves);
+  rec.bytes = cuts->bytes();
+  ctx.put<std::shared_ptr<const ClusterCuts>>(kSampleShadowCuts, cuts);
 }
 
 void pass_indirect(const Settings& s, FrameContext& ctx) {
@@ -923,10 +1006,11 @@ class SphericalLights final : public render::Technique {
     // registered backend's kernels.
     auto add_stage = [&](Stage stage, const std::string& suffix, const std::string& what) {
       const char* receivers = stage == Stage::Samples ? kSlPose : kReceivers;
-      const bool cut = stage == Stage::Receivers && s.shadow_hierarchy;
-      g.add({"accumulate_log" + suffix, {receivers, kTables, kSlPose}, cut ? std::vector<std::string>{kShadowCuts} : std::vector<std::string>{},
+      const bool cut = s.shadow_hierarchy;
+      const char* cuts = stage == Stage::Samples ? kSampleShadowCuts : kShadowCuts;
+      g.add({"accumulate_log" + suffix, {receivers, kTables, kSlPose}, cut ? std::vector<std::string>{cuts} : std::vector<std::string>{},
              {log_resource(stage)},
-             (cut ? "sum of each receiver cluster's cut of the SL hierarchies as log visibility at the "
+             (cut ? "sum of the SL hierarchies' cut as log visibility at the "
                   : "sum of every SL's log visibility at the ") +
                  what + " (eqs. 6-7; paper 004 eq. 34, rules of section 6.2)",
              common::with_kernels<DeviceKernels>(cpu([s, stage](FrameContext& c) { pass_accumulate(s, c, stage); }), kernels,
@@ -959,6 +1043,10 @@ class SphericalLights final : public render::Technique {
     g.add({"to_image", {render::kGBuffer, kReceivers, kDirectShading}, {}, {render::kDirect}, "per-vertex direct radiance through the G-buffer",
            cpu([](FrameContext& c) { pass_to_image(c, false); })});
     if (s.indirect) {
+      if (s.shadow_hierarchy)
+        g.add({"sample_shadow_cut", {kTables, kSlPose}, {}, {kSampleShadowCuts},
+               "per object: cut of the SL hierarchies for its sample points' shadows (section 7.3; paper 004 eqs. 36-37)",
+               cpu([s](FrameContext& c) { pass_sample_shadow_cut(s, c); })});
       add_stage(Stage::Samples, "_samples", "SL sample points");
       g.add({"intensity_update", {kSlPose, kSampleRadiance}, {}, {kIntensity},
              "SL intensities: Voronoi-cell projection sums (eq. 10) times the albedo SH (eq. 11)",

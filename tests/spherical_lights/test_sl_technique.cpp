@@ -611,41 +611,61 @@ TEST(SlFrame, HierarchyCutWithRatiosIsCloseToEveryLeaf) {
   EXPECT_LT(e_cut, 0.6 * e_plain);
 }
 
-// Section 7.3: the vertices' shadows from each receiver cluster's cut of the SL hierarchies, with
-// paper 004's ratio vectors (shadow_hierarchy), against every leaf SL: far fewer pairs, and direct
-// light within what paper 004's cut allows against its flat list (ShexpHierarchy: 1 % mean, 8 %
-// worst, relative to the shading); the option needs the hierarchies.
+// Section 7.3: the shadows from cuts of the SL hierarchies with paper 004's ratio vectors
+// (shadow_hierarchy), at the vertices per Lloyd cluster and at the SLs' sample points per object,
+// against every leaf SL: far fewer pairs in both stages, and shading within what paper 004's cut
+// allows against its flat list (ShexpHierarchy: 1 % mean, 8 % worst, relative to the shading); the
+// option needs the hierarchies.
 TEST(SlFrame, ShadowHierarchyCutsThePairsAndKeepsTheShadows) {
   const scene::Scene s = scene::make_builtin("crowd");
   render::RenderRequest req;
   req.width = req.height = 16;
-  req.outputs = {"final", kDirectShading};
-  auto direct = [&](const std::vector<std::string>& a, double& pairs) {
-    const render::FrameResult f = render_sl(s, a, req);
-    pairs = 0.0;
-    for (const auto& p : f.passes)
-      if (p.name == "accumulate_log") pairs = p.counters.at("pairs");
-    return std::any_cast<const std::shared_ptr<const Shading>&>(f.resources.at(kDirectShading))->value;
+  req.outputs = {"final", kDirectShading, kSampleRadiance};
+  struct Run {
+    std::vector<glm::vec3> direct, samples;
+    double pairs = 0.0, sample_pairs = 0.0;
   };
-  double pairs_flat = 0.0, pairs_cut = 0.0;
-  const std::vector<glm::vec3> flat = direct({"indirect=false"}, pairs_flat);
-  const std::vector<glm::vec3> cut = direct({"indirect=false", "shadow_hierarchy=true"}, pairs_cut);
-  ASSERT_EQ(flat.size(), cut.size());
-  double sum_e = 0.0, sum_v = 0.0, worst = 0.0, peak = 0.0;
-  for (const auto& v : flat) peak = std::max(peak, static_cast<double>(v.y));
-  for (std::size_t i = 0; i < flat.size(); ++i) {
-    const double e = std::abs(static_cast<double>(cut[i].y) - flat[i].y);
-    sum_e += e;
-    sum_v += std::abs(flat[i].y);
-    worst = std::max(worst, e / peak);
-  }
-  const double mean = sum_e / sum_v;
-  std::printf("shadow hierarchy: %.0f of %.0f pairs; direct light mean difference %.2e, worst %.2e of the brightest\n", pairs_cut,
-              pairs_flat, mean, worst);
-  EXPECT_LT(pairs_cut, 0.25 * pairs_flat);
+  auto run = [&](const std::vector<std::string>& a) {
+    const render::FrameResult f = render_sl(s, a, req);
+    Run r;
+    for (const auto& p : f.passes) {
+      if (p.name == "accumulate_log") r.pairs = p.counters.at("pairs");
+      if (p.name == "accumulate_log_samples") r.sample_pairs = p.counters.at("pairs");
+    }
+    r.direct = std::any_cast<const std::shared_ptr<const Shading>&>(f.resources.at(kDirectShading))->value;
+    r.samples = std::any_cast<const std::shared_ptr<const Shading>&>(f.resources.at(kSampleRadiance))->value;
+    return r;
+  };
+  const Run flat = run({});
+  const Run cut = run({"shadow_hierarchy=true"});
+  // Mean difference relative to the mean, and the worst relative to the brightest.
+  auto compare = [](const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b, double& mean, double& worst) {
+    ASSERT_EQ(a.size(), b.size());
+    double sum_e = 0.0, sum_v = 0.0, peak = 0.0;
+    worst = 0.0;
+    for (const auto& v : a) peak = std::max(peak, static_cast<double>(v.y));
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const double e = std::abs(static_cast<double>(b[i].y) - a[i].y);
+      sum_e += e;
+      sum_v += std::abs(a[i].y);
+      worst = std::max(worst, e / peak);
+    }
+    mean = sum_e / sum_v;
+  };
+  double mean = 0.0, worst = 0.0, smean = 0.0, sworst = 0.0;
+  compare(flat.direct, cut.direct, mean, worst);
+  compare(flat.samples, cut.samples, smean, sworst);
+  std::printf("shadow hierarchy: vertices %.0f of %.0f pairs, direct light mean difference %.2e, worst %.2e of the brightest; "
+              "sample points %.0f of %.0f pairs, %.2e, %.2e\n",
+              cut.pairs, flat.pairs, mean, worst, cut.sample_pairs, flat.sample_pairs, smean, sworst);
+  EXPECT_LT(cut.pairs, 0.25 * flat.pairs);
+  EXPECT_LT(cut.sample_pairs, 0.25 * flat.sample_pairs);
   EXPECT_GT(mean, 0.0) << "the cut must take inner nodes somewhere";
+  EXPECT_GT(smean, 0.0);
   EXPECT_LT(mean, 0.01);
   EXPECT_LT(worst, 0.08);
+  EXPECT_LT(smean, 0.01);
+  EXPECT_LT(sworst, 0.08);
   EXPECT_THROW(render_sl(s, {"hierarchy=false", "shadow_hierarchy=true"}, req), std::invalid_argument);
 }
 

@@ -221,7 +221,7 @@ TEST_P(SphericalLightsParity, EveryVulkanPassMatchesTheCpuPass) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(BuiltinScenes, SphericalLightsParity, ::testing::Values("sphere_plane", "box8", "spheres", "character"));
+INSTANTIATE_TEST_SUITE_P(BuiltinScenes, SphericalLightsParity, ::testing::Values("sphere_plane", "box8", "spheres", "character", "assembly"));
 
 // accumulate_indirect under a tight loop-iteration limit (set for the test, so it runs on every
 // driver) sums each receiver's SLs over several passes through the saved state; the split changes
