@@ -11,6 +11,18 @@
 
 namespace softgi::techniques::common {
 
+double ClusterCuts::mean_size() const {
+  double sum = 0.0;
+  for (const int l : list_of_cluster) sum += static_cast<double>(lists[static_cast<std::size_t>(l)].size());
+  return list_of_cluster.empty() ? 0.0 : sum / static_cast<double>(list_of_cluster.size());
+}
+
+std::size_t ClusterCuts::max_size() const {
+  std::size_t mx = 0;
+  for (const int l : list_of_cluster) mx = std::max(mx, lists[static_cast<std::size_t>(l)].size());
+  return mx;
+}
+
 BlockerList flat_list(const std::vector<std::vector<scene::Sphere>>& sets, int order) {
   BlockerList b;
   b.order = order;

@@ -45,6 +45,9 @@ struct ClusterCuts {
     for (const auto& l : lists) b += l.bytes();
     return b;
   }
+  // Over the clusters: the mean and the largest size of their lists (0 without clusters).
+  double mean_size() const;
+  std::size_t max_size() const;
 };
 // Every leaf of every set, W = 1 (no hierarchy).
 BlockerList flat_list(const std::vector<std::vector<scene::Sphere>>& sets, int order);

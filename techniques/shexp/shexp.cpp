@@ -304,17 +304,11 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
     cuts->lists.push_back(flat_list(ctx.posed.proxies, t.acc_order));
     cuts->list_of_cluster.assign(nc, 0);
   }
-  std::size_t mx = 0, sum = 0;
-  for (int c = 0; c < nc; ++c) {
-    const std::size_t n = cuts->lists[cuts->list_of_cluster[c]].size();
-    mx = std::max(mx, n);
-    sum += n;
-  }
   auto& rec = ctx.record();
   rec.counters["clusters"] = nc;
   rec.counters["hierarchy"] = s.hierarchy;
-  rec.counters["cut_mean"] = nc ? static_cast<double>(sum) / nc : 0.0;
-  rec.counters["cut_max"] = static_cast<double>(mx);
+  rec.counters["cut_mean"] = cuts->mean_size();
+  rec.counters["cut_max"] = static_cast<double>(cuts->max_size());
   rec.counters["leaves_in_cuts"] = static_cast<double>(total.leaves);
   rec.counters["inner_in_cuts"] = static_cast<double>(total.inner);
   rec.counters["nodes_visited"] = static_cast<double>(total.nodes_visited);

@@ -736,15 +736,10 @@ void pass_shadow_cut(const Settings& s, FrameContext& ctx) {
     total.nodes_visited += cs.nodes_visited;
     total.detail_spheres += cs.detail_spheres;
   });
-  std::size_t sum = 0, mx = 0;
-  for (const auto& l : cuts->lists) {
-    sum += l.size();
-    mx = std::max(mx, l.size());
-  }
   auto& rec = ctx.record();
   rec.counters["clusters"] = nc;
-  rec.counters["cut_mean"] = nc ? static_cast<double>(sum) / nc : 0.0;
-  rec.counters["cut_max"] = static_cast<double>(mx);
+  rec.counters["cut_mean"] = cuts->mean_size();
+  rec.counters["cut_max"] = static_cast<double>(cuts->max_size());
   rec.counters["leaf_sls"] = static_cast<double>(pose.leaves);
   rec.counters["inner_in_cuts"] = static_cast<double>(total.inner);
   rec.counters["detail_spheres"] = static_cast<double>(total.detail_spheres);
@@ -792,15 +787,10 @@ void pass_sample_shadow_cut(const Settings& s, FrameContext& ctx) {
     if (count[o] > 0) cuts->lists[o] = posed.cut(pose, t, opt, centre[o], radius[o], star[o], nullptr);
     cuts->list_of_cluster[o] = static_cast<int>(o);
   });
-  std::size_t sum_l = 0, mx = 0;
-  for (const auto& l : cuts->lists) {
-    sum_l += l.size();
-    mx = std::max(mx, l.size());
-  }
   auto& rec = ctx.record();
   rec.counters["clusters"] = static_cast<double>(objects);
-  rec.counters["cut_mean"] = objects ? static_cast<double>(sum_l) / static_cast<double>(objects) : 0.0;
-  rec.counters["cut_max"] = static_cast<double>(mx);
+  rec.counters["cut_mean"] = cuts->mean_size();
+  rec.counters["cut_max"] = static_cast<double>(cuts->max_size());
   rec.counters["leaf_sls"] = static_cast<double>(pose.leaves);
   rec.bytes = cuts->bytes();
   ctx.put<std::shared_ptr<const ClusterCuts>>(kSampleShadowCuts, cuts);
