@@ -706,6 +706,17 @@ struct PosedTrees {
   }
 };
 
+// The shadow cuts with their sizes in the pass's record.
+void put_cuts(FrameContext& ctx, const char* resource, std::shared_ptr<ClusterCuts> cuts, const SlPose& pose) {
+  auto& rec = ctx.record();
+  rec.counters["clusters"] = static_cast<double>(cuts->list_of_cluster.size());
+  rec.counters["cut_mean"] = cuts->mean_size();
+  rec.counters["cut_max"] = static_cast<double>(cuts->max_size());
+  rec.counters["leaf_sls"] = static_cast<double>(pose.leaves);
+  rec.bytes = cuts->bytes();
+  ctx.put<std::shared_ptr<const ClusterCuts>>(resource, std::move(cuts));
+}
+
 CutOptions shadow_cut_options(const Settings& s) {
   CutOptions opt;
   opt.theta_max = s.theta_max;
@@ -736,15 +747,9 @@ void pass_shadow_cut(const Settings& s, FrameContext& ctx) {
     total.nodes_visited += cs.nodes_visited;
     total.detail_spheres += cs.detail_spheres;
   });
-  auto& rec = ctx.record();
-  rec.counters["clusters"] = nc;
-  rec.counters["cut_mean"] = cuts->mean_size();
-  rec.counters["cut_max"] = static_cast<double>(cuts->max_size());
-  rec.counters["leaf_sls"] = static_cast<double>(pose.leaves);
-  rec.counters["inner_in_cuts"] = static_cast<double>(total.inner);
-  rec.counters["detail_spheres"] = static_cast<double>(total.detail_spheres);
-  rec.bytes = cuts->bytes();
-  ctx.put<std::shared_ptr<const ClusterCuts>>(kShadowCuts, cuts);
+  ctx.record().counters["inner_in_cuts"] = static_cast<double>(total.inner);
+  ctx.record().counters["detail_spheres"] = static_cast<double>(total.detail_spheres);
+  put_cuts(ctx, kShadowCuts, std::move(cuts), pose);
 }
 
 // The first pass's receivers are the SLs' sample points, which have no Lloyd clusters: each
@@ -787,13 +792,7 @@ void pass_sample_shadow_cut(const Settings& s, FrameContext& ctx) {
     if (count[o] > 0) cuts->lists[o] = posed.cut(pose, t, opt, centre[o], radius[o], star[o], nullptr);
     cuts->list_of_cluster[o] = static_cast<int>(o);
   });
-  auto& rec = ctx.record();
-  rec.counters["clusters"] = static_cast<double>(objects);
-  rec.counters["cut_mean"] = cuts->mean_size();
-  rec.counters["cut_max"] = static_cast<double>(cuts->max_size());
-  rec.counters["leaf_sls"] = static_cast<double>(pose.leaves);
-  rec.bytes = cuts->bytes();
-  ctx.put<std::shared_ptr<const ClusterCuts>>(kSampleShadowCuts, cuts);
+  put_cuts(ctx, kSampleShadowCuts, std::move(cuts), pose);
 }
 
 void pass_indirect(const Settings& s, FrameContext& ctx) {
