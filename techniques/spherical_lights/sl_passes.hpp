@@ -69,7 +69,7 @@ struct Settings {
   bool indirect = true;
   int clusters = 0;  // receiver clusters (0 = automatic)
   bool hierarchy = true;  // section 7.3
-  bool shadow_hierarchy = false;  // section 7.3: the vertices' shadows from cuts (paper 004's, with ratio vectors)
+  bool shadow_hierarchy = false;  // section 7.3: the shadows from cuts (paper 004's, with ratio vectors)
   bool reflection_ratios = true;  // eq. 25
   bool lights_as_sls = true;      // section 7.3 local lights; false: paper 004's analytic lights
   double theta_max = 0.0;

@@ -678,10 +678,6 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
   ctx.put<std::shared_ptr<const SlCuts>>(kSlCuts, cuts);
 }
 
-// Section 7.3: "receiver points far away from an object use a coarser hierarchy level to calculate
-// shadows", the cut made "as in [RWS*06]": per receiver cluster, paper 004's cut (eq. 36) of each
-// object's SL hierarchy as posed this frame, with the ratio vectors of eq. 37 at its central
-// receiver p*; objects without a hierarchy (one SL) give their leaf.
 // The SL hierarchies as posed this frame, for make_cut_posed: per SlData object its tree and every
 // node's SL sphere; the leaves of objects without a tree are added to every cut.
 struct PosedTrees {
@@ -724,6 +720,10 @@ CutOptions shadow_cut_options(const Settings& s) {
   return opt;
 }
 
+// Section 7.3: "receiver points far away from an object use a coarser hierarchy level to calculate
+// shadows", the cut made "as in [RWS*06]": per receiver cluster, paper 004's cut (eq. 36) of each
+// object's SL hierarchy as posed this frame, with the ratio vectors of eq. 37 at its central
+// receiver p*; objects without a hierarchy (one SL) give their leaf.
 void pass_shadow_cut(const Settings& s, FrameContext& ctx) {
   const auto& t = *ctx.get<std::shared_ptr<const Tables>>(kTables);
   const auto& pose = *ctx.get<std::shared_ptr<const SlPose>>(kSlPose);
@@ -924,8 +924,9 @@ class SphericalLights final : public render::Technique {
                     .with_ladder({"16", "32", "64", "96"}));
     d.push_back(common::params::hierarchy("SL hierarchies cut per receiver cluster with reflection ratios (section 7.3, eqs. 25-26)"));
     d.push_back(ParamDesc::boolean("shadow_hierarchy", false,
-                                   "the vertices' shadows from each receiver cluster's cut of the SL hierarchies with paper 004's ratio "
-                                   "vectors (section 7.3, as the paper; needs hierarchy); off: every leaf SL"));
+                                   "shadows from cuts of the SL hierarchies with paper 004's ratio vectors, per receiver cluster at the "
+                                   "vertices and per object at the SLs' sample points (section 7.3, as the paper; needs hierarchy); off: "
+                                   "every leaf SL"));
     d.push_back(common::params::theta_max_deg());
     d.push_back(ParamDesc::boolean("reflection_ratios", true, "eq. 25 reflection ratios on the parents of a cut (off: t = 1)"));
     d.push_back(common::params::receiver_clusters());
