@@ -108,12 +108,7 @@ BlockerList cut(const std::vector<const proxies::SphereHierarchy*>& trees, Spher
       out.push(s.center, s.radius, w.data());
     }
   }
-  if (stats) {
-    stats->nodes_visited += st.nodes_visited;
-    stats->leaves += st.leaves;
-    stats->inner += st.inner;
-    stats->detail_spheres += st.detail_spheres;
-  }
+  if (stats) *stats += st;
   return out;
 }
 

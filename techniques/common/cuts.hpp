@@ -21,6 +21,13 @@ struct CutOptions {
 };
 struct CutStats {
   long long nodes_visited = 0, leaves = 0, inner = 0, detail_spheres = 0;
+  CutStats& operator+=(const CutStats& o) {
+    nodes_visited += o.nodes_visited;
+    leaves += o.leaves;
+    inner += o.inner;
+    detail_spheres += o.detail_spheres;
+    return *this;
+  }
 };
 // The cut for a receiver cluster bounded by (pR, rR): nodes with r_i < sin(theta_max)(|P_i - pR| - rR)
 // are taken whole, others are opened; leaves are always taken (w = 1). For each inner node taken, the

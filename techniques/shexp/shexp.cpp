@@ -293,12 +293,7 @@ void pass_cut(const Settings& s, FrameContext& ctx) {
       cuts->lists[c] = make_cut(h.trees, ctx.posed.proxies, t.log, rc.centre, rc.radius, rc.star, opt, &stats.local());
       cuts->list_of_cluster[c] = c;
     });
-    stats.combine_each([&](const CutStats& cs) {
-      total.nodes_visited += cs.nodes_visited;
-      total.leaves += cs.leaves;
-      total.inner += cs.inner;
-      total.detail_spheres += cs.detail_spheres;
-    });
+    stats.combine_each([&](const CutStats& cs) { total += cs; });
   } else {
     check_proxies(ctx);
     cuts->lists.push_back(flat_list(ctx.posed.proxies, t.acc_order));

@@ -464,14 +464,15 @@ void pass_accumulate(const Settings& s, FrameContext& ctx, Stage stage) {
   if (stage == Stage::Samples && ctx.has(kSampleShadowCuts)) {
     // Each SL's sample points sum the cut of its object (one task per SL).
     const auto& cuts = *ctx.get<std::shared_ptr<const ClusterCuts>>(kSampleShadowCuts);
+    auto list_of = [&](std::size_t i) -> const BlockerList& {
+      return cuts.lists[static_cast<std::size_t>(cuts.list_of_cluster[static_cast<std::size_t>(pose.object[i])])];
+    };
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pose.size(), 4), [&](const tbb::blocked_range<std::size_t>& sr) {
       for (std::size_t i = sr.begin(); i != sr.end(); ++i)
-        accumulate_log(s.isa, t.log, s.rule, rec, pose.sample_begin[i], pose.sample_begin[i + 1],
-                       cuts.lists[static_cast<std::size_t>(cuts.list_of_cluster[static_cast<std::size_t>(pose.object[i])])], f->v.data());
+        accumulate_log(s.isa, t.log, s.rule, rec, pose.sample_begin[i], pose.sample_begin[i + 1], list_of(i), f->v.data());
     });
     for (std::size_t i = 0; i < pose.size(); ++i)
-      pairs += static_cast<double>(pose.sample_begin[i + 1] - pose.sample_begin[i]) *
-               static_cast<double>(cuts.lists[static_cast<std::size_t>(cuts.list_of_cluster[static_cast<std::size_t>(pose.object[i])])].size());
+      pairs += static_cast<double>(pose.sample_begin[i + 1] - pose.sample_begin[i]) * static_cast<double>(list_of(i).size());
   } else if (stage == Stage::Receivers && ctx.has(kShadowCuts)) {
     // Section 7.3: each receiver cluster sums its cut (one task per cluster, as SHEXP's kernel).
     const auto& cuts = *ctx.get<std::shared_ptr<const ClusterCuts>>(kShadowCuts);
@@ -741,12 +742,7 @@ void pass_shadow_cut(const Settings& s, FrameContext& ctx) {
     cuts->list_of_cluster[c] = c;
   });
   CutStats total;
-  stats.combine_each([&](const CutStats& cs) {
-    total.leaves += cs.leaves;
-    total.inner += cs.inner;
-    total.nodes_visited += cs.nodes_visited;
-    total.detail_spheres += cs.detail_spheres;
-  });
+  stats.combine_each([&](const CutStats& cs) { total += cs; });
   ctx.record().counters["inner_in_cuts"] = static_cast<double>(total.inner);
   ctx.record().counters["detail_spheres"] = static_cast<double>(total.detail_spheres);
   put_cuts(ctx, kShadowCuts, std::move(cuts), pose);
